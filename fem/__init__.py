@@ -1,0 +1,1 @@
+"""rpud.fem: coupled piezo-elastic finite elements on scikit-fem."""

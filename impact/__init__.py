@@ -1,0 +1,1 @@
+"""rpud.impact: the free-mass collision model of the RPUD percussive system."""

@@ -1,0 +1,72 @@
+"""Shared plumbing: parameter errors, TOML round trips, atomic output, CLI error handling."""
+
+from dataclasses import dataclass, field
+
+import pytest
+
+from geometry.common import (
+    CliParser, ParameterError, atomic_output, check_positive, dump_toml, from_mapping,
+    load_toml, run_cli, to_mapping, write_json,
+)
+
+
+@dataclass(frozen=True)
+class Inner:
+    length: float = 0.01
+    count: int = 4
+
+
+@dataclass(frozen=True)
+class Outer:
+    name: str = "x"
+    inner: Inner = field(default_factory=Inner)
+    sizes: tuple[float, ...] = (1.0, 2.0)
+
+    def __post_init__(self):
+        check_positive("inner.length", self.inner.length, "m")
+
+
+def test_toml_round_trip(tmp_path):
+    obj = Outer(name="y", inner=Inner(0.02, 6), sizes=(3.0,))
+    path = tmp_path / "o.toml"
+    path.write_text(dump_toml(to_mapping(obj)))
+    assert from_mapping(Outer, load_toml(path)) == obj
+
+
+def test_unknown_key_and_bad_value_name_the_parameter():
+    with pytest.raises(ParameterError, match=r"inner\.lenght"):
+        from_mapping(Outer, {"inner": {"lenght": 1.0}})
+    with pytest.raises(ParameterError, match=r"inner\.length = -1\.0: must be a finite number > 0 m"):
+        from_mapping(Outer, {"inner": {"length": -1.0}})
+    with pytest.raises(ParameterError, match=r"inner\.count"):
+        from_mapping(Outer, {"inner": {"count": "four"}})
+
+
+def test_atomic_output_leaves_nothing_on_failure(tmp_path):
+    target = tmp_path / "out.json"
+    with pytest.raises(RuntimeError):
+        with atomic_output(target) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("boom")
+    assert list(tmp_path.iterdir()) == []
+    write_json(target, {"a": 1})
+    assert target.read_text().strip().startswith("{")
+    assert [p.name for p in tmp_path.iterdir()] == ["out.json"]
+
+
+def test_run_cli_turns_parameter_error_into_one_line(capsys):
+    def main(argv):
+        raise ParameterError("m_free", -1.0, "must be > 0 kg")
+
+    assert run_cli(main, [], prog="x") == 2
+    err = capsys.readouterr().err
+    assert err == "x: error: m_free = -1.0: must be > 0 kg\n"
+
+
+def test_cli_parser_usage_error_is_one_line(capsys):
+    p = CliParser(prog="y")
+    p.add_argument("--n", type=int)
+    with pytest.raises(SystemExit) as exc:
+        p.parse_args(["--n", "abc"])
+    assert exc.value.code == 2
+    assert capsys.readouterr().err.count("\n") == 1
