@@ -1,0 +1,573 @@
+"""Assembly of the coupled piezo-elastic system on a :class:`geometry.mesh.TaggedMesh`.
+
+Fields
+------
+* displacement ``u``: vector P2 (``ElementVector(ElementTetP2())``) on the whole mesh
+  (``order=1``: P1). Node numbering = skfem's scalar P2 numbering (vertices, then edges);
+  u DOF of node ``k``, component ``c`` is ``3 k + c`` (skfem interleaves the components; checked
+  in the tests against ``basis_u.element_dofs``).
+* electric potential ``phi``: scalar P2 on the piezoceramic cells only (nodes not touched by a
+  ceramic cell carry no potential). Electrodes are equipotential: every node of every ``hot``
+  electrode is tied into ONE unknown ``V_hot``; nodes of ``ground`` electrodes are fixed at 0 V
+  and eliminated. A mesh with ceramic needs at least one ground electrode.
+
+Scaling and DOF layout
+----------------------
+Potential unknowns are scaled, ``phi = phi_scale * phi~`` (``phi_scale`` in V/m: a power of ten
+close to ``sqrt(mean diag K_uu / mean diag K_phiphi)`` over the ceramic nodes, so that the
+potential block has the magnitude of the stiffness block; unscaled the blocks differ by ~20
+orders of magnitude). The global vector is::
+
+    x = [ u (n_u = 3 n_nodes) | phi~ interior (n_phi) | V~_hot (1 if any hot electrode) ]
+
+``u_dofs``/``phi_dofs`` are slices, ``hot_dof`` an int or None. ``phi_nodes`` gives the
+scalar node of each interior potential unknown.
+
+Matrices and sign convention
+----------------------------
+``K = [[K_uu, s K_uphi], [s K_uphi^T, -s^2 K_phiphi]]`` (symmetric, indefinite), with
+``K_uu = int B^T c_E B``, ``K_uphi = int B^T e^T grad(N)``, ``K_phiphi = int grad(N)^T eps_S grad(N)``
+(positive definite), ``s = phi_scale``. The equations are ``(K - w^2 M) x = [f; -s Q]``: the
+potential rows carry minus the free electrode charge; interior rows have zero charge and the hot
+row carries ``-s Q_hot``. Hence :meth:`PiezoSystem.charge` returns
+``Q_hot = -(K[hot] @ x) / s`` (Coulomb; positive when the hot electrode is at a positive voltage
+on a blocked capacitor: ``Q = C V``).
+``M`` is the consistent mass with zero rows/columns for the potential.
+``K_loss`` is the hysteretic imaginary part: ``sum_region K_uu^region / Q_region`` plus
+``+tan(delta) s^2 K_phiphi`` in the potential block, so that ``K + j K_loss`` represents
+``c (1 + j/Q)`` and ``eps (1 - j tan(delta))`` (time factor ``exp(+j w t)``; both dissipate).
+
+Electrical/mechanical boundary conditions
+-----------------------------------------
+``free_dofs(electrical="short"|"open", clamp=())``: ``short`` removes ``V_hot`` (all electrodes
+at 0 V: resonance), ``open`` keeps it free (zero net charge is the natural condition:
+anti-resonance). ``clamp`` names facet sets whose u DOFs are fixed. Free-free is the default.
+``split(clamp=())`` prepares a driven problem (harmonic/transient): it returns the reduced
+matrices without the hot DOF and the load columns ``K[:, hot]``, ``K_loss[:, hot]``; for a
+voltage ``V`` the right-hand side is ``-(k_hot + j l_hot) V / s`` (see :class:`Split`).
+
+Quadrature
+----------
+Minimal exact orders on straight (affine) tetrahedra: stiffness/coupling/permittivity order
+``2p - 2`` (2 for P2: 4 points), mass ``2p`` (4 for P2). On curved (10-node) geometry the
+integrands are rational: stiffness order 4 and mass order 5 (all-positive 14-point rule).
+Override with ``intorder=(k, m)``.
+
+Fast path
+---------
+Element matrices of a whole region are built at once with numpy (B-matrix form, batched
+matmul) from the precomputed ``CellBasis`` gradients and ``dx``; they are summed into a
+block-CSR (3x3 node blocks) pattern computed once (``np.unique`` of the node pairs) with
+``np.bincount``. ``assemble(..., reference=True)`` builds the same matrices with plain
+scikit-fem ``BilinearForm``/``asm`` (the baseline of the tests and the benchmark).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry.common import ParameterError, check_choice
+from geometry.mesh import TaggedMesh
+
+from .materials import elastic_matrix, piezo_matrices, resolve
+
+__all__ = ["assemble", "PiezoSystem", "Split", "RegionData"]
+
+log = logging.getLogger(__name__)
+
+_CHUNK = 4000
+
+
+@dataclass(frozen=True)
+class RegionData:
+    """Constitutive data of one region in mesh coordinates."""
+
+    name: str
+    material: str
+    piezo: bool
+    density: float
+    q_mech: float
+    tan_delta: float
+    c: np.ndarray
+    e: np.ndarray | None
+    eps: np.ndarray | None
+
+
+def _region_data(tm: TaggedMesh, library) -> list[RegionData]:
+    out = []
+    for r in tm.regions:
+        m = resolve(r.material, library)
+        if m.is_piezo:
+            if r.poling is None:
+                raise ParameterError(f"regions.{r.name}.poling", None,
+                                     "a piezoceramic region needs a poling direction")
+            pc = piezo_matrices(m, r.poling)
+            out.append(RegionData(r.name, m.name, True, m.density, m.q_mech, m.tan_delta,
+                                  pc.c_E, pc.e, pc.eps_S))
+        else:
+            out.append(RegionData(r.name, m.name, False, m.density, m.q_mech, 0.0,
+                                  elastic_matrix(m), None, None))
+    return out
+
+
+@dataclass
+class _Blocks:
+    """Unscaled blocks numbered by scalar nodes (u: 3 k + c)."""
+
+    Kuu: sp.csr_matrix
+    Luu: sp.csr_matrix
+    Muu: sp.csr_matrix
+    Kup: sp.csr_matrix   # (3n, n)
+    Kpp: sp.csr_matrix   # (n, n)
+    Lpp: sp.csr_matrix   # tan_delta-weighted Kpp
+
+
+def _stack_grads(basis, nloc):
+    return np.stack([basis.basis[a][0].grad for a in range(nloc)])  # (nloc, 3, nel, nq)
+
+
+def _b_matrix(g):
+    """Voigt strain-displacement matrix from scalar gradients g (E, nq, 3, nloc) ->
+    (E, nq, 6, 3*nloc), columns ordered (node a, component i) -> 3a + i."""
+    E, nq, _, nloc = g.shape
+    B = np.zeros((E, nq, 6, nloc, 3))
+    B[:, :, 0, :, 0] = g[:, :, 0]
+    B[:, :, 1, :, 1] = g[:, :, 1]
+    B[:, :, 2, :, 2] = g[:, :, 2]
+    B[:, :, 3, :, 1] = g[:, :, 2]
+    B[:, :, 3, :, 2] = g[:, :, 1]
+    B[:, :, 4, :, 0] = g[:, :, 2]
+    B[:, :, 4, :, 2] = g[:, :, 0]
+    B[:, :, 5, :, 0] = g[:, :, 1]
+    B[:, :, 5, :, 1] = g[:, :, 0]
+    return B.reshape(E, nq, 6, 3 * nloc)
+
+
+def _blocks_fast(bk, bm, rdata, cell_region) -> _Blocks:
+    edofs = np.ascontiguousarray(bk.element_dofs.T)  # (nel, nloc)
+    nel, nloc = edofs.shape
+    n = bk.N
+    # scalar node-pair pattern, sorted CSR, and the position of every element entry in it
+    rows = np.repeat(edofs, nloc, axis=1).astype(np.int64)
+    cols = np.tile(edofs, (1, nloc)).astype(np.int64)
+    keys, pos = np.unique((rows * n + cols).ravel(), return_inverse=True)
+    pos = pos.reshape(nel, nloc * nloc)
+    nnzb = len(keys)
+    indices = (keys % n).astype(np.int32)
+    indptr = np.zeros(n + 1, dtype=np.int64)
+    np.cumsum(np.bincount(keys // n, minlength=n), out=indptr[1:])
+    del rows, cols, keys
+
+    G = _stack_grads(bk, nloc)            # (nloc, 3, nel, nq)
+    dxk = bk.dx                           # (nel, nq)
+    V = np.stack([bm.basis[a][0].value for a in range(nloc)])  # (nloc, nel, nq)
+    dxm = bm.dx
+
+    kuu = np.zeros((nnzb, 9))
+    luu = np.zeros((nnzb, 9))
+    muu = np.zeros(nnzb)
+    kup = np.zeros((nnzb, 3))
+    kpp = np.zeros(nnzb)
+    lpp = np.zeros(nnzb)
+
+    def acc(target, p, vals):
+        if vals.ndim == 1:
+            target += np.bincount(p, weights=vals, minlength=nnzb)
+        else:
+            for c in range(vals.shape[1]):
+                target[:, c] += np.bincount(p, weights=vals[:, c], minlength=nnzb)
+
+    for ri, rd in enumerate(rdata):
+        cells = np.flatnonzero(cell_region == ri)
+        for start in range(0, len(cells), _CHUNK):
+            idx = cells[start:start + _CHUNK]
+            E = len(idx)
+            p = pos[idx].ravel()
+            g = G[:, :, idx, :].transpose(2, 3, 1, 0)          # (E, nq, 3, nloc)
+            nq = g.shape[1]
+            w = dxk[idx]
+            B = _b_matrix(g)                                     # (E, nq, 6, 3nloc)
+            Bw = (B * w[:, :, None, None]).reshape(E, nq * 6, 3 * nloc)
+            CB = np.matmul(rd.c, B).reshape(E, nq * 6, 3 * nloc)
+            Ke = np.matmul(Bw.transpose(0, 2, 1), CB)           # (E, 3nloc, 3nloc)
+            blocks = Ke.reshape(E, nloc, 3, nloc, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)
+            acc(kuu, p, blocks)
+            if np.isfinite(rd.q_mech):
+                acc(luu, p, blocks / rd.q_mech)
+            # mass (scalar, expanded to 3x3 identity blocks later)
+            v = V[:, idx, :]                                     # (nloc, E, nq)
+            vw = (v * dxm[idx][None]).transpose(1, 0, 2)         # (E, nloc, nq)
+            Me = rd.density * np.matmul(vw, v.transpose(1, 2, 0))  # (E, nloc, nloc)
+            acc(muu, p, Me.ravel())
+            if rd.piezo:
+                eTg = np.matmul(rd.e.T, g).reshape(E, nq * 6, nloc)     # (E, nq*6, nloc)
+                Kup_e = np.matmul(Bw.transpose(0, 2, 1), eTg)           # (E, 3nloc, nloc)
+                acc(kup, p, Kup_e.reshape(E, nloc, 3, nloc).transpose(0, 1, 3, 2).reshape(-1, 3))
+                gw = (g * w[:, :, None, None]).reshape(E, nq * 3, nloc)
+                epsg = np.matmul(rd.eps, g).reshape(E, nq * 3, nloc)
+                Kpp_e = np.matmul(gw.transpose(0, 2, 1), epsg).ravel()
+                acc(kpp, p, Kpp_e)
+                if rd.tan_delta:
+                    acc(lpp, p, rd.tan_delta * Kpp_e)
+
+    def bsr3(data):
+        return sp.bsr_matrix((data.reshape(-1, 3, 3), indices, indptr), shape=(3 * n, 3 * n)).tocsr()
+
+    eye = np.eye(3).ravel()
+    return _Blocks(
+        Kuu=bsr3(kuu), Luu=bsr3(luu), Muu=bsr3(muu[:, None] * eye[None, :]),
+        Kup=sp.bsr_matrix((kup.reshape(-1, 3, 1), indices, indptr), shape=(3 * n, n)).tocsr(),
+        Kpp=sp.csr_matrix((kpp, indices, indptr), shape=(n, n)),
+        Lpp=sp.csr_matrix((lpp, indices, indptr), shape=(n, n)),
+    )
+
+
+def _voigt(Eps):
+    return np.array([Eps[0, 0], Eps[1, 1], Eps[2, 2], 2 * Eps[1, 2], 2 * Eps[0, 2], 2 * Eps[0, 1]])
+
+
+def _blocks_reference(mesh, elem, qk, qm, rdata, cell_region) -> _Blocks:
+    """The same blocks with plain scikit-fem BilinearForm assembly (baseline)."""
+    from skfem import Basis, BilinearForm, ElementVector, asm
+    from skfem.helpers import dot, grad, sym_grad
+
+    n = Basis(mesh, elem, intorder=1).N
+    Kuu = sp.csr_matrix((3 * n, 3 * n))
+    Luu, Muu = Kuu.copy(), Kuu.copy()
+    Kup = sp.csr_matrix((3 * n, n))
+    Kpp = sp.csr_matrix((n, n))
+    Lpp = Kpp.copy()
+    for ri, rd in enumerate(rdata):
+        cells = np.flatnonzero(cell_region == ri)
+        if len(cells) == 0:
+            continue
+        bu = Basis(mesh, ElementVector(elem), elements=cells, intorder=qk)
+        bum = Basis(mesh, ElementVector(elem), elements=cells, intorder=qm)
+        C = rd.c
+
+        @BilinearForm
+        def kuu(u, v, w):
+            return np.einsum("i...,ij,j...->...", _voigt(sym_grad(v)), C, _voigt(sym_grad(u)))
+
+        @BilinearForm
+        def mass(u, v, w):
+            return rd.density * dot(u, v)
+
+        K = asm(kuu, bu)
+        Kuu = Kuu + K
+        if np.isfinite(rd.q_mech):
+            Luu = Luu + K / rd.q_mech
+        Muu = Muu + asm(mass, bum)
+        if rd.piezo:
+            bp = Basis(mesh, elem, elements=cells, intorder=qk)
+            eT, eps = rd.e.T, rd.eps
+
+            @BilinearForm
+            def kup(phi, v, w):
+                return np.einsum("i...,ij,j...->...", _voigt(sym_grad(v)), eT, grad(phi))
+
+            @BilinearForm
+            def kpp(phi, psi, w):
+                return np.einsum("i...,ij,j...->...", grad(psi), eps, grad(phi))
+
+            Kup = Kup + asm(kup, bp, bu)
+            Kp = asm(kpp, bp)
+            Kpp = Kpp + Kp
+            Lpp = Lpp + rd.tan_delta * Kp
+    return _Blocks(Kuu.tocsr(), Luu.tocsr(), Muu.tocsr(), Kup.tocsr(), Kpp.tocsr(), Lpp.tocsr())
+
+
+@dataclass
+class Split:
+    """A driven problem with ``V_hot`` prescribed (harmonic / transient analyses).
+
+    ``free``: global indices of the unknowns kept (u without clamped DOFs, interior potential);
+    ``K``, ``M``, ``K_loss``: the matrices on ``free``; ``k_hot = K[free, hot]`` and
+    ``l_hot = K_loss[free, hot]`` (dense vectors). For a hot-electrode voltage ``V`` (volts,
+    complex amplitude allowed) solve ``(K + j K_loss - w^2 M) x_f = f_f - (k_hot + j l_hot) V / s``
+    with ``s = phi_scale`` (use :meth:`rhs`), then :meth:`PiezoSystem.expand` rebuilds ``x``.
+    """
+
+    free: np.ndarray
+    K: sp.csr_matrix
+    M: sp.csr_matrix
+    K_loss: sp.csr_matrix
+    k_hot: np.ndarray
+    l_hot: np.ndarray
+    phi_scale: float
+
+    def rhs(self, volts: complex = 1.0, lossy: bool = True) -> np.ndarray:
+        """Load vector on ``free`` for the hot electrode at ``volts`` (no mechanical load)."""
+        col = self.k_hot + (1j * self.l_hot if lossy else 0.0)
+        out = -col * (volts / self.phi_scale)
+        return out if np.iscomplexobj(out) and np.any(np.imag(out)) else np.real(out)
+
+
+@dataclass(eq=False)
+class PiezoSystem:
+    """The assembled coupled system (see the module docstring for layout and conventions)."""
+
+    mesh: TaggedMesh
+    skmesh: object
+    basis: object          # scalar CellBasis (P2), the node numbering
+    basis_u: object        # vector CellBasis (ElementVector(P2))
+    nodes: np.ndarray      # (n_nodes, 3) coordinates of the scalar nodes
+    K: sp.csr_matrix
+    M: sp.csr_matrix
+    K_loss: sp.csr_matrix
+    n_u: int
+    n_phi: int
+    hot_dof: int | None
+    phi_scale: float
+    phi_nodes: np.ndarray  # scalar node of each interior potential unknown
+    hot_nodes: np.ndarray
+    ground_nodes: np.ndarray
+    regions: list[RegionData]
+    order: int
+    intorder: tuple[int, int]
+    timings: dict = field(default_factory=dict)
+
+    # ------------------------------------------------------------------ layout
+    @property
+    def n_nodes(self) -> int:
+        return len(self.nodes)
+
+    @property
+    def ndof(self) -> int:
+        return self.K.shape[0]
+
+    @property
+    def u_dofs(self) -> slice:
+        return slice(0, self.n_u)
+
+    @property
+    def phi_dofs(self) -> slice:
+        return slice(self.n_u, self.n_u + self.n_phi)
+
+    @property
+    def has_piezo(self) -> bool:
+        return any(r.piezo for r in self.regions)
+
+    def displacement(self, x: np.ndarray) -> np.ndarray:
+        """u part of ``x`` as (n_nodes, 3) (or (k, n_nodes, 3) for x of shape (ndof, k))."""
+        x = np.asarray(x)
+        if x.ndim == 2:
+            return x[: self.n_u].T.reshape(x.shape[1], self.n_nodes, 3)
+        return x[: self.n_u].reshape(self.n_nodes, 3)
+
+    def potential(self, x: np.ndarray) -> np.ndarray:
+        """Nodal potential in volts (n_nodes,), NaN where there is no ceramic."""
+        x = np.asarray(x)
+        out = np.full(self.n_nodes, np.nan, dtype=np.result_type(x.dtype, float))
+        out[self.ground_nodes] = 0.0
+        out[self.phi_nodes] = x[self.phi_dofs] * self.phi_scale
+        if self.hot_dof is not None:
+            out[self.hot_nodes] = x[self.hot_dof] * self.phi_scale
+        return out
+
+    def expand(self, x_free: np.ndarray, free: np.ndarray, v_hot: complex = 0.0) -> np.ndarray:
+        """Full vector from the values on ``free`` and the hot-electrode voltage (volts)."""
+        x_free = np.asarray(x_free)
+        dtype = np.result_type(x_free.dtype, np.asarray(v_hot).dtype, float)
+        shape = (self.ndof,) + x_free.shape[1:]
+        x = np.zeros(shape, dtype=dtype)
+        x[free] = x_free
+        if self.hot_dof is not None and self.hot_dof not in set(np.asarray(free).tolist()):
+            x[self.hot_dof] = v_hot / self.phi_scale
+        return x
+
+    def surface_nodes(self, name: str) -> np.ndarray:
+        """Sorted scalar (P2) node indices on the facet set ``name``."""
+        facets = self.skmesh.boundaries.get(name) if self.skmesh.boundaries else None
+        if facets is None:
+            self.mesh.facets(name)  # raises the clear ParameterError
+        return np.unique(self.basis.get_dofs(facets=facets).all())
+
+    def dofs_on(self, name: str, components: Iterable[int] = (0, 1, 2)) -> np.ndarray:
+        """Global u DOF indices on the facet set ``name`` for the given components (0=x,1=y,2=z)."""
+        comps = np.asarray(list(components), dtype=np.int64)
+        if comps.size == 0 or comps.min() < 0 or comps.max() > 2:
+            raise ParameterError("components", tuple(comps), "must be a subset of (0, 1, 2)")
+        nodes = self.surface_nodes(name)
+        return np.sort((3 * nodes[:, None] + comps[None, :]).ravel())
+
+    # ------------------------------------------------------------------ BCs
+    def free_dofs(self, electrical: str = "short", clamp: Iterable[str] = ()) -> np.ndarray:
+        """Indices kept for an electrical state (``short``: V_hot = 0 removed; ``open``: V_hot
+        free) and clamped facet sets (all u components fixed)."""
+        check_choice("electrical", electrical, ("short", "open", "driven"))
+        keep = np.ones(self.ndof, dtype=bool)
+        if self.hot_dof is not None and electrical in ("short", "driven"):
+            keep[self.hot_dof] = False
+        for name in (clamp if not isinstance(clamp, str) else (clamp,)):
+            keep[self.dofs_on(name)] = False
+        return np.flatnonzero(keep)
+
+    def reduce(self, electrical: str = "short", clamp: Iterable[str] = ()):
+        """``(K_r, M_r, free)``: the matrices restricted to :meth:`free_dofs`."""
+        free = self.free_dofs(electrical, clamp)
+        return _sub(self.K, free), _sub(self.M, free), free
+
+    def split(self, clamp: Iterable[str] = ()) -> Split:
+        """The driven problem (hot voltage prescribed); see :class:`Split`."""
+        if self.hot_dof is None:
+            raise ParameterError("electrodes", "none hot", "a driven problem needs a hot electrode")
+        free = self.free_dofs("driven", clamp)
+        kh = np.asarray(self.K[:, [self.hot_dof]].toarray()).ravel()[free]
+        lh = np.asarray(self.K_loss[:, [self.hot_dof]].toarray()).ravel()[free]
+        return Split(free, _sub(self.K, free), _sub(self.M, free), _sub(self.K_loss, free), kh, lh,
+                     self.phi_scale)
+
+    # ------------------------------------------------------------------ electrical
+    def charge(self, x: np.ndarray, lossy: bool | None = None) -> complex:
+        """Free charge on the hot electrode (C) for a solution ``x`` (``-(K[hot] x)/s``; with
+        ``lossy`` (default: when x is complex) the row of ``K + j K_loss`` is used)."""
+        if self.hot_dof is None:
+            raise ParameterError("electrodes", "none hot", "no hot electrode to carry a charge")
+        x = np.asarray(x)
+        if lossy is None:
+            lossy = np.iscomplexobj(x)
+        row = self.K[self.hot_dof] @ x
+        if lossy:
+            row = row + 1j * (self.K_loss[self.hot_dof] @ x)
+        q = -row / self.phi_scale
+        return q.item() if np.ndim(q) == 0 or np.size(q) == 1 else q
+
+    def capacitance_static(self, mechanical: str = "blocked", clamp: Iterable[str] = (),
+                           backend: str | None = None) -> float:
+        """Static capacitance (F) between hot and ground electrodes.
+
+        ``mechanical="blocked"``: u = 0 (clamped capacitance C^S, purely dielectric).
+        ``mechanical="free"``: the coupled static capacitance of the free (or ``clamp``-ed) body,
+        i.e. the low-frequency limit of I/(j w V) below the first resonance (rigid-body modes are
+        not excited by the self-equilibrated piezo forces; a tiny mass shift (1 Hz)^2 regularises
+        the free-free stiffness, relative error ~ (1 Hz / f_1)^2).
+        """
+        from .solvers import factorize
+
+        check_choice("mechanical", mechanical, ("blocked", "free"))
+        if self.hot_dof is None:
+            raise ParameterError("electrodes", "none hot", "no hot electrode")
+        if mechanical == "blocked":
+            free = np.arange(self.n_u, self.n_u + self.n_phi)
+            A = _sub(self.K, free)
+        else:
+            free = self.free_dofs("driven", clamp)
+            A = (_sub(self.K, free) + (2 * np.pi) ** 2 * _sub(self.M, free)).tocsr()
+        col = np.asarray(self.K[:, [self.hot_dof]].toarray()).ravel()[free]
+        v = 1.0 / self.phi_scale
+        xf = factorize(A, backend=backend)(-col * v) if len(free) else np.zeros(0)
+        x = self.expand(xf, free, 1.0)
+        return float(np.real(self.charge(x, lossy=False)))
+
+
+def _sub(A, idx):
+    return A[idx][:, idx].tocsr()
+
+
+def _electrode_nodes(tm: TaggedMesh, basis, skmesh, role) -> np.ndarray:
+    out = [np.zeros(0, dtype=np.int64)]
+    for el in tm.electrodes:
+        if el.role == role:
+            out.append(np.asarray(basis.get_dofs(facets=skmesh.boundaries[el.name]).all(), dtype=np.int64))
+    return np.unique(np.concatenate(out))
+
+
+def _default_intorder(p: int, curved: bool) -> tuple[int, int]:
+    if curved:
+        return (2 * p, 2 * p + 1)
+    return (2 * p - 2, 2 * p)
+
+
+def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None,
+             intorder: tuple[int, int] | None = None, reference: bool = False) -> PiezoSystem:
+    """Assemble the coupled system of ``mesh`` (see the module docstring).
+
+    Parameters
+    ----------
+    mesh : TaggedMesh
+    order : 1 or 2
+        Polynomial order of the displacement and potential fields.
+    library : mapping of material records, optional
+        Default: the built-in library (``fem.materials.load_materials``).
+    intorder : (stiffness, mass) quadrature orders, optional
+    reference : bool
+        Use plain scikit-fem ``BilinearForm`` assembly (slow baseline) instead of the fast path.
+    """
+    from skfem import CellBasis, ElementTetP1, ElementTetP2, ElementVector
+
+    if order not in (1, 2):
+        raise ParameterError("order", order, "must be 1 or 2")
+    t0 = time.perf_counter()
+    rdata = _region_data(mesh, library)
+    skmesh = mesh.to_skfem()
+    elem = ElementTetP2() if order == 2 else ElementTetP1()
+    qk, qm = intorder or _default_intorder(order, mesh.order == 2)
+    bk = CellBasis(skmesh, elem, intorder=qk)
+    t1 = time.perf_counter()
+    if reference:
+        blocks = _blocks_reference(skmesh, elem, qk, qm, rdata, mesh.cell_region)
+    else:
+        bm = CellBasis(skmesh, elem, intorder=qm)
+        blocks = _blocks_fast(bk, bm, rdata, mesh.cell_region)
+    t2 = time.perf_counter()
+    n = bk.N
+    n_u = 3 * n
+
+    piezo_regions = [i for i, r in enumerate(rdata) if r.piezo]
+    if piezo_regions:
+        pcells = np.flatnonzero(np.isin(mesh.cell_region, piezo_regions))
+        pnodes = np.unique(bk.element_dofs[:, pcells])
+        hot = np.intersect1d(_electrode_nodes(mesh, bk, skmesh, "hot"), pnodes)
+        ground = np.intersect1d(_electrode_nodes(mesh, bk, skmesh, "ground"), pnodes)
+        if len(ground) == 0:
+            raise ParameterError("electrodes", [e.name for e in mesh.electrodes],
+                                 "a mesh with piezoceramic needs a ground electrode touching it")
+        both = np.intersect1d(hot, ground)
+        if len(both):
+            raise ParameterError("electrodes", f"{len(both)} shared nodes",
+                                 "hot and ground electrodes must not touch")
+        interior = np.setdiff1d(pnodes, np.union1d(hot, ground))
+    else:
+        hot = ground = interior = np.zeros(0, dtype=np.int64)
+    n_phi = len(interior)
+    has_hot = len(hot) > 0
+    nr = n_phi + int(has_hot)
+    rows = np.concatenate([interior, hot])
+    cols = np.concatenate([np.arange(n_phi), np.full(len(hot), n_phi)])
+    T = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, nr))
+
+    if nr:
+        dk = blocks.Kuu.diagonal().reshape(n, 3)[interior].mean()
+        dp = blocks.Kpp.diagonal()[interior].mean() if n_phi else blocks.Kpp.diagonal()[hot].mean()
+        phi_scale = float(10.0 ** np.round(np.log10(np.sqrt(dk / dp))))
+    else:
+        phi_scale = 1.0
+    s = phi_scale
+    Kup = (blocks.Kup @ T) * s
+    Kpp = (T.T @ blocks.Kpp @ T) * (s * s)
+    Lpp = (T.T @ blocks.Lpp @ T) * (s * s)
+    K = sp.bmat([[blocks.Kuu, Kup], [Kup.T, -Kpp]], format="csr") if nr else blocks.Kuu.tocsr()
+    Z = sp.csr_matrix((nr, nr))
+    M = sp.block_diag((blocks.Muu, Z), format="csr") if nr else blocks.Muu.tocsr()
+    L = sp.block_diag((blocks.Luu, Lpp), format="csr") if nr else blocks.Luu.tocsr()
+    for A in (K, M, L):
+        A.sum_duplicates()
+        A.sort_indices()
+    t3 = time.perf_counter()
+    basis_u = CellBasis(skmesh, ElementVector(elem), intorder=qk)
+    timings = {"setup_s": t1 - t0, "element_matrices_s": t2 - t1, "reduction_s": t3 - t2,
+               "assembly_s": t3 - t0}
+    log.info("assembled %d DOFs (%d u, %d phi%s) in %.2f s (%s)", K.shape[0], n_u, n_phi,
+             " + V_hot" if has_hot else "", t3 - t0, "reference skfem" if reference else "fast")
+    return PiezoSystem(
+        mesh=mesh, skmesh=skmesh, basis=bk, basis_u=basis_u, nodes=bk.doflocs.T.copy(),
+        K=K, M=M, K_loss=L, n_u=n_u, n_phi=n_phi, hot_dof=(n_u + n_phi) if has_hot else None,
+        phi_scale=phi_scale, phi_nodes=interior, hot_nodes=hot, ground_nodes=ground,
+        regions=rdata, order=order, intorder=(qk, qm), timings=timings)
