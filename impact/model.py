@@ -1,0 +1,654 @@
+"""Event-driven simulation of the RPUD percussive system: horn -> free mass -> drill tool.
+
+Model (article section 3, assumptions 1-5)
+------------------------------------------
+Axis x along the drill, from the horn tip toward the drill tool; ``g`` acts along +x (drill
+pointing down pulls the free mass toward the tool; set ``g = 0`` for space, negative for a
+drill pointing up).
+
+* Horn tip: kinematic driver ``u(t) = A0 cos(2 pi f t)``, unaffected by impacts (eq. 1-2).
+* Free mass (point mass m_w; its length is subtracted into the gap): free flight
+  ``w'' = a = g - F_spring / m_w`` (``F_spring`` = optional restoring spring toward the horn,
+  0 by default, taken constant over the stroke: the device's soft preloaded spring).
+* Drill tool: damped oscillator ``m_v v'' + c v' + k0 v = 0`` about its rest position; its face
+  is at ``x = L0 + v(t)``. Gravity on the tool is balanced by k0 in the rest position.
+* Contacts: gap to horn ``g_h = w - u >= 0``, gap to tool ``g_t = L0 + v - w >= 0``.
+* Tool impact (eq. 11-13, restitution e1, momentum conserved).
+* Horn impact (eq. 19-21, restitution e2). With the default ``horn_law="kinematic"`` the horn
+  is an infinite-mass driver (assumption 1): ``w+ = u' - e2 (w- - u')``. ``horn_law="article"``
+  keeps eq. 21 as printed: ``w+ = w- - m_u/(m_u+m_w) (1+e2)(w- - u')`` with the horn's velocity
+  unchanged (an effective-mass reading of the horn tip during the microsecond impact).
+* Initial state (t = 0): horn at u(0) = A0 with zero velocity, the free mass just leaving it,
+  ``w(0) = A0``, ``w'(0) = v0`` toward the tool (the article starts just after a horn impact;
+  starting at rest on the horn with gravity toward the tool never reaches the horn again);
+  tool at rest, ``v = v' = 0``.
+
+Corrections to the article's equations
+--------------------------------------
+1. Eq. 4 repeats the term ``w'_{k-1}(t - t_{k-1})`` and drops the initial position: the
+   flight is ``w(t) = u(t_{k-1}) + w'_{k-1}(t - t_{k-1}) + (a/2)(t - t_{k-1})^2``.
+2. Eq. 3-5/14-15 write gravity as ``-g`` with an axis whose direction is not fixed; here the
+   axis is fixed (horn -> tool) and gravity is ``+g`` along it, a single sign used everywhere.
+3. Eq. 7 uses absolute time t in ``exp(-zeta wn t) sin(wd t + phi)`` with initial values taken
+   at t_{i-1}: the time origin must be the last impact, ``s = t - t_{i-1}``; with
+   ``tan phi = wd v / (v' + zeta wn v)`` the amplitude is ``sqrt(v^2 + ((v' + zeta wn v)/wd)^2)``
+   (consistent); we use the equivalent complex form ``v = Re(C exp(lambda s))``.
+4. Eq. 8-9: the contact condition is tool face = free mass, ``L0 + v(t_i) = w(t_i)``: the gap
+   L0 is missing, and eq. 9's right side repeats eq. 4's typo (``w'_{k-1}`` in place of the
+   start position).
+5. Eq. 10: the free-mass velocity is ``w' - g(t - t_k)`` (article: ``+g/2``); the tool velocity
+   uses the amplitude of the current flight (article: ``v_0``, ``v'_0``) and the time since the
+   last impact.
+6. Eq. 12 and 20 are written with the sign convention "separation speed over approach speed";
+   we use ``(w+ - v+) = -e1 (w- - v-)``, identical in content.
+7. Eq. 15: ``w(t_i) = L0 + v(t_i)`` (the gap again).
+8. Eq. 17: the right side must be the free-mass flight of eq. 15
+   ``L0 + v(t_i) + w'_i (t - t_i) + (a/2)(t - t_i)^2``; the article substitutes the tool's
+   *velocity* expression of eq. 10 for the position.
+9. Eq. 21: the horn's velocity is unchanged, ``u'+ = u'`` (article: ``= v_k``, the tool).
+   Under assumption 1 the horn is an infinite-mass driver, so the factor
+   ``m_u / (m_u + m_w)`` becomes 1 (our default); eq. 21 as printed is available as
+   ``horn_law="article"``.
+
+Chattering and sticking
+-----------------------
+When an impact leaves a relative speed below ``v_stick`` (default 1e-6 m/s) and the contact
+force needed to keep the bodies together is compressive, the free mass sticks:
+* on the horn it moves with the horn, ``w = u``, while the horn accelerates toward the tool
+  faster than the free mass would fall, ``u'' > a``; it separates (zero relative speed) at the
+  analytic time where ``u''`` drops below ``a``;
+* on the tool the pair moves as one damped oscillator of mass ``m_v + m_w`` loaded by
+  ``m_w a``; it separates where the tool's acceleration exceeds ``a``.
+Each chattering sequence therefore ends after finitely many impacts (relative speeds fall by
+the factor e each time until below ``v_stick``). With e = 1 there is no chattering. A free mass
+pinched between horn and tool raises :class:`SimulationError`.
+
+Event finding (no missed impacts)
+---------------------------------
+Each contact function f(t) (gap, or contact force for a release) has an analytic bound B on
+|f''| over the current flight (horn: A0 w^2; tool: |C| wn^2 from the complex amplitude;
+free mass: |a|). On a grid of step h, an interval [ta, tb] is proven contact-free if
+``min(fa, fb) - B h^2/8 > -tol`` (chord bound) or one endpoint's Taylor bound
+``f + f' h - B h^2/2`` stays above ``-tol``. Other intervals are bisected (down to 1e-12 s),
+a sign change with a provably monotone f goes to Brent's method (xtol ~1e-16 s). This finds
+grazing contacts as well (a local minimum below zero forces bisection). ``tol = 1e-15 m``:
+the largest interpenetration that can go unnoticed is ~1e-15 m. After a horn impact, the horn
+gap is convex while ``u'' < a``: it cannot close before ``u''`` rises above ``a`` again,
+which is found analytically.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .params import ImpactParams
+
+__all__ = ["simulate", "ImpactResult", "SimulationError", "CONTACT_TOL", "amplitude_spectrum"]
+
+log = logging.getLogger(__name__)
+
+#: interpenetration accepted as "touching" (m): far above round-off of mm positions (~1e-19 m)
+CONTACT_TOL = 1e-15
+#: shortest interval bisected in the event search (s)
+_H_MIN = 1e-12
+_XTOL = 2e-16
+
+FREE, ON_HORN, ON_TOOL = 0, 1, 2
+HORN, TOOL = "horn", "tool"
+
+
+class SimulationError(RuntimeError):
+    """The simulation cannot continue (pinched free mass, event cap reached)."""
+
+
+# ----------------------------------------------------------------------------- primitives
+
+
+class _Osc:
+    """Damped oscillator ``v(s) = delta + Re(C exp(lambda s))`` with ``lambda = -al + i be``."""
+
+    __slots__ = ("delta", "al", "be", "cr", "ci", "dr", "di", "er", "ei", "fr", "fi", "amp", "wn")
+
+    def __init__(self, mass: float, k: float, c: float, delta: float, x0: float, xd0: float):
+        wn = math.sqrt(k / mass)
+        al = c / (2.0 * mass)
+        be = math.sqrt(wn * wn - al * al)
+        self.delta, self.al, self.be, self.wn = delta, al, be, wn
+        x = x0 - delta
+        cr, ci = x, -(xd0 + al * x) / be
+        lam = complex(-al, be)
+        C = complex(cr, ci)
+        D, E, F = C * lam, C * lam * lam, C * lam ** 3
+        self.cr, self.ci = cr, ci
+        self.dr, self.di = D.real, D.imag
+        self.er, self.ei = E.real, E.imag
+        self.fr, self.fi = F.real, F.imag
+        self.amp = abs(C)
+
+    # scalar ---------------------------------------------------------------
+    def pos(self, s: float) -> float:
+        ex = math.exp(-self.al * s)
+        cs, sn = math.cos(self.be * s), math.sin(self.be * s)
+        return self.delta + ex * (self.cr * cs - self.ci * sn)
+
+    def pv(self, s: float) -> tuple[float, float]:
+        ex = math.exp(-self.al * s)
+        cs, sn = math.cos(self.be * s), math.sin(self.be * s)
+        return (self.delta + ex * (self.cr * cs - self.ci * sn), ex * (self.dr * cs - self.di * sn))
+
+    def acc_jerk(self, s: float) -> tuple[float, float]:
+        ex = math.exp(-self.al * s)
+        cs, sn = math.cos(self.be * s), math.sin(self.be * s)
+        return ex * (self.er * cs - self.ei * sn), ex * (self.fr * cs - self.fi * sn)
+
+    # vector ---------------------------------------------------------------
+    def pv_vec(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ex = np.exp(-self.al * s)
+        bs = self.be * s
+        cs, sn = np.cos(bs), np.sin(bs)
+        return self.delta + ex * (self.cr * cs - self.ci * sn), ex * (self.dr * cs - self.di * sn)
+
+    def acc_jerk_vec(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        ex = np.exp(-self.al * s)
+        bs = self.be * s
+        cs, sn = np.cos(bs), np.sin(bs)
+        return ex * (self.er * cs - self.ei * sn), ex * (self.fr * cs - self.fi * sn)
+
+
+def _safe(fa, fpa, fb, fpb, B, h, tol):
+    """True where an interval provably keeps f > -tol (works on arrays and scalars)."""
+    c2 = B * h * h
+    return ((np.minimum(fa, fb) - 0.125 * c2 > -tol)
+            | ((fa > -tol) & (fa + fpa * h - 0.5 * c2 > -tol))
+            | ((fb > -tol) & (fb - fpb * h - 0.5 * c2 > -tol)))
+
+
+def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
+    """First time in (a, b] where f reaches -tol, or None; f(a) > -tol is assumed."""
+    h = b - a
+    if fb <= -tol:
+        # f' <= min(fpa + B s, fpb + B (h - s)) <= (fpa + fpb + B h)/2: monotone => one root.
+        if fpa + fpb + B * h < 0.0 or h < _H_MIN:
+            return brentq(lambda t: sca(t)[0] + tol, a, b, xtol=_XTOL, rtol=8.9e-16)
+    else:
+        c2 = B * h * h
+        if (min(fa, fb) - 0.125 * c2 > -tol or fa + fpa * h - 0.5 * c2 > -tol
+                or fb - fpb * h - 0.5 * c2 > -tol or h < _H_MIN):
+            return None
+    m = 0.5 * (a + b)
+    fm, fpm = sca(m)
+    r = _refine(sca, a, m, fa, fpa, fm, fpm, B, tol)
+    if r is not None:
+        return r
+    return _refine(sca, m, b, fm, fpm, fb, fpb, B, tol)
+
+
+class _Fn:
+    """A contact function: vectorised and scalar (value, derivative), |f''| bound, search start."""
+
+    __slots__ = ("name", "vec", "sca", "B", "start", "h")
+
+    def __init__(self, name, vec, sca, B, start, h):
+        self.name, self.vec, self.sca, self.B, self.start, self.h = name, vec, sca, B, start, h
+
+
+def _grid_step(B: float, t_end: float) -> float:
+    # Chord bound B h^2/8 = 0.1 µm: far from contact every interval is cleared at once.
+    if B <= 0.0:
+        return t_end
+    return min(math.sqrt(8.0 * 1e-7 / B), 1e-3)
+
+
+def _first_event(fns: list[_Fn], t_hi: float) -> tuple[float | None, str | None]:
+    """Earliest root over several contact functions in their [start, t_hi]."""
+    best_t, best_name = None, None
+    for fn in fns:
+        lo = fn.start
+        hi = t_hi if best_t is None else best_t
+        if lo >= hi:
+            continue
+        h = fn.h
+        # chunks grow geometrically: short right after an event, long in mid-flight
+        n = 32
+        a = lo
+        while a < hi:
+            b = min(a + n * h, hi)
+            k = max(1, int(math.ceil((b - a) / h)))
+            tg = np.linspace(a, b, k + 1)
+            f, fp = fn.vec(tg)
+            if f[0] <= -CONTACT_TOL:
+                if fp[0] < 0.0:
+                    best_t, best_name = a, fn.name
+                    break
+            ok = _safe(f[:-1], fp[:-1], f[1:], fp[1:], fn.B, (b - a) / k, CONTACT_TOL)
+            found = None
+            if not ok.all():
+                for i in np.flatnonzero(~ok):
+                    r = _refine(fn.sca, tg[i], tg[i + 1], f[i], fp[i], f[i + 1], fp[i + 1],
+                                fn.B, CONTACT_TOL)
+                    if r is not None:
+                        found = r
+                        break
+            if found is not None:
+                best_t, best_name = found, fn.name
+                break
+            a = b
+            n = min(n * 2, 4096)
+    return best_t, best_name
+
+
+# ----------------------------------------------------------------------------- results
+
+
+def amplitude_spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """Single-sided amplitude spectrum of a uniformly sampled signal (mean removed).
+
+    Parameters
+    ----------
+    x : ndarray
+        Samples (any unit).
+    dt : float
+        Sample spacing, s.
+
+    Returns
+    -------
+    freq : ndarray
+        Frequencies, Hz.
+    amp : ndarray
+        Amplitude of each sinusoidal component, same unit as ``x`` (2|X|/N, DC as |X|/N).
+    """
+    x = np.asarray(x, dtype=float)
+    n = x.size
+    X = np.fft.rfft(x - x.mean())
+    amp = np.abs(X) / n
+    amp[1:] *= 2.0
+    if n % 2 == 0:
+        amp[-1] /= 2.0
+    return np.fft.rfftfreq(n, dt), amp
+
+
+@dataclass
+class ImpactResult:
+    """Outcome of :func:`simulate`.
+
+    Event arrays (one entry per impact, time-ordered):
+
+    ``t`` (s), ``contact`` ("horn"/"tool"), ``x`` (contact position, m), ``w_before``/``w_after``
+    (free-mass velocity, m/s), ``v_before``/``v_after`` (tool velocity, m/s; at a horn impact
+    the tool is not involved and both equal its velocity at that time), ``energy`` (mechanical
+    energy of free mass + tool after the event, J: kinetic + tool spring - m_w a w),
+    ``horn_work`` (cumulative work done by the horn up to and including the event, J).
+
+    ``stick`` lists (t_start, t_end, body) of sticking phases. ``t_grid`` (s), ``u``, ``w``
+    and ``tool_face`` (m) are the horn tip, free mass and tool face positions on a uniform grid.
+    """
+
+    params: ImpactParams
+    t: np.ndarray
+    contact: np.ndarray
+    x: np.ndarray
+    w_before: np.ndarray
+    w_after: np.ndarray
+    v_before: np.ndarray
+    v_after: np.ndarray
+    energy: np.ndarray
+    horn_work: np.ndarray
+    energy0: float
+    stick: list = field(default_factory=list)
+    t_grid: np.ndarray | None = None
+    u: np.ndarray | None = None
+    w: np.ndarray | None = None
+    tool_face: np.ndarray | None = None
+
+    @property
+    def is_tool(self) -> np.ndarray:
+        return self.contact == TOOL
+
+    @property
+    def tool_impacts(self) -> int:
+        return int(np.count_nonzero(self.is_tool))
+
+    @property
+    def horn_impacts(self) -> int:
+        return int(self.t.size - self.tool_impacts)
+
+    @property
+    def tool_impact_rate_hz(self) -> float:
+        """Mean free-mass/tool collision rate over the simulated time, Hz."""
+        return self.tool_impacts / self.params.t_end
+
+    @property
+    def horn_impact_rate_hz(self) -> float:
+        return self.horn_impacts / self.params.t_end
+
+    @property
+    def tool_ke_after(self) -> np.ndarray:
+        """Drill-tool kinetic energy just after each tool impact, J."""
+        return 0.5 * self.params.m_tool * self.v_after[self.is_tool] ** 2
+
+    @property
+    def mean_tool_ke_after_impact_j(self) -> float:
+        ke = self.tool_ke_after
+        return float(ke.mean()) if ke.size else 0.0
+
+    def spectrum(self) -> tuple[np.ndarray, np.ndarray]:
+        """Amplitude spectrum of the free-mass displacement (Hz, m): the Fig. 12 analogue."""
+        if self.w is None:
+            raise ValueError("simulate(..., series=False) recorded no time series")
+        return amplitude_spectrum(self.w, self.params.sample_dt)
+
+    def events(self) -> list[dict]:
+        return [
+            {"t": float(self.t[i]), "contact": str(self.contact[i]),
+             "w_before": float(self.w_before[i]), "w_after": float(self.w_after[i]),
+             "v_before": float(self.v_before[i]), "v_after": float(self.v_after[i])}
+            for i in range(self.t.size)
+        ]
+
+    def summary(self) -> dict:
+        return {
+            "tool_impacts": self.tool_impacts,
+            "horn_impacts": self.horn_impacts,
+            "tool_impact_rate_hz": self.tool_impact_rate_hz,
+            "horn_impact_rate_hz": self.horn_impact_rate_hz,
+            "mean_tool_ke_after_impact_j": self.mean_tool_ke_after_impact_j,
+            "sticking_phases": len(self.stick),
+        }
+
+    def to_json_dict(self) -> dict:
+        """The CLI's JSON document: params, counts, rates, mean tool KE, events."""
+        out = {"params": self.params.to_dict()}
+        out.update(self.summary())
+        out["events"] = self.events()
+        return out
+
+
+# ----------------------------------------------------------------------------- simulation
+
+
+class _Sim:
+    def __init__(self, p: ImpactParams):
+        self.p = p
+        self.om = p.omega
+        self.A0 = p.A0
+        self.a = p.a_free
+        self.L0 = p.gap
+        self.Bh = abs(self.a) + p.A0 * self.om ** 2
+        self.M = p.m_tool + p.m_free
+
+    # horn ------------------------------------------------------------------
+    def horn(self, t):
+        ph = self.om * t
+        return self.A0 * math.cos(ph), -self.A0 * self.om * math.sin(ph)
+
+    def horn_acc(self, t):
+        return -self.A0 * self.om ** 2 * math.cos(self.om * t)
+
+    def _next_cross(self, t0: float, up: bool) -> float:
+        """Next t > t0 where f = u'' - a crosses zero upward (up) or downward."""
+        if self.A0 == 0.0:
+            return math.inf
+        cstar = -self.a / (self.A0 * self.om ** 2)
+        if abs(cstar) >= 1.0:
+            return math.inf
+        th = math.acos(cstar) if up else 2.0 * math.pi - math.acos(cstar)
+        ph0 = self.om * t0
+        k = math.ceil((ph0 - th) / (2.0 * math.pi))
+        t = (th + 2.0 * math.pi * k) / self.om
+        while t <= t0:
+            k += 1
+            t = (th + 2.0 * math.pi * k) / self.om
+        return t
+
+    def energy(self, w, wd, v, vd):
+        p = self.p
+        return 0.5 * p.m_free * wd * wd - p.m_free * self.a * w + 0.5 * p.m_tool * vd * vd + 0.5 * p.k0 * v * v
+
+    # main loop -------------------------------------------------------------
+    def run(self, series: bool) -> ImpactResult:
+        p = self.p
+        A0, om, a, L0 = self.A0, self.om, self.a, self.L0
+        t = 0.0
+        mode = FREE
+        w, wd = A0, p.v0          # leaving the horn tip at its outermost point
+        v, vd = 0.0, 0.0
+        # the horn gap is convex while u'' < a: no horn contact before that ends
+        skip_h = max(self._next_cross(0.0, up=True) if self.horn_acc(0.0) < a else 0.0,
+                     2.0 * p.v0 / self.Bh)
+        skip_t = 0.0
+        E0 = self.energy(w, wd, v, vd)
+        work = 0.0
+        ev = {k: [] for k in ("t", "contact", "x", "wb", "wa", "vb", "va", "E", "W")}
+        segs = []  # (t0, mode, w0, wd0, osc)
+        stick = []
+        stick_start = None
+        stick_E = 0.0
+        n_ev = 0
+        t_end = p.t_end
+        while t < t_end:
+            if mode == ON_TOOL:
+                osc = _Osc(self.M, p.k0, p.c, p.m_free * a / p.k0, v, vd)
+            else:
+                osc = _Osc(p.m_tool, p.k0, p.c, 0.0, v, vd)
+            segs.append((t, mode, w, wd, osc))
+            t0, w0, wd0 = t, w, wd
+            Bv = osc.amp * osc.wn ** 2   # bound on |v''|
+            fns = []
+            if mode == FREE:
+                def h_vec(tg, t0=t0, w0=w0, wd0=wd0):
+                    s = tg - t0
+                    ph = om * tg
+                    return (w0 + s * (wd0 + 0.5 * a * s) - A0 * np.cos(ph),
+                            wd0 + a * s + A0 * om * np.sin(ph))
+
+                def h_sca(tt, t0=t0, w0=w0, wd0=wd0):
+                    s = tt - t0
+                    ph = om * tt
+                    return (w0 + s * (wd0 + 0.5 * a * s) - A0 * math.cos(ph),
+                            wd0 + a * s + A0 * om * math.sin(ph))
+
+                def t_vec(tg, t0=t0, w0=w0, wd0=wd0, osc=osc):
+                    s = tg - t0
+                    vv, vvd = osc.pv_vec(s)
+                    return L0 + vv - (w0 + s * (wd0 + 0.5 * a * s)), vvd - (wd0 + a * s)
+
+                def t_sca(tt, t0=t0, w0=w0, wd0=wd0, osc=osc):
+                    s = tt - t0
+                    vv, vvd = osc.pv(s)
+                    return L0 + vv - (w0 + s * (wd0 + 0.5 * a * s)), vvd - (wd0 + a * s)
+
+                Bt = Bv + abs(a)
+                fns.append(_Fn(HORN, h_vec, h_sca, self.Bh, max(t0, skip_h), _grid_step(self.Bh, t_end)))
+                fns.append(_Fn(TOOL, t_vec, t_sca, Bt, max(t0, skip_t), _grid_step(Bt, t_end)))
+                t_rel = math.inf
+            elif mode == ON_HORN:
+                def g_vec(tg, t0=t0, osc=osc):
+                    s = tg - t0
+                    vv, vvd = osc.pv_vec(s)
+                    ph = om * tg
+                    return L0 + vv - A0 * np.cos(ph), vvd + A0 * om * np.sin(ph)
+
+                def g_sca(tt, t0=t0, osc=osc):
+                    s = tt - t0
+                    vv, vvd = osc.pv(s)
+                    ph = om * tt
+                    return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
+
+                B = Bv + A0 * om ** 2
+                fns.append(_Fn("pinch", g_vec, g_sca, B, max(t0, skip_t), _grid_step(B, t_end)))
+                t_rel = self._next_cross(t0, up=False)
+            else:  # ON_TOOL: contact force a - v'' >= 0 ends the stick; horn gap pinches
+                def r_vec(tg, t0=t0, osc=osc):
+                    acc, jerk = osc.acc_jerk_vec(tg - t0)
+                    return a - acc, -jerk
+
+                def r_sca(tt, t0=t0, osc=osc):
+                    acc, jerk = osc.acc_jerk(tt - t0)
+                    return a - acc, -jerk
+
+                def g_vec(tg, t0=t0, osc=osc):
+                    s = tg - t0
+                    vv, vvd = osc.pv_vec(s)
+                    ph = om * tg
+                    return L0 + vv - A0 * np.cos(ph), vvd + A0 * om * np.sin(ph)
+
+                def g_sca(tt, t0=t0, osc=osc):
+                    s = tt - t0
+                    vv, vvd = osc.pv(s)
+                    ph = om * tt
+                    return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
+
+                Br = osc.amp * osc.wn ** 4
+                B = Bv + A0 * om ** 2
+                # the release function is a force per mass: its tolerance is an acceleration
+                fns.append(_Fn("pinch", g_vec, g_sca, B, t0, _grid_step(B, t_end)))
+                fns.append(_Fn("release", r_vec, r_sca, Br, t0, _grid_step(Br, t_end)))
+                t_rel = math.inf
+
+            te, name = _first_event(fns, min(t_end, t_rel))
+            if te is None and t_rel <= t_end:
+                te, name = t_rel, "release"
+            if te is None:
+                break
+            if name == "pinch":
+                raise SimulationError(
+                    f"free mass pinched between horn and tool at t = {te:.9g} s: the tool swings "
+                    f"back to the horn; increase gap or k0")
+            n_ev += 1
+            if n_ev > p.max_events:
+                raise SimulationError(f"more than max_events = {p.max_events} events by t = {te:.9g} s")
+            # state at te
+            s = te - t0
+            v, vd = osc.pv(s)
+            uh, uhd = self.horn(te)
+            if mode == FREE:
+                w, wd = w0 + s * (wd0 + 0.5 * a * s), wd0 + a * s
+            elif mode == ON_HORN:
+                w, wd = uh, uhd
+            else:
+                w, wd = L0 + v, vd
+            t = te
+            if name == "release":
+                if mode == ON_HORN:
+                    # the horn did the work that moved the stuck mass
+                    work += (0.5 * p.m_free * wd * wd - p.m_free * a * w) - stick_E
+                    skip_h = self._next_cross(te, up=True)
+                    skip_t = te
+                else:
+                    skip_h = te
+                    skip_t = te
+                stick.append((stick_start, te, "horn" if mode == ON_HORN else "tool"))
+                mode = FREE
+                continue
+            if name == HORN:
+                x = uh
+                rel_in = wd - uhd                       # < 0: approaching
+                if p.horn_law == "kinematic":
+                    wa = uhd - p.e2 * rel_in
+                else:
+                    mu = p.m_horn / (p.m_horn + p.m_free)
+                    wa = wd - mu * (1.0 + p.e2) * rel_in
+                work += p.m_free * (wa - wd) * uhd
+                wb = wd
+                if wa - uhd < p.v_stick and self.horn_acc(te) > a:
+                    wa = uhd
+                    mode = ON_HORN
+                    stick_start = te
+                    stick_E = 0.5 * p.m_free * wa * wa - p.m_free * a * x
+                    skip_t = te
+                else:
+                    fu = self.horn_acc(te) - a       # > 0: horn pushes into contact
+                    skip_h = te + 2.0 * (wa - uhd) / self.Bh
+                    if fu < 0.0:
+                        skip_h = max(skip_h, self._next_cross(te, up=True))
+                    skip_t = te
+                w, wd = x, wa
+                vb = va = vd
+            else:  # TOOL
+                x = L0 + v
+                M = self.M
+                vb, wb = vd, wd
+                rel = wd - vd                            # > 0: approaching the tool
+                va = vd + p.m_free / M * (1.0 + p.e1) * rel
+                wa = wd - p.m_tool / M * (1.0 + p.e1) * rel
+                acc_tool = -(p.c * va + p.k0 * v) / p.m_tool
+                if va - wa < p.v_stick and a > acc_tool:
+                    va = wa = (p.m_tool * vd + p.m_free * wd) / M
+                    mode = ON_TOOL
+                    stick_start = te
+                else:
+                    skip_t = te + 2.0 * (va - wa) / (abs(a) + _Osc(p.m_tool, p.k0, p.c, 0.0, v, va).amp * math.sqrt(p.k0 / p.m_tool) ** 2)
+                    skip_h = te
+                w, wd, vd = x, wa, va
+            ev["t"].append(te)
+            ev["contact"].append(name)
+            ev["x"].append(x)
+            ev["wb"].append(wb)
+            ev["wa"].append(wa)
+            ev["vb"].append(vb)
+            ev["va"].append(va)
+            ev["E"].append(self.energy(w, wd, v, vd))
+            ev["W"].append(work)
+        if stick_start is not None and mode != FREE:
+            stick.append((stick_start, p.t_end, "horn" if mode == ON_HORN else "tool"))
+        res = ImpactResult(
+            params=p, t=np.array(ev["t"]), contact=np.array(ev["contact"], dtype="<U4"),
+            x=np.array(ev["x"]), w_before=np.array(ev["wb"]), w_after=np.array(ev["wa"]),
+            v_before=np.array(ev["vb"]), v_after=np.array(ev["va"]), energy=np.array(ev["E"]),
+            horn_work=np.array(ev["W"]), energy0=E0, stick=stick)
+        if series:
+            self._series(res, segs)
+        return res
+
+    def _series(self, res: ImpactResult, segs) -> None:
+        p = self.p
+        n = int(math.floor(p.t_end / p.sample_dt + 1e-9)) + 1
+        tg = np.arange(n) * p.sample_dt
+        u = self.A0 * np.cos(self.om * tg)
+        w = np.empty(n)
+        face = np.empty(n)
+        starts = np.array([sg[0] for sg in segs])
+        idx = np.searchsorted(tg, starts, side="left")
+        idx = np.append(idx, n)
+        for j, (t0, mode, w0, wd0, osc) in enumerate(segs):
+            i0, i1 = idx[j], idx[j + 1]
+            if i1 <= i0:
+                continue
+            s = tg[i0:i1] - t0
+            vv, _ = osc.pv_vec(s)
+            face[i0:i1] = self.L0 + vv
+            if mode == FREE:
+                w[i0:i1] = w0 + s * (wd0 + 0.5 * self.a * s)
+            elif mode == ON_HORN:
+                w[i0:i1] = u[i0:i1]
+            else:
+                w[i0:i1] = self.L0 + vv
+        res.t_grid, res.u, res.w, res.tool_face = tg, u, w, face
+
+
+def simulate(params: ImpactParams | None = None, *, series: bool = True) -> ImpactResult:
+    """Run the event-driven impact model.
+
+    Parameters
+    ----------
+    params : ImpactParams, optional
+        All inputs (SI); Table 1 and the calibrated defaults if omitted. The pipeline feeds
+        ``A0`` (m) and ``freq`` (Hz) from the FE model via ``params.with_(A0=..., freq=...)``.
+    series : bool
+        Also sample horn, free mass and tool face positions on the uniform grid ``sample_dt``.
+
+    Returns
+    -------
+    ImpactResult
+    """
+    p = params if params is not None else ImpactParams()
+    res = _Sim(p).run(series)
+    log.info("simulated %.4g s: %d tool impacts (%.1f Hz), %d horn impacts, mean tool KE %.3g J",
+             p.t_end, res.tool_impacts, res.tool_impact_rate_hz, res.horn_impacts,
+             res.mean_tool_ke_after_impact_j)
+    return res

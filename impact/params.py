@@ -1,0 +1,165 @@
+"""Parameters of the free-mass impact model (SI units), with Table 1 of the article as defaults.
+
+Sign convention: the x axis runs along the drill from the horn tip toward the drill tool.
+``g`` is the acceleration of gravity along +x (positive = drill pointing down, gravity pulls
+the free mass away from the horn toward the tool; 0 = weightless; negative = drill pointing up).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Literal
+
+from geometry.common import (
+    ParameterError, check_choice, check_nonnegative, check_positive, check_range, dump_toml,
+    from_mapping, load_toml, to_mapping,
+)
+
+__all__ = ["ImpactParams", "HORN_LAWS"]
+
+HORN_LAWS = ("kinematic", "article")
+
+
+@dataclass(frozen=True)
+class ImpactParams:
+    """Every input of one impact simulation (SI units).
+
+    Parameters
+    ----------
+    m_free : float
+        Free mass m_w, kg (Table 1: 0.008).
+    A0 : float
+        Horn-tip vibration amplitude, m (Table 1: 15 µm). 0 gives a fixed horn (a table).
+    freq : float
+        Horn vibration frequency f, Hz (Table 1: 20 kHz).
+    e1 : float
+        Coefficient of restitution free mass / drill tool, in [0, 1] (Table 1: 0.8).
+    e2 : float
+        Coefficient of restitution free mass / horn, in [0, 1] (Table 1: 0.9).
+    m_horn : float
+        Horn mass m_u, kg (Table 1: 0.08). Used by ``horn_law="article"`` only; with the
+        default kinematic law it only scales the reported horn momentum.
+    m_tool : float
+        Drill-tool mass m_v, kg (Table 1: 0.05).
+    k0 : float
+        Equivalent axial stiffness holding the drill tool, N/m (not in the article; calibrated,
+        see the module docstring of :mod:`impact.model`).
+    c : float
+        Viscous damping of the drill tool, N s/m (calibrated). Must keep the tool underdamped:
+        ``c < 2 sqrt(k0 m_tool)`` (and ``c >= 0``).
+    gap : float
+        L0: free stroke of the free mass between the horn tip at rest and the tool face at
+        rest, m (the free mass is a point; its own length is already subtracted). Calibrated.
+    g : float
+        Gravity along +x (toward the tool), m/s^2 (Table 1: 9.8). Any sign.
+    v0 : float
+        Free-mass velocity at t = 0 as it leaves the horn tip (u(0) = A0), m/s, >= 0.
+        The tool is at rest at t = 0.
+    t_end : float
+        Simulated time, s.
+    spring_force : float
+        Optional restoring-spring force on the free mass toward the horn, N (soft spring: taken
+        constant over the mm stroke). 0 = off (the article's model); the device preloads ~5 N.
+    horn_law : {"kinematic", "article"}
+        "kinematic": the horn is an infinite-mass driver, w' = u' - e2 (w - u') (assumption 1).
+        "article": eq. 21 as printed, w' = w - m_u/(m_u+m_w) (1+e2)(w - u'), horn unchanged.
+    v_stick : float
+        Relative speed below which an impact ends a chattering sequence: the free mass sticks
+        to the body if the contact force would be compressive, m/s.
+    sample_dt : float
+        Spacing of the uniform output grid of displacements, s.
+    max_events : int
+        Safety cap on the number of events (a bug or a pinched free mass raises).
+    """
+
+    m_free: float = 0.008
+    A0: float = 15e-6
+    freq: float = 20e3
+    e1: float = 0.8
+    e2: float = 0.9
+    m_horn: float = 0.08
+    m_tool: float = 0.05
+    k0: float = 2000.0
+    c: float = 1.0
+    gap: float = 1.0e-3
+    g: float = 9.8
+    v0: float = 1.0
+    t_end: float = 0.05
+    spring_force: float = 0.0
+    horn_law: Literal["kinematic", "article"] = "kinematic"
+    v_stick: float = 1e-6
+    sample_dt: float = 2.5e-6
+    max_events: int = 5_000_000
+
+    def __post_init__(self) -> None:
+        check_positive("m_free", self.m_free, "kg")
+        check_nonnegative("A0", self.A0, "m")
+        check_positive("freq", self.freq, "Hz")
+        check_range("e1", self.e1, 0.0, 1.0)
+        check_range("e2", self.e2, 0.0, 1.0)
+        check_positive("m_horn", self.m_horn, "kg")
+        check_positive("m_tool", self.m_tool, "kg")
+        check_positive("k0", self.k0, "N/m")
+        check_nonnegative("c", self.c, "N s/m")
+        # Over- or critically damped tools are outside the article's eq. 7 (a damped sinusoid).
+        c_crit = 2.0 * math.sqrt(self.k0 * self.m_tool)
+        if not self.c < c_crit:
+            raise ParameterError("c", self.c, f"must be < 2 sqrt(k0 m_tool) = {c_crit:g} N s/m "
+                                 "(underdamped drill tool)")
+        check_positive("gap", self.gap, "m")
+        if not self.gap > 2.0 * self.A0:
+            raise ParameterError("gap", self.gap, f"must be > 2 A0 = {2 * self.A0:g} m")
+        check_range("g", self.g, -1e4, 1e4, "m/s^2")
+        check_nonnegative("v0", self.v0, "m/s")
+        check_positive("t_end", self.t_end, "s")
+        check_nonnegative("spring_force", self.spring_force, "N")
+        check_choice("horn_law", self.horn_law, HORN_LAWS)
+        check_positive("v_stick", self.v_stick, "m/s")
+        check_positive("sample_dt", self.sample_dt, "s")
+        if not (isinstance(self.max_events, int) and self.max_events > 0):
+            raise ParameterError("max_events", self.max_events, "must be an integer > 0")
+
+    # ------------------------------------------------------------------ derived values
+    @property
+    def omega(self) -> float:
+        """Horn angular frequency 2 pi f, rad/s."""
+        return 2.0 * math.pi * self.freq
+
+    @property
+    def a_free(self) -> float:
+        """Acceleration of the free mass in free flight along +x, m/s^2 (gravity - spring)."""
+        return self.g - self.spring_force / self.m_free
+
+    @property
+    def tool_fn(self) -> float:
+        """Undamped natural frequency of the drill tool sqrt(k0/m_tool)/(2 pi), Hz."""
+        return math.sqrt(self.k0 / self.m_tool) / (2.0 * math.pi)
+
+    @property
+    def tool_zeta(self) -> float:
+        """Damping ratio of the drill tool c / (2 sqrt(k0 m_tool))."""
+        return self.c / (2.0 * math.sqrt(self.k0 * self.m_tool))
+
+    # ------------------------------------------------------------------ TOML
+    def with_(self, **changes) -> "ImpactParams":
+        """A copy with some fields changed (validated again)."""
+        return replace(self, **changes)
+
+    def to_dict(self) -> dict:
+        return to_mapping(self)
+
+    @classmethod
+    def from_dict(cls, data) -> "ImpactParams":
+        return from_mapping(cls, data)
+
+    def to_toml(self) -> str:
+        return dump_toml(self.to_dict())
+
+    @classmethod
+    def from_toml(cls, path) -> "ImpactParams":
+        """Load from a TOML file: top-level keys, or an ``[impact]`` table."""
+        data = load_toml(path)
+        if "impact" in data and isinstance(data["impact"], dict):
+            data = data["impact"]
+        return from_mapping(cls, data)
