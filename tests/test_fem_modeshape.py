@@ -1,0 +1,241 @@
+"""Mode identification (fem.modeshape): energy shares, labels, effective mass, MAC, surface motion.
+
+Synthetic fields on a square steel bar (axis z through the section centre) have exact answers;
+real modes come from an independent scikit-fem linear-elasticity eigen-solve (as in skfem ex21).
+"""
+
+import numpy as np
+import pytest
+from skfem import Basis, BilinearForm, ElementTetP2, ElementVector, MeshTet, asm
+from skfem.models.elasticity import lame_parameters, linear_elasticity
+
+from geometry.common import ParameterError
+from geometry.materials import get_material
+from geometry.mesh import Region, TaggedMesh
+from fem.modeshape import (classify, cylindrical_components, effective_mass_axial, energy_shares, equivalent_mass,
+                           mac, match_modes, p2_nodes, surface_motion, total_mass)
+
+A, L = 0.01, 0.12          # square side and length, m
+STEEL = get_material("steel_45")
+
+
+def bar(a=A, length=L, n=(2, 2, 12), two_parts=True):
+    """Square bar centred on the z axis; two parts ("rod" z < L/2, "tip" above) when asked."""
+    m = MeshTet.init_tensor(np.linspace(-a / 2, a / 2, n[0] + 1), np.linspace(-a / 2, a / 2, n[1] + 1),
+                            np.linspace(0, length, n[2] + 1))
+    f = m.facets[:, m.boundary_facets()].T
+    z = m.p[2, f]
+    sets = {"bottom": f[np.all(np.isclose(z, 0), axis=1)], "top": f[np.all(np.isclose(z, length), axis=1)]}
+    zc = m.p[2, m.t].mean(axis=0)
+    if two_parts:
+        regions = (Region("rod", "rod", "steel_45"), Region("tip", "tip", "steel_45"))
+        cell_region = (zc > length / 2).astype(int)
+    else:
+        regions = (Region("rod", "rod", "steel_45"),)
+        cell_region = np.zeros(m.t.shape[1], dtype=int)
+    return TaggedMesh(m.p.T, m.t.T, cell_region, regions, sets)
+
+
+@pytest.fixture(scope="module")
+def tm():
+    return bar()
+
+
+def scalar_mass(mesh):
+    """Independent scalar P2 mass matrix (uniform steel density)."""
+    basis = Basis(mesh.to_skfem(), ElementTetP2())
+    M = BilinearForm(lambda u, v, w: STEEL.density * u * v).assemble(basis)
+    return basis, M
+
+
+def fields(tm):
+    x, y, z = p2_nodes(tm).T
+    c = np.cos(np.pi * z / L)
+    zero = np.zeros_like(z)
+    return {
+        "axial": np.column_stack([zero, zero, c]),
+        "torsion": np.column_stack([-y * c, x * c, zero]),
+        # a half cosine lateral field is 98.5 % a rigid rotation about x (it would be labelled
+        # "rigid"); the full cosine is the shape of a free-free bending mode
+        "bending": np.column_stack([np.cos(2 * np.pi * z / L), zero, zero]),
+        "rigid_axial": np.column_stack([zero, zero, np.ones_like(z)]),
+    }
+
+
+def test_nodes_are_the_p2_doflocs(tm):
+    basis, _ = scalar_mass(tm)
+    assert np.array_equal(p2_nodes(tm), basis.doflocs.T)
+
+
+def test_pure_axial_torsional_bending_fields(tm):
+    f = fields(tm)
+    s = energy_shares(tm, np.stack([f["axial"], f["torsion"], f["bending"]]))
+    np.testing.assert_allclose(s.axial, [1, 0, 0], atol=1e-12)
+    np.testing.assert_allclose(s.torsional, [0, 1, 0], atol=1e-12)
+    np.testing.assert_allclose(s.bending, [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(s.radial, 0, atol=1e-12)
+    # node-wise projection: exact for Cartesian-aligned fields, O(h^2) for the twist (2 x 2 mesh)
+    assert np.all(np.abs(s.closure - 1) <= [1e-12, 0.03, 1e-12])
+    assert classify(s) == ["longitudinal", "torsional", "bending"]
+    for part in ("rod", "tip"):
+        np.testing.assert_allclose(s.parts[part].axial, [1, 0, 0], atol=1e-12)
+        assert classify(s, part=part) == ["longitudinal", "torsional", "bending"]
+    # the fields are symmetric about z = L/2: equal energy in both halves
+    np.testing.assert_allclose(s.part_energy["rod"], 0.5, rtol=1e-9)
+    np.testing.assert_allclose(s.part_energy["rod"] + s.part_energy["tip"], 1, atol=1e-12)
+    np.testing.assert_allclose(s.rigid, 0, atol=1e-9)
+
+
+def test_fifty_fifty_axial_torsion_is_longitudinal_torsional(tm):
+    f = fields(tm)
+    _, M = scalar_mass(tm)
+    x, y, z = p2_nodes(tm).T
+    ea = f["axial"][:, 2] @ M @ f["axial"][:, 2]
+    ut = np.hypot(x, y) * np.cos(np.pi * z / L)                   # u_theta of the torsion field
+    et = ut @ M @ ut
+    beta = np.sqrt(ea / et)                                        # equal energies
+    s = energy_shares(tm, f["axial"] + beta * f["torsion"])
+    assert s.axial[0] == pytest.approx(0.5, abs=1e-12)
+    assert s.torsional[0] == pytest.approx(0.5, abs=1e-12)
+    assert classify(s) == ["longitudinal-torsional"]
+    # unequal mix: torsional energy 0.09 ea -> share 0.09 / 1.09
+    s2 = energy_shares(tm, f["axial"] + 0.3 * beta * f["torsion"])
+    assert s2.torsional[0] == pytest.approx(0.09 / 1.09, rel=1e-10)
+    assert classify(s2) == ["longitudinal"]                       # 8.3 % torsion < 15 %
+
+
+def test_rigid_axial_translation_effective_mass_is_total_mass(tm):
+    f = fields(tm)
+    mass = STEEL.density * A * A * L
+    assert total_mass(tm) == pytest.approx(mass, rel=1e-12)
+    meff = effective_mass_axial(tm, np.stack([7.0 * f["rigid_axial"], f["torsion"], f["bending"]]))
+    assert meff[0] == pytest.approx(mass, rel=1e-12)
+    np.testing.assert_allclose(meff[1:], 0, atol=1e-12 * mass)
+    s = energy_shares(tm, f["rigid_axial"])
+    assert s.rigid[0] == pytest.approx(1, abs=1e-12) and classify(s) == ["rigid"]
+
+
+def test_mac_self_and_orthogonal(tm):
+    f = fields(tm)
+    shapes = np.stack([f["axial"], f["torsion"], f["bending"]])
+    for kw in ({}, {"mesh": tm}):
+        m = mac(shapes, -3.0 * shapes, **kw)
+        np.testing.assert_allclose(np.diag(m), 1, atol=1e-12)
+        np.testing.assert_allclose(m - np.diag(np.diag(m)), 0, atol=1e-7)   # mesh asymmetry: ~6e-9
+
+
+def test_match_modes_across_designs():
+    t1, t2 = bar(), bar(length=1.1 * L, n=(2, 2, 15))             # different mesh and length
+    t3 = t1.replace(points=t1.points * [1, 1, 1.1])                  # morphed: same topology
+
+    def shapes(t):
+        x, y, z = p2_nodes(t).T
+        lz = np.ptp(z)
+        c1, c2 = np.cos(np.pi * z / lz), np.cos(2 * np.pi * z / lz)
+        zero = np.zeros_like(z)
+        return np.stack([np.column_stack([zero, zero, c1]), np.column_stack([-y * c1, x * c1, zero]),
+                         np.column_stack([c1, zero, zero]), np.column_stack([zero, zero, c2])])
+
+    a = shapes(t1)
+    perm = [2, 3, 0, 1]
+    for other, method in ((t2, "nearest"), (t3, "same-nodes")):
+        b = shapes(other)[perm]
+        res = match_modes(t1, a, other, b)
+        assert res.method == method
+        assert list(res.index) == [perm.index(i) for i in range(4)]
+        assert np.all(res.mac > 0.95)
+
+
+def test_surface_motion_and_ellipse_ratio(tm):
+    f = fields(tm)
+    x, y, z = p2_nodes(tm).T
+    u = 2.0 * f["axial"] + f["torsion"] * 1e2
+    out = surface_motion(tm, u, "top")
+    assert out["area"] == pytest.approx(A * A, rel=1e-12)
+    assert out["n_nodes"] == 25
+    # top: cos(pi) = -1: axial -2 everywhere; tangential = -100 r
+    assert out["axial"] == pytest.approx(2.0, rel=1e-12)
+    assert out["axial_mean"] == pytest.approx(-2.0, rel=1e-12)
+    # mean r over a square of side a: a * (sqrt(2) + asinh(1)) / 6
+    mean_r = A * (np.sqrt(2) + np.arcsinh(1)) / 6
+    assert out["tangential"] == pytest.approx(100 * mean_r, rel=2e-3)   # P2 interpolation of r
+    assert out["radial"] == pytest.approx(0, abs=1e-12)
+    assert out["ellipse_ratio"] == pytest.approx(50 * mean_r, rel=2e-3)
+    assert out["phase_deg"] == pytest.approx(0.0, abs=1e-9)
+    comps = cylindrical_components(tm, u)
+    assert comps.shape == (1, len(z), 3)
+    np.testing.assert_allclose(comps[0, :, 2], 0, atol=1e-12)
+
+
+def test_bad_input_is_a_parameter_error(tm):
+    f = fields(tm)
+    with pytest.raises(ParameterError, match="surface = 'teeth_tops'"):
+        surface_motion(tm, f["axial"], "teeth_tops")
+    with pytest.raises(ParameterError, match="shapes"):
+        energy_shares(tm, f["axial"][:-1])
+    with pytest.raises(ParameterError, match="shapes"):
+        effective_mass_axial(tm, np.zeros((2, len(f["axial"]), 2)))
+    with pytest.raises(ParameterError, match="non-finite|finite"):
+        energy_shares(tm, f["axial"] * np.nan)
+    with pytest.raises(ParameterError, match="part = 'horn'"):
+        classify(energy_shares(tm, f["axial"]), part="horn")
+
+
+# --------------------------------------------------------------------------- real modes
+
+
+@pytest.fixture(scope="module")
+def free_bar_modes():
+    """Free-free steel square bar, P2 linear elasticity, 18 lowest modes (shift-invert)."""
+    from scipy.sparse.linalg import eigsh
+
+    t = bar(n=(3, 3, 30), two_parts=False)
+    mesh = t.to_skfem()
+    ev = ElementVector(ElementTetP2())
+    basis = Basis(mesh, ev)
+    lam, mu = lame_parameters(STEEL.youngs_modulus, STEEL.poisson_ratio)
+    K = asm(linear_elasticity(lam, mu), basis)
+    M = asm(BilinearForm(lambda u, v, w: STEEL.density * (u[0] * v[0] + u[1] * v[1] + u[2] * v[2])), basis)
+    sigma = -(2 * np.pi * 100.0) ** 2
+    w2, X = eigsh(K, k=18, M=M, sigma=sigma, which="LM")
+    order = np.argsort(w2)
+    w2, X = w2[order], X[:, order]
+    freqs = np.sqrt(np.abs(w2)) / (2 * np.pi)
+    # ElementVector interleaves the components per scalar DOF: node i -> dofs 3i, 3i+1, 3i+2
+    nodal = basis.nodal_dofs  # (3, n_vertices) for checking the layout
+    assert np.array_equal(nodal[:, 1], [3, 4, 5])
+    shapes = X.T.reshape(len(freqs), -1, 3)
+    return t, freqs, shapes
+
+
+def test_free_bar_first_longitudinal_and_torsional_modes(free_bar_modes):
+    t, freqs, shapes = free_bar_modes
+    s = energy_shares(t, shapes)
+    labels = classify(s)
+    assert labels[:6] == ["rigid"] * 6
+    assert freqs[5] < 1.0 < 1000.0 < freqs[6]
+    E, nu, rho = STEEL.youngs_modulus, STEEL.poisson_ratio, STEEL.density
+    f_long = np.sqrt(E / rho) / (2 * L)
+    G = E / (2 * (1 + nu))
+    f_tors = np.sqrt(G * 0.1406 * A**4 / (rho * A**4 / 6)) / (2 * L)
+    i_long = labels.index("longitudinal")
+    i_tors = labels.index("torsional")
+    # tolerances: 1 % longitudinal (Rayleigh lateral-inertia correction ~0.1 %, mesh),
+    # 2 % torsional (K_t = 0.1406 a^4 is the Saint-Venant value; 3 x 3 P2 across: +0.5 %)
+    assert freqs[i_long] == pytest.approx(f_long, rel=0.01)
+    assert freqs[i_tors] == pytest.approx(f_tors, rel=0.02)
+    assert s.axial[i_long] > 0.9 and s.torsional[i_tors] > 0.9
+    # every other elastic mode below the longitudinal one is bending (two planes)
+    others = [lab for i, lab in enumerate(labels[6:i_long], start=6) if i != i_tors]
+    assert others and set(others) == {"bending"}
+    meff = effective_mass_axial(t, shapes)
+    m = total_mass(t)
+    # free-free: the rigid modes carry the whole axial effective mass, elastic modes none
+    assert meff[:6].sum() == pytest.approx(m, rel=1e-8)
+    assert np.all(meff[6:] < 1e-8 * m)
+    # uniform rod, u = cos(pi z / L): modal mass m/2 referred to the end's axial motion
+    assert equivalent_mass(t, shapes[i_long], "top")[0] == pytest.approx(m / 2, rel=0.02)
+    assert equivalent_mass(t, shapes[i_tors], "top")[0] > 1e3 * m
+    # mode sets of the same solve match themselves one-to-one (degenerate bending pairs aside)
+    res = match_modes(t, shapes[[i_long, i_tors]], t, shapes)
+    assert list(res.index) == [i_long, i_tors]
