@@ -1,0 +1,368 @@
+"""Modal analysis of the coupled piezo-elastic system: resonance / anti-resonance pairs.
+
+API
+---
+``modal_analysis(system, near_hz, n_modes, clamp=(), *, sigma=None, rigid_hz=None,
+backend=None, tol=0.0, open_circuit=True) -> ModalResult``
+
+* Shift-invert Lanczos (scipy ``eigsh``, ``mode="normal"``) on the coupled pencil
+  ``(K, M)`` with ``OPinv = (K - sigma M)^-1`` from :func:`fem.solvers.factorize`.
+  The potential DOFs have zero mass: ``(K - sigma M)^-1 M`` maps every vector onto
+  ``u``-driven fields whose potential is the static (condensed) electric response, so the
+  infinite eigenvalues of the massless DOFs never appear and no explicit Schur complement is
+  formed (ARPACK mode 3 accepts a semi-definite ``M``).
+* Short circuit (``V_hot`` removed: resonance ``f_r``) and open circuit (``V_hot`` free with
+  zero net charge: anti-resonance ``f_a``) share ONE factorisation: the open-circuit matrix is
+  the short-circuit one bordered by the hot row/column, solved by a scalar Schur complement.
+* Modes are paired by the mass-weighted MAC of their displacement parts (Hungarian assignment),
+  not by index (a pair needs MAC >= ``mac_min``, default 0.5, else ``f_a`` is NaN; the
+  open-circuit window is widened until every mode has a partner); ``k_eff = sqrt(1 - (f_r / f_a)^2)`` (0 where ``f_a <= f_r`` to round-off).
+* ``sigma`` defaults to ``(2 pi near_hz)^2``; ``near_hz <= 0`` means the bottom of the spectrum
+  with the negative shift ``-(2 pi 1 kHz)^2`` (shift-invert exactly at 0 meets the rigid modes).
+  In a free (unclamped) body up to six extra modes are computed; modes below ``rigid_hz``
+  (default ``max(10 Hz, 1 % of near_hz)``) are rigid-body modes: reported in ``rigid_hz`` and
+  excluded from the pairs.
+
+``ModalResult``: ``f_r_hz``, ``f_a_hz``, ``k_eff``, ``mac`` (pairing MAC), ``shapes``
+(``(n, n_nodes, 3)`` short-circuit displacement at the P2 nodes, mass-normalised:
+``Phi^T M Phi = I``), ``vectors`` / ``vectors_open`` (full ``x`` per mode, ``(ndof, n)``),
+``shares`` (``(n, 3)`` kinetic-energy share axial / torsional / lateral about the z axis),
+``labels``, ``rigid_hz``, ``ndof``, ``backend``, ``timings`` (assembly_s, factorisation_s,
+eigen_s, total_s), ``to_json()``.
+
+CLI
+---
+``python -m fem.modal --design FILE --near HZ --modes N [--json OUT] [--mesh-size M]
+[--order 1|2] [--clamp SURFACE ...]`` prints a table (f_r kHz, f_a kHz, k_eff, dominant
+motion) and writes JSON (``modes``: list of ``{f_r_hz, f_a_hz, k_eff, mac, label, shares}``,
+``ndof``, ``timings``, ``backend``). Bad input: one line, exit 2, no file written.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from dataclasses import dataclass, field
+from typing import Iterable
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from geometry.common import ParameterError, check_nonnegative, check_positive
+
+from .assembly import PiezoSystem
+from .solvers import factorize
+
+__all__ = ["modal_analysis", "ModalResult", "motion_shares", "main"]
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(eq=False)
+class ModalResult:
+    """Paired short/open-circuit modes (see the module docstring)."""
+
+    f_r_hz: np.ndarray
+    f_a_hz: np.ndarray
+    k_eff: np.ndarray
+    mac: np.ndarray
+    shapes: np.ndarray
+    vectors: np.ndarray
+    vectors_open: np.ndarray | None
+    shares: np.ndarray
+    labels: list[str]
+    rigid_hz: np.ndarray
+    ndof: int
+    backend: str
+    sigma: float
+    near_hz: float
+    clamp: tuple[str, ...]
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def n_modes(self) -> int:
+        return len(self.f_r_hz)
+
+    def to_json(self) -> dict:
+        modes = []
+        for i in range(self.n_modes):
+            modes.append({
+                "f_r_hz": float(self.f_r_hz[i]),
+                "f_a_hz": None if not np.isfinite(self.f_a_hz[i]) else float(self.f_a_hz[i]),
+                "k_eff": None if not np.isfinite(self.k_eff[i]) else float(self.k_eff[i]),
+                "mac": None if not np.isfinite(self.mac[i]) else float(self.mac[i]),
+                "label": self.labels[i],
+                "shares": {"axial": float(self.shares[i, 0]), "torsional": float(self.shares[i, 1]),
+                           "lateral": float(self.shares[i, 2])},
+            })
+        return {"near_hz": self.near_hz, "sigma": self.sigma, "clamp": list(self.clamp),
+                "modes": modes, "rigid_hz": [float(f) for f in self.rigid_hz],
+                "ndof": int(self.ndof), "backend": self.backend,
+                "timings": {k: float(v) for k, v in self.timings.items()}}
+
+
+def _freq(lam):
+    lam = np.asarray(lam, dtype=float)
+    return np.sign(lam) * np.sqrt(np.abs(lam)) / (2 * np.pi)
+
+
+def motion_shares(system: PiezoSystem, shapes: np.ndarray, axis_point=(0.0, 0.0)) -> np.ndarray:
+    """(n, 3) kinetic-energy shares axial / torsional / lateral (radial + bending) about the
+    z axis through ``axis_point``, node-wise cylindrical split weighted by the mass matrix.
+    A simple indicator; ``fem.modeshape`` does the full identification."""
+    shapes = np.asarray(shapes)
+    if shapes.ndim == 2:
+        shapes = shapes[None]
+    Mu = system.M[: system.n_u, : system.n_u]
+    xy = system.nodes[:, :2] - np.asarray(axis_point)[None, :2]
+    r = np.linalg.norm(xy, axis=1)
+    ok = r > 1e-9 * max(r.max(), 1e-300)
+    er = np.zeros_like(xy)
+    er[ok] = xy[ok] / r[ok, None]
+    et = np.stack([-er[:, 1], er[:, 0]], axis=1)
+    out = np.zeros((len(shapes), 3))
+    for i, u in enumerate(shapes):
+        u = np.real(u) if not np.iscomplexobj(u) else u
+        ax = np.zeros_like(u)
+        ax[:, 2] = u[:, 2]
+        ut = np.sum(u[:, :2] * et, axis=1)
+        tg = np.zeros_like(u)
+        tg[:, :2] = ut[:, None] * et
+        lat = u - ax - tg
+        e = [float(np.real(np.vdot(f.ravel(), Mu @ f.ravel()))) for f in (ax, tg, lat)]
+        tot = sum(e)
+        out[i] = np.array(e) / tot if tot > 0 else 0.0
+    return out
+
+
+def _simple_labels(shares: np.ndarray) -> list[str]:
+    labels = []
+    for a, t, l in shares:
+        if a >= 0.15 and t >= 0.15:
+            labels.append("longitudinal-torsional")
+        elif l > max(a, t):
+            labels.append("lateral")
+        else:
+            labels.append("longitudinal" if a >= t else "torsional")
+    return labels
+
+
+def _labels(system, shapes, shares):
+    try:  # full identification when the modeshape module is available
+        from .modeshape import classify, energy_shares
+
+        return classify(energy_shares(system.mesh, shapes))
+    except Exception as exc:  # noqa: BLE001 - optional module, fall back to the simple indicator
+        log.debug("fem.modeshape unavailable (%s): simple labels", exc)
+        return _simple_labels(shares)
+
+
+def _eig(K, M, k, sigma, solve, tol, n):
+    k = int(min(k, n - 2))
+    op = spla.LinearOperator((n, n), matvec=solve, dtype=float)
+    vals, vecs = spla.eigsh(K, k=k, M=M, sigma=sigma, OPinv=op, which="LM", tol=tol, mode="normal")
+    order = np.argsort(vals)
+    vals, vecs = vals[order], vecs[:, order]
+    # mass normalisation (ARPACK returns M-orthonormal vectors; enforce against round-off)
+    mnorm = np.sqrt(np.abs(np.einsum("ij,ij->j", vecs, M @ vecs)))
+    vecs = vecs / np.where(mnorm > 0, mnorm, 1.0)
+    return vals, vecs
+
+
+def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Iterable[str] = (), *,
+                   sigma: float | None = None, rigid_hz: float | None = None,
+                   backend: str | None = None, tol: float = 0.0,
+                   open_circuit: bool = True, mac_min: float = 0.5) -> ModalResult:
+    """Short- and open-circuit modes nearest ``near_hz`` (see the module docstring)."""
+    check_nonnegative("near_hz", near_hz, "Hz")
+    if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
+        raise ParameterError("n_modes", n_modes, "must be an integer >= 1")
+    clamp = (clamp,) if isinstance(clamp, str) else tuple(clamp)
+    t0 = time.perf_counter()
+    if sigma is None:
+        sigma = (2 * np.pi * near_hz) ** 2 if near_hz > 0 else -(2 * np.pi * 1e3) ** 2
+    if rigid_hz is None:
+        rigid_hz = max(10.0, 0.01 * near_hz)
+    free_body = len(clamp) == 0
+    n_req = n_modes + (6 if free_body else 0)
+
+    Ks, Ms, free_s = system.reduce("short", clamp)
+    ns = len(free_s)
+    A = (Ks - sigma * Ms).tocsr()
+    F = factorize(A, backend=backend)
+    t1 = time.perf_counter()
+    lam_s, vec_s = _eig(Ks, Ms, n_req, sigma, F, tol, ns)
+    t2 = time.perf_counter()
+
+    def keep_nonrigid(lam, vec, limit=True):
+        f = _freq(lam)
+        rigid = np.abs(f) < rigid_hz
+        f_ok, v_ok = f[~rigid], vec[:, ~rigid]
+        # the n_modes nearest the target, in ascending frequency
+        sel = np.argsort(np.abs(f_ok - max(near_hz, 0.0)))
+        sel = np.sort(sel[:n_modes] if limit else sel)
+        return f[rigid], f_ok[sel], v_ok[:, sel]
+
+    rigid_f, f_r, Vs = keep_nonrigid(lam_s, vec_s)
+    n_found = len(f_r)
+    full_s = np.zeros((system.ndof, n_found))
+    full_s[free_s] = Vs
+
+    f_a = np.full(n_found, np.nan)
+    mac = np.full(n_found, np.nan)
+    full_o = None
+    t3 = t2
+    if open_circuit and system.hot_dof is not None and n_found:
+        hot = system.hot_dof
+        free_o = np.append(free_s, hot)
+        Ko, Mo = system.K[free_o][:, free_o].tocsr(), system.M[free_o][:, free_o].tocsr()
+        a = np.asarray(system.K[free_s][:, [hot]].toarray()).ravel()
+        alpha = float(system.K[hot, hot])
+        z = F(a)
+        delta = alpha - a @ z
+
+        def solve_open(b):
+            b = np.asarray(b).ravel()
+            x1 = F(b[:-1])
+            y = (b[-1] - a @ x1) / delta
+            return np.append(x1 - z * y, y)
+
+        from scipy.optimize import linear_sum_assignment
+
+        Mu = system.M[: system.n_u, : system.n_u]
+        us = full_s[: system.n_u]
+        ns_ = np.einsum("ij,ij->j", us, Mu @ us)
+        # anti-resonances lie above their resonances (by up to ~1/sqrt(1-k^2)): widen the
+        # open-circuit window until every short-circuit mode has a partner (MAC >= mac_min)
+        k_open = n_req + 4
+        for attempt in range(3):
+            lam_o, vec_o = _eig(Ko, Mo, k_open, sigma, solve_open, tol, ns + 1)
+            _, f_o, Vo = keep_nonrigid(lam_o, vec_o, limit=False)
+            full_o_all = np.zeros((system.ndof, Vo.shape[1]))
+            full_o_all[free_o] = Vo
+            uo = full_o_all[: system.n_u]
+            cross = us.T @ (Mu @ uo)
+            no_ = np.einsum("ij,ij->j", uo, Mu @ uo)
+            MAC = cross ** 2 / np.outer(ns_, no_)
+            rows, cols = linear_sum_assignment(-MAC)
+            if len(rows) == n_found and MAC[rows, cols].min() >= mac_min:
+                break
+            if k_open >= ns - 2:
+                break
+            k_open = min(2 * k_open, ns - 2)
+        t3 = time.perf_counter()
+        full_o = np.full((system.ndof, n_found), np.nan)
+        for r_, c_ in zip(rows, cols):
+            mac[r_] = MAC[r_, c_]
+            if MAC[r_, c_] >= mac_min:
+                f_a[r_] = f_o[c_]
+                full_o[:, r_] = full_o_all[:, c_]
+    elif system.hot_dof is None:
+        f_a = f_r.copy()
+        mac = np.ones(n_found)
+    with np.errstate(invalid="ignore"):
+        ratio = np.where(np.isfinite(f_a), f_r / f_a, np.nan)
+        k_eff = np.sqrt(np.clip(1 - ratio ** 2, 0.0, None))
+    shapes = system.displacement(full_s) if n_found else np.zeros((0, system.n_nodes, 3))
+    shares = motion_shares(system, shapes) if n_found else np.zeros((0, 3))
+    labels = _labels(system, shapes, shares) if n_found else []
+    t4 = time.perf_counter()
+    timings = {"assembly_s": float(system.timings.get("assembly_s", np.nan)),
+               "factorisation_s": F.seconds, "eigen_s": (t2 - t1) + (t3 - t2),
+               "modal_s": t4 - t0}
+    timings["total_s"] = timings["assembly_s"] + timings["modal_s"]
+    log.info("modal: %d modes near %.1f Hz, %d DOFs, %s, factor %.2f s, eigen %.2f s",
+             n_found, near_hz, system.ndof, F.backend, F.seconds, timings["eigen_s"])
+    return ModalResult(f_r_hz=f_r, f_a_hz=f_a, k_eff=k_eff, mac=mac, shapes=shapes, vectors=full_s,
+                       vectors_open=full_o, shares=shares, labels=list(labels), rigid_hz=rigid_f,
+                       ndof=system.ndof, backend=F.backend, sigma=float(sigma),
+                       near_hz=float(near_hz), clamp=clamp, timings=timings)
+
+
+# --------------------------------------------------------------------------- CLI
+
+
+def format_table(res: ModalResult) -> str:
+    lines = [f"{'#':>3} {'f_r kHz':>10} {'f_a kHz':>10} {'k_eff':>7} {'MAC':>5}  "
+             f"{'ax/tor/lat':>14}  motion"]
+    for i in range(res.n_modes):
+        fa = f"{res.f_a_hz[i] / 1e3:10.4f}" if np.isfinite(res.f_a_hz[i]) else f"{'-':>10}"
+        ke = f"{res.k_eff[i]:7.4f}" if np.isfinite(res.k_eff[i]) else f"{'-':>7}"
+        mc = f"{res.mac[i]:5.2f}" if np.isfinite(res.mac[i]) else f"{'-':>5}"
+        sh = "/".join(f"{100 * s:.0f}" for s in res.shares[i])
+        lines.append(f"{i + 1:3d} {res.f_r_hz[i] / 1e3:10.4f} {fa} {ke} {mc}  {sh:>14}  {res.labels[i]}")
+    t = res.timings
+    lines.append(f"{res.ndof} DOFs, {res.backend}; assembly {t['assembly_s']:.2f} s, "
+                 f"factorisation {t['factorisation_s']:.2f} s, eigen {t['eigen_s']:.2f} s"
+                 + (f"; {len(res.rigid_hz)} rigid-body modes skipped" if len(res.rigid_hz) else ""))
+    return "\n".join(lines)
+
+
+def build_parser(prog="python -m fem.modal"):
+    from geometry.common import CliParser
+
+    p = CliParser(prog=prog, description="Resonance (short-circuit) and anti-resonance (open-circuit) "
+                  "modes of a design near a target frequency.")
+    p.add_argument("--design", required=True, help="design TOML file (geometry package layout)")
+    p.add_argument("--near", type=float, required=True, metavar="HZ",
+                   help="target frequency in Hz (0: lowest modes)")
+    p.add_argument("--modes", type=int, default=12, metavar="N", help="number of modes (default 12)")
+    p.add_argument("--json", metavar="OUT", help="write the result as JSON to OUT")
+    p.add_argument("--mesh-size", type=float, metavar="M", help="characteristic mesh size in m")
+    p.add_argument("--order", type=int, default=2, choices=(1, 2), help="field order (default 2)")
+    p.add_argument("--clamp", action="append", default=[], metavar="SURFACE",
+                   help="clamp the named surface (repeatable; default: free)")
+    p.add_argument("--solver", choices=("auto", "pardiso", "superlu"), default=None,
+                   help="sparse direct solver (default: pardiso if installed; env RPUD_SOLVER)")
+    p.add_argument("-v", "--verbose", action="count", default=0)
+    return p
+
+
+def mesh_from_design(path, mesh_size=None):
+    """TaggedMesh of a design file through the geometry package's loader and mesher."""
+    import geometry
+
+    load = getattr(geometry, "load_design", None)
+    build = getattr(geometry, "build_mesh", None)
+    if load is None or build is None:
+        raise ParameterError("design", str(path), "the geometry mesher (geometry.load_design/"
+                             "geometry.build_mesh) is not available in this checkout")
+    design = load(path)
+    return build(design, mesh_size=mesh_size) if mesh_size is not None else build(design)
+
+
+def main(argv=None) -> int:
+    from geometry.common import setup_logging, write_json
+
+    from .assembly import assemble
+
+    args = build_parser().parse_args(argv)
+    setup_logging(args.verbose)
+    check_nonnegative("--near", args.near, "Hz")
+    if args.modes < 1:
+        raise ParameterError("--modes", args.modes, "must be >= 1")
+    if args.mesh_size is not None:
+        check_positive("--mesh-size", args.mesh_size, "m")
+    if args.json and not str(args.json).endswith(".json"):
+        raise ParameterError("--json", args.json, "must end in .json")
+    mesh = mesh_from_design(args.design, args.mesh_size)
+    for name in args.clamp:
+        mesh.facets(name)
+    system = assemble(mesh, order=args.order)
+    res = modal_analysis(system, args.near, args.modes, clamp=args.clamp,
+                         backend=None if args.solver in (None, "auto") else args.solver)
+    print(format_table(res))
+    if args.json:
+        data = res.to_json()
+        data["design"] = str(args.design)
+        data["mesh_size"] = args.mesh_size
+        write_json(args.json, data)
+    return 0
+
+
+if __name__ == "__main__":
+    from geometry.common import run_cli
+
+    sys.exit(run_cli(main, prog="fem.modal"))

@@ -1,0 +1,130 @@
+"""fem.assembly / fem.solvers: fast assembly equals plain scikit-fem, symmetry, DOF layout,
+electrodes, capacitance, solver backends."""
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from fem.assembly import assemble
+from fem.materials import EPS0, piezo_matrices, strain_charge
+from fem.solvers import backend_name, factorize, pardiso_available
+from geometry.common import ParameterError
+from geometry.mesh import Electrode
+from test_fem_util import bar, rod
+
+
+def _rel(a, b):
+    return abs(a - b).max() / abs(b).max()
+
+
+@pytest.mark.parametrize("builder", [
+    lambda: rod(0.04, 0.001, 1, 6, "PZT-4", (0, 0, -1), True),            # curved P2 geometry
+    lambda: bar(n=(8, 2, 1)),                                               # straight tetrahedra
+])
+def test_fast_assembly_equals_plain_skfem(builder):
+    tm = builder()
+    fast, ref = assemble(tm), assemble(tm, reference=True)
+    assert fast.phi_scale == ref.phi_scale
+    for a, b in ((fast.K, ref.K), (fast.M, ref.M), (fast.K_loss, ref.K_loss)):
+        assert a.shape == b.shape
+        assert _rel(a, b) < 1e-12
+        assert _rel(a, a.T) < 1e-13          # symmetric to round-off
+
+
+def test_layout_and_vector_interleaving():
+    tm = rod(0.02, 0.001, 1, 4, "PZT-4", (0, 0, 1), True)
+    s = assemble(tm)
+    n = s.n_nodes
+    assert s.n_u == 3 * n and s.hot_dof == s.ndof - 1 and s.ndof == 3 * n + s.n_phi + 1
+    # u DOF of node k, component c is 3k + c: the same as skfem's ElementVector numbering
+    ed = s.basis.element_dofs
+    assert np.array_equal(s.basis_u.element_dofs, (3 * ed[:, None, :] + np.arange(3)[None, :, None]).reshape(-1, ed.shape[1]))
+    x = np.zeros(s.ndof)
+    x[: s.n_u] = np.arange(s.n_u)
+    assert np.array_equal(s.displacement(x)[5], [15, 16, 17])
+    # potential rows have no mass; M is the rigid-body mass
+    assert s.M[s.n_u:].nnz == 0
+    ux = np.zeros(s.ndof)
+    ux[0:s.n_u:3] = 1.0
+    vol = np.pi * 0.001 ** 2 * 0.02
+    # curved P2 geometry, 8 arcs per circle: the P2 arc interpolation loses ~0.15 % of the area
+    assert ux @ (s.M @ ux) == pytest.approx(7500 * vol, rel=3e-3)
+    top = s.surface_nodes("top")
+    assert np.allclose(s.nodes[top, 2], 0.02) and len(top) == 25
+    assert np.array_equal(s.dofs_on("top", components=[2]), 3 * top + 2)
+    # electrodes: hot nodes tied, ground eliminated, interior potential strictly inside
+    assert set(s.hot_nodes) == set(top)
+    assert np.all(s.nodes[s.phi_nodes, 2] > 0) and np.all(s.nodes[s.phi_nodes, 2] < 0.02)
+
+
+def test_capacitances_of_a_k31_bar():
+    l, w, t = 0.04, 0.004, 0.001
+    s = assemble(bar(l, w, t, n=(10, 2, 1)))
+    eps33S = piezo_matrices("PZT-4").eps_S[2, 2]
+    c_blocked = s.capacitance_static("blocked")
+    assert c_blocked == pytest.approx(eps33S * l * w / t, rel=1e-9)   # uniform field: exact
+    # free bar: eps33 between eps^S and eps^T; thin bar -> close to eps^T minus the k31 clamp in y
+    _, d, epsT = strain_charge(piezo_matrices("PZT-4"))
+    c_free = s.capacitance_static("free")
+    assert c_free == pytest.approx(epsT[2, 2] * l * w / t, rel=0.02)
+    # charge sign: the blocked capacitor at +1 V carries +C
+    free = np.arange(s.n_u, s.n_u + s.n_phi)
+    x = s.expand(np.zeros(len(free)), free, 1.0)
+    assert s.charge(x) > 0
+
+
+def test_split_for_a_driven_problem_matches_static_capacitance():
+    s = assemble(bar(n=(10, 2, 1)))
+    sp_ = s.split()
+    A = (sp_.K + (2 * np.pi) ** 2 * sp_.M).tocsr()
+    xf = factorize(A)(sp_.rhs(2.0, lossy=False))
+    x = s.expand(xf, sp_.free, 2.0)
+    assert s.charge(x) / 2.0 == pytest.approx(s.capacitance_static("free"), rel=1e-9)
+    assert s.potential(x)[s.hot_nodes] == pytest.approx(2.0)
+
+
+def test_loss_matrix_and_poling_sign():
+    up = assemble(rod(0.02, 0.001, 1, 4, "PZT-4", (0, 0, 1), True))
+    down = assemble(rod(0.02, 0.001, 1, 4, "PZT-4", (0, 0, -1), True))
+    # flipping the poling flips the coupling block only
+    Kup_u = up.K[: up.n_u, up.n_u:]
+    Kup_d = down.K[: down.n_u, down.n_u:]
+    assert _rel(Kup_u, -Kup_d) < 1e-13
+    # K_loss = K_uu / Q  (+) tan(delta) s^2 K_phiphi
+    Kuu = up.K[: up.n_u, : up.n_u]
+    assert _rel(up.K_loss[: up.n_u, : up.n_u], Kuu / 500.0) < 1e-12
+    assert _rel(up.K_loss[up.n_u:, up.n_u:], -0.004 * up.K[up.n_u:, up.n_u:]) < 1e-12
+
+
+def test_electrode_errors():
+    tm = rod(0.02, 0.001, 1, 4, "PZT-4", (0, 0, 1), True)
+    with pytest.raises(ParameterError, match="ground electrode"):
+        assemble(tm.replace(electrodes=(Electrode("top", "hot"),)))
+    with pytest.raises(ParameterError, match="must not touch"):
+        assemble(tm.replace(electrodes=(Electrode("top", "hot"), Electrode("side", "ground"))))
+    with pytest.raises(ParameterError, match="poling"):
+        from geometry.mesh import Region
+        assemble(tm.replace(regions=(Region("rod", "rod", "PZT-4", None),)))
+    with pytest.raises(ParameterError, match="surface"):
+        assemble(tm).dofs_on("nowhere")
+
+
+def test_solver_backends_agree_real_and_complex():
+    s = assemble(rod(0.02, 0.001, 1, 4, "PZT-4", (0, 0, 1), True))
+    K, M, free = s.reduce("open")
+    A = (K - (2 * np.pi * 30e3) ** 2 * M).tocsr()
+    b = np.random.default_rng(1).normal(size=A.shape[0])
+    x_lu = factorize(A, backend="superlu")(b)
+    assert np.linalg.norm(A @ x_lu - b) < 1e-8 * np.linalg.norm(b)
+    L = s.K_loss[free][:, free]
+    Ac = (A + 1j * L).tocsr()
+    xc_lu = factorize(Ac, backend="superlu")(b)
+    assert np.linalg.norm(Ac @ xc_lu - b) < 1e-8 * np.linalg.norm(b)
+    if pardiso_available():
+        assert backend_name() == "pardiso"
+        x_p = factorize(A)(b)
+        assert np.linalg.norm(x_p - x_lu) < 1e-8 * np.linalg.norm(x_lu)
+        xc_p = factorize(Ac)(b)
+        assert np.linalg.norm(xc_p - xc_lu) < 1e-8 * np.linalg.norm(xc_lu)
+    with pytest.raises(ParameterError):
+        factorize(A, backend="mumps")
