@@ -60,7 +60,7 @@ def _surface(mesh: TaggedMesh) -> _Surface:
     except TypeError:  # pyvista < 0.47
         surf = grid.extract_surface()
     ids = np.asarray(surf.point_data["node"], dtype=np.int64)
-    edges = surf.extract_feature_edges(feature_angle=30, boundary_edges=True, non_manifold_edges=False,
+    edges = surf.extract_feature_edges(feature_angle=60, boundary_edges=True, non_manifold_edges=False,
                                        manifold_edges=False)
     extent = float(np.ptp(sk.p, axis=1).max())
     out = _Surface(surf=surf, ids=ids, edges=edges, extent=extent)
@@ -118,7 +118,7 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
         Draw the element edges of the deformed surface.
 
     The deformed boundary is coloured by the displacement magnitude over its maximum; the undeformed shape is a
-    translucent grey ghost with its feature edges drawn as dark lines.
+    translucent grey ghost with its feature edges (dihedral angle > 60 deg) drawn as grey lines.
     """
     u = check_shapes(mesh, shape, "shape", allow_complex=False)
     if u.shape[0] != 1:
@@ -146,12 +146,12 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
         pl.set_background("white")
         pl.add_mesh(s.surf, color="lightgray", opacity=0.18, lighting=False)
         if s.edges.n_points:
-            pl.add_mesh(s.edges, color="dimgray", line_width=1.0)
+            pl.add_mesh(s.edges, color="gray", line_width=1.0, opacity=0.6)
         pl.add_mesh(deformed, scalars="displacement", cmap="turbo", clim=(0.0, 1.0),
                     show_edges=show_edges, edge_color="black", smooth_shading=False,
                     scalar_bar_args={"title": "displacement / max", "color": "black", "vertical": True,
-                                     "position_x": 0.88, "position_y": 0.2, "height": 0.6,
-                                     "width": 0.06, "fmt": "%.1f"})
+                                     "position_x": 0.87, "position_y": 0.2, "height": 0.6, "title_font_size": 14,
+                                     "width": 0.05, "fmt": "%.1f"})
         if title:
             pl.add_text(title, position="upper_left", font_size=14, color="black")
         pl.add_text(f"displacement x {scale:.3g}", position="lower_left", font_size=9, color="dimgray")

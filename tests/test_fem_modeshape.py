@@ -239,3 +239,22 @@ def test_free_bar_first_longitudinal_and_torsional_modes(free_bar_modes):
     # mode sets of the same solve match themselves one-to-one (degenerate bending pairs aside)
     res = match_modes(t, shapes[[i_long, i_tors]], t, shapes)
     assert list(res.index) == [i_long, i_tors]
+
+
+def test_shares_follow_a_rotated_and_shifted_axis(tm):
+    """Same bar and fields, rigidly rotated and moved: identical shares with axis_point/axis_dir."""
+    f = fields(tm)
+    shapes = np.stack([f["axial"] + 250 * f["torsion"], f["bending"] + 0.2 * f["axial"]])
+    ref = energy_shares(tm, shapes)
+    c, s_ = np.cos(0.7), np.sin(0.7)
+    Rz = np.array([[c, -s_, 0], [s_, c, 0], [0, 0, 1]])
+    Ry = np.array([[c, 0, s_], [0, 1, 0], [-s_, 0, c]])
+    R = Ry @ Rz
+    p0 = np.array([0.3, -0.1, 0.05])
+    moved = tm.replace(points=tm.points @ R.T + p0)
+    got = energy_shares(moved, shapes @ R.T, axis_point=p0, axis_dir=R @ [0, 0, 1])
+    for name in ("axial", "torsional", "bending", "radial"):
+        np.testing.assert_allclose(getattr(got, name), getattr(ref, name), atol=1e-9)
+    assert classify(got) == classify(ref) == ["longitudinal-torsional", "bending"]
+    np.testing.assert_allclose(effective_mass_axial(moved, shapes @ R.T, axis_dir=R @ [0, 0, 1]),
+                               effective_mass_axial(tm, shapes), rtol=1e-9, atol=1e-15)
