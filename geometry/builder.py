@@ -1,0 +1,567 @@
+"""Gmsh/OpenCASCADE builder: a design in, a conformal tagged tetrahedral mesh out.
+
+Every part is built as an OpenCASCADE solid (cylinders, cones, lofts, boxes; coupler slots as
+helical lofts and tooth gaps as sector prisms, both cut away), all solids are fragmented into
+one conformal model, physical groups are named (one volume group per region, surface groups
+``horn_tip``, ``teeth_tops``, ``flange``, ``electrode_*``...), and the model is meshed with
+first- or second-order (curved) tetrahedra. The mesh size per region is an
+elements-per-wavelength rule on the material's shear wavelength at the design's target
+frequency, capped near small features (slots, teeth, rings, shims).
+
+gmsh is imported inside the functions, so importing this module is cheap.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .common import ParameterError, check_choice, check_positive, check_range
+from .design import DesignBase, RPUDDesign, StackDesign
+from .materials import get_material
+from .mesh import Electrode, Region, TaggedMesh
+
+__all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "ALGORITHMS",
+           "DEFAULT_ORDER", "MIN_QUALITY"]
+
+log = logging.getLogger(__name__)
+
+ALGORITHMS = {"delaunay": 1, "frontal": 4, "hxt": 10}
+"""Gmsh 3-D algorithms by name (Mesh.Algorithm3D)."""
+
+DEFAULT_ORDER = 2
+"""Curved 10-node tetrahedra by default: volumes of round parts exact to ~1e-5 at coarse sizes."""
+
+MIN_QUALITY = 0.1
+"""Lower bound on the minimum scaled inverse condition number (SICN) of every element, checked by
+the tests for the default and textbook designs (inverted elements have SICN <= 0)."""
+
+_GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
+"""Gmsh's 10-node tetrahedron lists edge (2,3) before (1,3); meshio/VTK the other way round."""
+
+
+def shear_wavelength(material: str, frequency: float) -> float:
+    """Shear wavelength (m) of ``material`` at ``frequency`` (Hz).
+
+    Isotropic: sqrt(G / rho) / f; piezoceramic: sqrt(min(c44, c66) / rho) / f (the slowest
+    shear wave).
+    """
+    m = get_material(material)
+    if m.is_piezo:
+        G = min(m.c_E["c44"], m.c_E["c66"])
+    else:
+        G = m.youngs_modulus / (2 * (1 + m.poisson_ratio))
+    return math.sqrt(G / m.density) / frequency
+
+
+@dataclass
+class BuildReport:
+    """What a build did: counts, quality, groups, sizes and timings (JSON friendly)."""
+
+    design: str
+    order: int
+    algorithm: str
+    n_nodes: int = 0
+    n_elements: int = 0
+    region_sizes: dict[str, float] = field(default_factory=dict)
+    physical_groups: dict[str, dict[str, int]] = field(default_factory=dict)
+    quality: dict[str, float] = field(default_factory=dict)
+    timings: dict[str, float] = field(default_factory=dict)
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "design": self.design, "order": self.order, "algorithm": self.algorithm,
+            "n_nodes": self.n_nodes, "n_elements": self.n_elements,
+            "mesh_size_m": self.region_sizes, "physical_groups": self.physical_groups,
+            "quality": self.quality, "timings_s": self.timings,
+        }
+
+
+# ============================================================================ sizes
+
+
+def region_sizes(design: DesignBase, mesh_size: float | None = None,
+                 elements_per_wavelength: float | None = None) -> dict[str, float]:
+    """Target element size (m) per region, and the feature sizes (keys starting with ``@``).
+
+    ``mesh_size`` replaces the wavelength rule as the base size of every region; the
+    feature caps (ring and shim thickness, slot width and depth, tooth height) still apply.
+    """
+    epw = design.elements_per_wavelength if elements_per_wavelength is None else elements_per_wavelength
+    check_range("elements_per_wavelength", epw, 1.0, 200.0)
+    if mesh_size is not None:
+        check_positive("mesh_size", mesh_size, "m")
+
+    def base(material: str) -> float:
+        return mesh_size if mesh_size is not None else shear_wavelength(material, design.target_frequency) / epw
+
+    sizes: dict[str, float] = {}
+    for region, part, material, _vol in design.region_table():
+        sizes[region] = base(material)
+    if isinstance(design, RPUDDesign):
+        s, c = design.stack, design.coupler
+        for region, kind, z0, z1 in design.stack_layers():
+            cap = s.ring_thickness if kind == "ring" else 4 * s.shim_thickness
+            sizes[region] = min(sizes[region], cap)
+        sizes["flange_disc"] = min(sizes["flange_disc"], 1.5 * design.flange.thickness)
+        if c.n_slots:
+            sizes["@slots"] = min(sizes["coupler"], 0.6 * c.slot_width, 1.2 * c.slot_depth)
+        if c.n_teeth:
+            sizes["@teeth"] = min(sizes["coupler"], max(0.8 * c.tooth_height, 0.5 * c.tooth_width))
+    else:
+        for seg in design.segments:
+            dims = [seg.length]
+            if seg.kind == "box":
+                dims += [seg.thickness, seg.width]
+            # at least ~2 elements across the smallest dimension of a thin piece
+            sizes[seg.name] = min(sizes[seg.name], max(min(dims) / 2, 0.25 * max(dims) / 20))
+    return sizes
+
+
+# ============================================================================ OCC helpers
+
+
+def _annular_cylinder(occ, z0, length, r_out, r_in):
+    vol = occ.addCylinder(0, 0, z0, 0, 0, length, r_out)
+    if r_in > 0:
+        hole = occ.addCylinder(0, 0, z0 - 1e-3, 0, 0, length + 2e-3, r_in)
+        out, _ = occ.cut([(3, vol)], [(3, hole)])
+        return out
+    return [(3, vol)]
+
+
+def _sector_prism(occ, a1, a2, r_out, z0, height):
+    """A pie-sector prism from angle a1 to a2 (rad), radius r_out, from z0 over height."""
+    n = max(1, math.ceil((a2 - a1) / (math.pi / 2)))
+    angles = np.linspace(a1, a2, n + 1)
+    centre = occ.addPoint(0, 0, z0)
+    pts = [occ.addPoint(r_out * math.cos(a), r_out * math.sin(a), z0) for a in angles]
+    curves = [occ.addLine(centre, pts[0])]
+    curves += [occ.addCircleArc(pts[i], centre, pts[i + 1]) for i in range(n)]
+    curves.append(occ.addLine(pts[-1], centre))
+    surf = occ.addPlaneSurface([occ.addCurveLoop(curves)])
+    ext = occ.extrude([(2, surf)], 0, 0, height)
+    return [dt for dt in ext if dt[0] == 3]
+
+
+def _slot_wire(occ, c, z, phi, r_tool):
+    """Closed wire of one slot's cross-section at height z, centred on angle phi."""
+    R = c.outer_diameter / 2
+    alpha = c.slot_width / (2 * R)
+    centre = occ.addPoint(0, 0, z)
+    if c.slot_profile == "rectangular":
+        r1 = R - c.slot_depth
+        pa = occ.addPoint(r1 * math.cos(phi - alpha), r1 * math.sin(phi - alpha), z)
+        pb = occ.addPoint(r_tool * math.cos(phi - alpha), r_tool * math.sin(phi - alpha), z)
+        pc = occ.addPoint(r_tool * math.cos(phi + alpha), r_tool * math.sin(phi + alpha), z)
+        pd = occ.addPoint(r1 * math.cos(phi + alpha), r1 * math.sin(phi + alpha), z)
+        curves = [occ.addLine(pa, pb), occ.addCircleArc(pb, centre, pc), occ.addLine(pc, pd),
+                  occ.addCircleArc(pd, centre, pa)]
+    else:
+        apex = np.array([R - c.slot_depth, 0.0])
+        ends = []
+        for sgn in (-1, 1):
+            edge = np.array([R * math.cos(alpha), sgn * R * math.sin(alpha)])
+            d = edge - apex
+            # |apex + t d| = r_tool, t > 0
+            A, B, C = d @ d, 2 * apex @ d, apex @ apex - r_tool ** 2
+            t = (-B + math.sqrt(B * B - 4 * A * C)) / (2 * A)
+            ends.append(apex + t * d)
+        rot = np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
+        p_apex = occ.addPoint(*(rot @ apex), z)
+        pa = occ.addPoint(*(rot @ ends[0]), z)
+        pb = occ.addPoint(*(rot @ ends[1]), z)
+        curves = [occ.addLine(p_apex, pa), occ.addCircleArc(pa, centre, pb), occ.addLine(pb, p_apex)]
+    return occ.addCurveLoop(curves)
+
+
+def _slot_phase(c) -> float:
+    """Start angle of slot 0: keeps phi = 0 (the OCC cylinder seam) clear of every slot if the
+    slots leave an angular gap, else centres the seam between two slot starts."""
+    R = c.outer_diameter / 2
+    alpha = c.slot_width / (2 * R)
+    pitch = 2 * math.pi / c.n_slots
+    tw = c.slot_twist
+    gap = pitch - abs(tw) - 2 * alpha
+    if gap > 0:
+        start = alpha + 0.5 * gap
+        return start if tw >= 0 else start + abs(tw)
+    return 0.5 * pitch
+
+
+def _slot_tool(occ, c, z0, phi0):
+    """One helical slot cutter over [z0, z0 + slot_length], starting at angle phi0."""
+    R = c.outer_diameter / 2
+    r_tool = R + max(1e-3, c.slot_depth)
+    twist = c.slot_twist
+    if abs(twist) < 1e-12:
+        wire = _slot_wire(occ, c, z0, phi0, r_tool)
+        surf = occ.addPlaneSurface([wire])
+        return [dt for dt in occ.extrude([(2, surf)], 0, 0, c.slot_length) if dt[0] == 3]
+    n = max(2, math.ceil(abs(twist) / math.radians(10.0))) + 1
+    wires = [_slot_wire(occ, c, z0 + c.slot_length * i / (n - 1), phi0 + twist * i / (n - 1), r_tool)
+             for i in range(n)]
+    return occ.addThruSections(wires, makeSolid=True, makeRuled=False)
+
+
+def _horn(occ, h, z0, bore):
+    L = h.length
+    if h.profile == "stepped":
+        l1 = h.step_fraction * L
+        a = occ.addCylinder(0, 0, z0, 0, 0, l1, h.back_diameter / 2)
+        b = occ.addCylinder(0, 0, z0 + l1, 0, 0, L - l1, h.tip_diameter / 2)
+        vols, _ = occ.fuse([(3, a)], [(3, b)])
+    elif h.profile == "conical":
+        vols = [(3, occ.addCone(0, 0, z0, 0, 0, L, h.back_diameter / 2, h.tip_diameter / 2))]
+    else:
+        n = 13
+        wires = []
+        for i in range(n):
+            s = L * i / (n - 1)
+            circ = occ.addCircle(0, 0, z0 + s, float(h.diameter_at(s)) / 2)
+            wires.append(occ.addCurveLoop([circ]))
+        vols = occ.addThruSections(wires, makeSolid=True, makeRuled=False)
+    if bore > 0:
+        hole = occ.addCylinder(0, 0, z0 - 1e-3, 0, 0, L + 2e-3, bore / 2)
+        vols, _ = occ.cut(vols, [(3, hole)])
+    return vols
+
+
+def _make_rpud(occ, d: RPUDDesign):
+    """OCC solids of the RPUD: list of (region, part, material, poling, dimtags)."""
+    c, s, f = d.coupler, d.stack, d.flange
+    pieces = []
+    # ---- coupler
+    body = _annular_cylinder(occ, -c.length, c.length, c.outer_diameter / 2, d.coupler_bore / 2)
+    tools = []
+    R = c.outer_diameter / 2
+    if c.n_teeth:
+        pitch = 2 * math.pi / c.n_teeth
+        half = c.tooth_width / (2 * R)
+        for k in range(c.n_teeth):
+            a = (k - 0.5) * pitch  # a gap centred on phi = 0, where OCC puts the cylinder's seam
+            tools += _sector_prism(occ, a + half, a + pitch - half, R + 1e-3, -c.length - 1e-3, c.tooth_height + 1e-3)
+    if c.n_slots:
+        z_slot = -c.length + (c.tooth_height if c.n_teeth else 0.0) + c.slot_offset
+        for k in range(c.n_slots):
+            tools += _slot_tool(occ, c, z_slot, _slot_phase(c) + 2 * math.pi * k / c.n_slots)
+    if tools:
+        body, _ = occ.cut(body, tools)
+    pieces.append(("coupler", "coupler", c.material, None, body))
+    # ---- stack
+    for region, kind, z0, z1 in d.stack_layers():
+        vols = _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)
+        if kind == "ring":
+            k = int(region.split("_")[1])
+            pieces.append((region, "stack", s.material, d.ring_poling(k), vols))
+        else:
+            pieces.append((region, "electrodes", s.shim_material, None, vols))
+    zf = s.length
+    pieces.append(("flange_disc", "flange", f.material, None,
+                   _annular_cylinder(occ, zf, f.thickness, f.outer_diameter / 2, d.bore_diameter / 2)))
+    pieces.append(("horn", "horn", d.horn.material, None, _horn(occ, d.horn, zf + f.thickness, d.bore_diameter)))
+    return pieces
+
+
+def _make_stack(occ, d: StackDesign):
+    pieces = []
+    ext = d.segment_extents()
+    for seg in d.segments:
+        z0, z1 = ext[seg.name]
+        if seg.kind == "box":
+            vols = [(3, occ.addBox(-seg.thickness / 2, -seg.width / 2, z0, seg.thickness, seg.width, seg.length))]
+        elif seg.kind == "cone":
+            vols = [(3, occ.addCone(0, 0, z0, 0, 0, seg.length, seg.outer_diameter / 2, seg.end_diameter / 2))]
+            if seg.inner_diameter > 0:
+                hole = occ.addCylinder(0, 0, z0 - 1e-3, 0, 0, seg.length + 2e-3, seg.inner_diameter / 2)
+                vols, _ = occ.cut(vols, [(3, hole)])
+        else:
+            vols = _annular_cylinder(occ, z0, seg.length, seg.outer_diameter / 2, seg.inner_diameter / 2)
+        pieces.append((seg.name, seg.part, seg.material, seg.poling_vector, vols))
+    return pieces
+
+
+# ============================================================================ face selection
+
+
+def _boundary_surfaces(gmsh, vols):
+    out = gmsh.model.getBoundary([(3, v) for v in vols], combined=False, oriented=False, recursive=False)
+    return sorted({abs(t) for dim, t in out if dim == 2})
+
+
+def _planar_at(gmsh, surf, axis: str, value: float, tol: float) -> bool:
+    bb = gmsh.model.getBoundingBox(2, surf)
+    i = "xyz".index(axis)
+    lo, hi = bb[i], bb[i + 3]
+    return hi - lo < tol and abs(0.5 * (lo + hi) - value) < tol
+
+
+def _surface_rules(d: DesignBase) -> list[tuple[str, str, str, float, float]]:
+    """(facet set, region, axis, coordinate, min outer radius of the face) rules."""
+    rules = []
+    if isinstance(d, RPUDDesign):
+        ext = d.part_extents()
+        rules.append(("horn_tip", "horn", "z", ext["horn"][1], 0.0))
+        rules.append(("teeth_tops", "coupler", "z", ext["coupler"][0], 0.0))
+        r_contact = max(d.stack.outer_diameter, d.horn.back_diameter) / 2
+        zf0, zf1 = ext["flange"]
+        rules.append(("flange", "flange_disc", "z", zf0, r_contact + 1e-4))
+        rules.append(("flange", "flange_disc", "z", zf1, r_contact + 1e-4))
+        rings = {r: (z0, z1) for r, kind, z0, z1 in d.stack_layers() if kind == "ring"}
+        for name, planes in d.electrode_planes().items():
+            for axis, value in planes:
+                for ring, (z0, z1) in rings.items():
+                    if math.isclose(value, z0, abs_tol=1e-9) or math.isclose(value, z1, abs_tol=1e-9):
+                        rules.append((name, ring, axis, value, 0.0))
+    else:
+        ext = d.segment_extents()
+        zmin = min(z0 for z0, _ in ext.values())
+        zmax = max(z1 for _, z1 in ext.values())
+        for seg in d.segments:
+            z0, z1 = ext[seg.name]
+            if math.isclose(z0, zmin, abs_tol=1e-12):
+                rules.append(("bottom", seg.name, "z", zmin, 0.0))
+            if math.isclose(z1, zmax, abs_tol=1e-12):
+                rules.append(("top", seg.name, "z", zmax, 0.0))
+        bynames = {s.name: s for s in d.segments}
+        planes = d.electrode_planes()
+        for e in d.electrodes:
+            for axis, value in planes[e.name]:
+                rules.append((e.name, bynames[e.segment].name, axis, value, 0.0))
+    return rules
+
+
+# ============================================================================ build
+
+
+def build_mesh(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
+               elements_per_wavelength: float | None = None, **kw) -> TaggedMesh:
+    """Mesh a design; see :func:`build` (this returns only the :class:`TaggedMesh`)."""
+    return build(design, mesh_size=mesh_size, order=order, elements_per_wavelength=elements_per_wavelength, **kw)[0]
+
+
+def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
+          elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
+          verbose: bool = False, msh_path: str | None = None) -> tuple[TaggedMesh, BuildReport]:
+    """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
+
+    Parameters
+    ----------
+    design : RPUDDesign or StackDesign
+    mesh_size : float, optional
+        Base element size in m for every region, replacing the elements-per-wavelength rule
+        (feature caps still apply).
+    order : {1, 2}
+        1: 4-node tetrahedra; 2: 10-node curved tetrahedra (nodes on the true geometry).
+    elements_per_wavelength : float, optional
+        Elements per shear wavelength at the design's target frequency (default: the design's).
+    algorithm : {"delaunay", "frontal", "hxt"}
+        Gmsh 3-D algorithm.
+    verbose : bool
+        Let Gmsh print to the terminal.
+    msh_path : str, optional
+        Also write Gmsh's native ``.msh`` (4.1) of the model to this path (caller handles
+        atomicity).
+
+    Returns
+    -------
+    (TaggedMesh, BuildReport)
+    """
+    import gmsh
+
+    if order not in (1, 2) or isinstance(order, bool):
+        raise ParameterError("order", order, "must be 1 or 2")
+    check_choice("algorithm", algorithm, tuple(ALGORITHMS))
+    if not isinstance(design, (RPUDDesign, StackDesign)):
+        raise ParameterError("design", type(design).__name__, "must be an RPUDDesign or a StackDesign")
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength)
+    report = BuildReport(design=design.name, order=order, algorithm=algorithm,
+                         region_sizes={k: float(v) for k, v in sizes.items()})
+    t_start = time.perf_counter()
+    gmsh.initialize(readConfigFiles=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
+        gmsh.option.setNumber("General.Verbosity", 5 if verbose else 1)
+        gmsh.option.setNumber("General.NumThreads", 1)
+        for dim in ("1D", "2D", "3D"):
+            gmsh.option.setNumber(f"Mesh.MaxNumThreads{dim}", 1)
+        gmsh.option.setNumber("Mesh.RandomSeed", 1)
+        gmsh.model.add(design.name)
+        occ = gmsh.model.occ
+
+        # ---- solids
+        t0 = time.perf_counter()
+        pieces = _make_rpud(occ, design) if isinstance(design, RPUDDesign) else _make_stack(occ, design)
+        all_tags = [dt for p in pieces for dt in p[4]]
+        _out, out_map = occ.fragment(all_tags, [])
+        occ.synchronize()
+        region_vols: dict[str, list[int]] = {}
+        k = 0
+        for region, *_rest, dimtags in pieces:
+            vols = []
+            for _ in dimtags:
+                vols += [t for dim, t in out_map[k] if dim == 3]
+                k += 1
+            if not vols:
+                raise ParameterError("design", design.name, f"region {region} vanished when fragmenting")
+            region_vols[region] = sorted(set(vols))
+        claimed = [v for vs in region_vols.values() for v in vs]
+        if len(claimed) != len(set(claimed)):
+            raise ParameterError("design", design.name, "overlapping parts: two regions share a volume")
+        report.timings["geometry"] = time.perf_counter() - t0
+
+        # ---- physical groups
+        region_meta = {p[0]: p[1:4] for p in pieces}
+        clash = sorted(set(region_vols) & {r[0] for r in _surface_rules(design)})
+        if clash:
+            raise ParameterError("design", design.name, f"region name(s) {', '.join(clash)} clash with surface names")
+        for region, vols in region_vols.items():
+            gmsh.model.addPhysicalGroup(3, vols, name=region)
+        scale = max(abs(z) for _, z in design.axial_breakpoints()) + 1e-3
+        tol = 1e-6 + 1e-6 * scale  # OCC boxes are padded by 1e-7 m
+        facet_surfs: dict[str, list[int]] = {}
+        for name, region, axis, value, rmin in _surface_rules(design):
+            for sf in _boundary_surfaces(gmsh, region_vols[region]):
+                if not _planar_at(gmsh, sf, axis, value, tol):
+                    continue
+                if rmin > 0:
+                    bb = gmsh.model.getBoundingBox(2, sf)
+                    if max(abs(bb[0]), abs(bb[3]), abs(bb[1]), abs(bb[4])) < rmin:
+                        continue
+                facet_surfs.setdefault(name, [])
+                if sf not in facet_surfs[name]:
+                    facet_surfs[name].append(sf)
+        expected = {r[0] for r in _surface_rules(design)}
+        missing = sorted(expected - set(facet_surfs))
+        if missing:
+            raise ParameterError("design", design.name, f"no surface found for {', '.join(missing)}")
+        for name, surfs in facet_surfs.items():
+            gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
+
+        # ---- sizes
+        fields = []
+        for region, vols in region_vols.items():
+            fid = gmsh.model.mesh.field.add("Constant")
+            gmsh.model.mesh.field.setNumber(fid, "VIn", sizes[region])
+            gmsh.model.mesh.field.setNumbers(fid, "VolumesList", vols)
+            gmsh.model.mesh.field.setNumber(fid, "IncludeBoundary", 1)
+            fields.append(fid)
+        if isinstance(design, RPUDDesign):
+            c = design.coupler
+            R = c.outer_diameter / 2 + 1e-3
+            zones = {z[0]: z for z in design._zones()}
+            for key, zone in (("@slots", "coupler.slots"), ("@teeth", "coupler.teeth")):
+                if key in sizes:
+                    _lab, _part, z0, z1 = zones[zone]
+                    fid = gmsh.model.mesh.field.add("Box")
+                    for opt, val in (("VIn", sizes[key]), ("VOut", 1e22), ("XMin", -R), ("XMax", R),
+                                     ("YMin", -R), ("YMax", R), ("ZMin", z0 - 1e-4), ("ZMax", z1 + 1e-4),
+                                     ("Thickness", 2.0 * sizes[key])):
+                        gmsh.model.mesh.field.setNumber(fid, opt, val)
+                    fields.append(fid)
+        fmin = gmsh.model.mesh.field.add("Min")
+        gmsh.model.mesh.field.setNumbers(fmin, "FieldsList", fields)
+        gmsh.model.mesh.field.setAsBackgroundMesh(fmin)
+        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 12)
+        gmsh.option.setNumber("Mesh.MeshSizeMax", max(v for v in sizes.values()))
+        gmsh.option.setNumber("Mesh.Algorithm", 6)
+        gmsh.option.setNumber("Mesh.Algorithm3D", ALGORITHMS[algorithm])
+        gmsh.option.setNumber("Mesh.Optimize", 1)
+        gmsh.option.setNumber("Mesh.ElementOrder", 1)
+
+        # ---- mesh
+        t0 = time.perf_counter()
+        gmsh.model.mesh.generate(3)
+        report.timings["mesh_linear"] = time.perf_counter() - t0
+        if order == 2:
+            t0 = time.perf_counter()
+            gmsh.model.mesh.setOrder(2)
+            report.timings["order_2"] = time.perf_counter() - t0
+        if msh_path is not None:
+            gmsh.write(str(msh_path))
+
+        # ---- extract
+        t0 = time.perf_counter()
+        tm, qual_tags = _extract(gmsh, design, region_vols, region_meta, facet_surfs, order)
+        report.timings["extract"] = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        report.quality = _quality(gmsh, qual_tags)
+        report.timings["quality"] = time.perf_counter() - t0
+        for name, vols in region_vols.items():
+            report.physical_groups[name] = {"dim": 3, "entities": len(vols),
+                                            "elements": int(len(tm.cells_in(region=name)))}
+        for name, surfs in facet_surfs.items():
+            report.physical_groups[name] = {"dim": 2, "entities": len(surfs),
+                                            "elements": int(len(tm.facet_sets[name]))}
+    finally:
+        gmsh.finalize()
+    report.n_nodes, report.n_elements = tm.n_points, tm.n_cells
+    report.timings["total"] = time.perf_counter() - t_start
+    log.info("meshed %s: %d nodes, %d order-%d tetrahedra in %.2f s (min SICN %.3f)", design.name,
+             tm.n_points, tm.n_cells, order, report.timings["total"], report.quality.get("min_sicn", float("nan")))
+    return tm, report
+
+
+def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
+    node_tags, coords, _ = gmsh.model.mesh.getNodes()
+    node_tags = np.asarray(node_tags, dtype=np.int64)
+    coords = np.asarray(coords).reshape(-1, 3)
+    index = np.full(int(node_tags.max()) + 1, -1, dtype=np.int64)
+    index[node_tags] = np.arange(len(node_tags))
+    etype = 4 if order == 1 else 11
+    cells, cell_region, elem_tags = [], [], []
+    regions = []
+    for i, (region, vols) in enumerate(region_vols.items()):
+        part, material, poling = region_meta[region]
+        regions.append(Region(region, part, material, None if poling is None else tuple(float(x) for x in poling)))
+        for v in vols:
+            types, etags, enodes = gmsh.model.mesh.getElements(3, v)
+            for t, et, en in zip(types, etags, enodes):
+                if t != etype:
+                    raise RuntimeError(f"unexpected gmsh element type {t} in volume {v}")
+                conn = index[np.asarray(en, dtype=np.int64).reshape(len(et), -1)]
+                cells.append(conn)
+                cell_region.append(np.full(len(et), i, dtype=np.int64))
+                elem_tags.append(np.asarray(et, dtype=np.int64))
+    cells = np.concatenate(cells)
+    if order == 2:
+        cells = cells[:, _GMSH_TO_VTK_TET10]
+    cell_region = np.concatenate(cell_region)
+    facet_sets = {}
+    for name, surfs in facet_surfs.items():
+        tris = []
+        for sf in surfs:
+            types, etags, enodes = gmsh.model.mesh.getElements(2, sf)
+            for t, et, en in zip(types, etags, enodes):
+                n_per = {2: 3, 9: 6}[int(t)]
+                tris.append(index[np.asarray(en, dtype=np.int64).reshape(len(et), n_per)[:, :3]])
+        facet_sets[name] = np.concatenate(tris)
+    # compress to the nodes used by cells
+    used = np.unique(cells)
+    renum = np.full(len(coords), -1, dtype=np.int64)
+    renum[used] = np.arange(len(used))
+    if isinstance(design, RPUDDesign):
+        roles = design.electrode_roles()
+        electrodes = tuple(Electrode(n, roles[n]) for n in sorted(roles, key=lambda s: int(s.split("_")[1])))
+    else:
+        electrodes = tuple(Electrode(e.name, e.role) for e in design.electrodes)
+    tm = TaggedMesh(points=coords[used], cells=renum[cells], cell_region=cell_region, regions=tuple(regions),
+                    facet_sets={k: renum[v] for k, v in facet_sets.items()}, electrodes=electrodes)
+    return tm, np.concatenate(elem_tags)
+
+
+def _quality(gmsh, elem_tags) -> dict[str, float]:
+    out = {}
+    for key, name in (("sicn", "minSICN"), ("gamma", "gamma")):
+        q = np.asarray(gmsh.model.mesh.getElementQualities(elem_tags.tolist(), name))
+        out[f"min_{key}"] = float(q.min())
+        out[f"median_{key}"] = float(np.median(q))
+    out["n_inverted"] = int(np.sum(np.asarray(gmsh.model.mesh.getElementQualities(elem_tags.tolist(), "minSICN")) <= 0))
+    return out

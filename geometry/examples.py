@@ -1,0 +1,75 @@
+"""Constructors of textbook designs (generic coaxial stacks) used by tests and users.
+
+All return a validated :class:`~geometry.design.StackDesign`; ``examples.toml`` beside this
+module holds the same designs with default arguments (``python -m geometry --design
+geometry/examples.toml --select k31_bar``).
+"""
+
+from __future__ import annotations
+
+from .design import ElectrodeSpec, RPUDDesign, Segment, StackDesign, default_design
+
+__all__ = ["k33_rod", "k31_bar", "langevin_sandwich", "slender_rod", "EXAMPLES", "all_examples"]
+
+
+def k33_rod(material: str = "PZT-4", length: float = 0.04, diameter: float = 0.004,
+            target_frequency: float = 40e3) -> StackDesign:
+    """A piezoceramic rod poled along its length, electrodes on both ends (IEEE 176 k33).
+
+    Parameters
+    ----------
+    material : str
+    length, diameter : float
+        m (slender by default: L/R = 20, see the Rayleigh-Love pitfall).
+    target_frequency : float
+        Hz, for the mesh size rule.
+    """
+    return StackDesign(
+        name="k33_rod", target_frequency=target_frequency,
+        segments=(Segment("rod", length, kind="cylinder", material=material, outer_diameter=diameter, poling="+z"),),
+        electrodes=(ElectrodeSpec("electrode_bottom", "rod", "bottom", "ground"),
+                    ElectrodeSpec("electrode_top", "rod", "top", "hot")))
+
+
+def k31_bar(material: str = "PZT-4", length: float = 0.04, width: float = 0.004, thickness: float = 0.001,
+            target_frequency: float = 40e3) -> StackDesign:
+    """A rectangular bar (length along z, ``thickness`` along x, ``width`` along y) poled
+    through the thickness (+x), electrodes on the two large faces x = +-thickness/2 (IEEE 176 k31)."""
+    return StackDesign(
+        name="k31_bar", target_frequency=target_frequency,
+        segments=(Segment("bar", length, kind="box", material=material, thickness=thickness, width=width, poling="+x"),),
+        electrodes=(ElectrodeSpec("electrode_minus_x", "bar", "-x", "ground"),
+                    ElectrodeSpec("electrode_plus_x", "bar", "+x", "hot")))
+
+
+def langevin_sandwich(metal: str = "steel_45", ceramic: str = "PZT-8", metal_length: float = 0.04,
+                      ceramic_length: float = 0.01, diameter: float = 0.03,
+                      target_frequency: float = 25e3) -> StackDesign:
+    """A metal / ceramic / metal sandwich: two metal cylinders with two rings poled -z and +z
+    between them; the middle electrode is hot, the two outer ones ground (touching metal)."""
+    return StackDesign(
+        name="langevin", target_frequency=target_frequency,
+        segments=(Segment("back", metal_length, material=metal, outer_diameter=diameter),
+                  Segment("ring_1", ceramic_length / 2, material=ceramic, outer_diameter=diameter, poling="-z", part="stack"),
+                  Segment("ring_2", ceramic_length / 2, material=ceramic, outer_diameter=diameter, poling="+z", part="stack"),
+                  Segment("front", metal_length, material=metal, outer_diameter=diameter)),
+        electrodes=(ElectrodeSpec("electrode_0", "ring_1", "bottom", "ground"),
+                    ElectrodeSpec("electrode_1", "ring_1", "top", "hot"),
+                    ElectrodeSpec("electrode_2", "ring_2", "top", "ground")))
+
+
+def slender_rod(material: str = "steel_45", length: float = 0.2, diameter: float = 0.01,
+                target_frequency: float = 13e3) -> StackDesign:
+    """A slender passive rod (free-free longitudinal and torsional checks)."""
+    return StackDesign(name="slender_rod", target_frequency=target_frequency,
+                       segments=(Segment("rod", length, material=material, outer_diameter=diameter),))
+
+
+EXAMPLES = {"k33_rod": k33_rod, "k31_bar": k31_bar, "langevin": langevin_sandwich,
+            "slender_rod": slender_rod, "rpud": default_design}
+"""Name -> constructor with default arguments."""
+
+
+def all_examples() -> dict[str, StackDesign | RPUDDesign]:
+    """Every example design with its default arguments."""
+    return {name: make() for name, make in EXAMPLES.items()}
