@@ -1,0 +1,561 @@
+"""Harmonic response of the driven transducer: tip amplitude per volt, admittance, power.
+
+The hot electrode is driven at a voltage amplitude ``V`` (time factor ``exp(+j w t)``); the
+ground electrodes are at 0 V. With the hysteretic loss matrix ``L`` (mechanical ``1/Q`` per
+region, dielectric ``tan(delta)``, see :class:`LossModel`) the free unknowns solve::
+
+    (K + j L - w^2 M) x_f = b,   b = -(k_hot + j l_hot) V / s        (fem.assembly.Split)
+
+Two solution methods
+--------------------
+``direct``
+    One complex-symmetric factorisation per frequency (``fem.solvers.factorize``; PARDISO
+    solves it through its real symmetric 2n x 2n equivalent). Exact; used at the working
+    point and as the reference of the tests.
+``modal`` (default for sweeps)
+    Superposition of the short-circuit modes ``phi_i`` (``Phi^T M Phi = I``,
+    ``Phi^T K Phi = Lambda``) near the band, each with its modal loss factor
+    ``eta_i = phi_i^T L phi_i / lambda_i``, plus a residual for the truncated modes taken at
+    a shift ``sigma`` in the band: with ``A_T^-1 = (K - sigma M)^-1 - sum_i phi_i phi_i^T /
+    (lambda_i - sigma)`` (the inverse on the truncated modes), ``R = A_T^-1 b - j A_T^-1 L A_T^-1
+    b``, the truncated response to first order in the losses (two solves with one real
+    factorisation)::
+
+        x_f(w) = sum_i phi_i (phi_i^T b) / (lambda_i (1 + j eta_i) - w^2) + R
+
+    (in full: the modal loss matrix ``Phi^T L Phi`` is kept whole, a small dense solve per
+    frequency, and the first-order loss coupling between the modes and the truncated space is
+    included; see :class:`ModalBasis`). The modal basis and the residual are computed once; each frequency then costs O(n_modes),
+    because every output (surface means, charge) is a linear functional precomputed on the
+    basis. This is what makes a 200-point admittance sweep cheap.
+
+Outputs
+-------
+Electrode charge ``Q = -(K + j L)[hot] x / s`` (fem.assembly convention), current
+``I = j w Q``, admittance ``Y = I / V``, input power ``P = Re(V conj(I)) / 2``; complex
+area-weighted mean displacements on named surfaces: ``axial`` (along z), ``tangential``
+(about the z axis) and ``radial``, in m (node-wise cylindrical projection of the P2 field,
+integrated with the surface's P2 weights).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Iterable, Mapping, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from geometry.common import ParameterError, check_positive, check_range
+
+from .assembly import PiezoSystem
+from .solvers import factorize
+
+__all__ = ["LossModel", "loss_matrix", "SurfaceFunctional", "surface_functional",
+           "solve_direct", "ModalBasis", "modal_basis", "HarmonicResult", "harmonic_sweep",
+           "working_point", "WorkingPoint"]
+
+log = logging.getLogger(__name__)
+
+COMPONENTS = ("axial", "tangential", "radial")
+
+
+@dataclass(frozen=True)
+class LossModel:
+    """Losses of a driven analysis.
+
+    Attributes
+    ----------
+    q_mech : float or None
+        Mechanical quality factor applied to every region (``inf``: lossless). ``None`` takes
+        each material's ``q_mech`` from the library (PZT-8 1000, steel 5000, ...).
+    tan_delta : float or None
+        Dielectric loss tangent of every ceramic region; ``None`` takes the material values.
+    """
+
+    q_mech: float | None = None
+    tan_delta: float | None = None
+
+    def __post_init__(self):
+        if self.q_mech is not None and not (self.q_mech == np.inf or
+                                            (np.isfinite(self.q_mech) and self.q_mech > 0)):
+            raise ParameterError("q_mech", self.q_mech, "must be > 0 (inf for lossless)")
+        if self.tan_delta is not None:
+            check_range("tan_delta", self.tan_delta, 0.0, 1.0)
+
+    @property
+    def lossless(self) -> bool:
+        return self.q_mech == np.inf and self.tan_delta == 0.0
+
+
+def loss_matrix(system: PiezoSystem, loss: LossModel = LossModel()) -> sp.csr_matrix:
+    """The hysteretic loss matrix ``L`` (same layout as ``system.K``) for a loss model."""
+    if loss.q_mech is None and loss.tan_delta is None:
+        return system.K_loss
+    n_u = system.n_u
+    blocks = []
+    L = system.K_loss.tocsr()
+    K = system.K.tocsr()
+    is_u = np.zeros(system.ndof, dtype=bool)
+    is_u[:n_u] = True
+    sel_u = sp.diags(is_u.astype(float))
+    sel_e = sp.diags((~is_u).astype(float))
+    if loss.q_mech is None:
+        blocks.append(sel_u @ L @ sel_u)
+    elif np.isfinite(loss.q_mech):
+        blocks.append(sel_u @ K @ sel_u / loss.q_mech)
+    if loss.tan_delta is None:
+        blocks.append(sel_e @ L @ sel_e)
+    elif loss.tan_delta > 0:
+        # K's potential block is -s^2 K_phiphi; the dielectric loss is +tan(delta) s^2 K_phiphi
+        blocks.append(-loss.tan_delta * (sel_e @ K @ sel_e))
+    out = sum(blocks) if blocks else sp.csr_matrix(K.shape)
+    return sp.csr_matrix(out)
+
+
+# --------------------------------------------------------------------------- surface outputs
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceFunctional:
+    """Linear maps from a full solution vector to the mean motion of one surface.
+
+    ``rows`` is (3, ndof): applied to ``x`` it gives the area-weighted mean axial, tangential
+    and radial displacement (m) on the surface ``name`` of area ``area`` (m^2).
+    """
+
+    name: str
+    area: float
+    rows: sp.csr_matrix
+
+    def __call__(self, x: np.ndarray) -> dict[str, complex]:
+        vals = self.rows @ np.asarray(x)
+        return {c: vals[i] for i, c in enumerate(COMPONENTS)}
+
+
+def surface_functional(system: PiezoSystem, name: str) -> SurfaceFunctional:
+    """Area-weighted mean displacement on the facet set ``name`` as a linear functional."""
+    from skfem import ElementTetP2, FacetBasis, LinearForm, asm
+
+    if name not in system.mesh.facet_sets:
+        raise ParameterError("surface", name, "unknown; known: " + ", ".join(sorted(system.mesh.facet_sets)))
+    facets = system.skmesh.boundaries[name]
+    if system.order != 2:
+        raise ParameterError("order", system.order, "surface outputs need P2 fields (order=2)")
+    fb = FacetBasis(system.skmesh, ElementTetP2(), facets=facets)
+    weights = asm(LinearForm(lambda v, w: v), fb)          # int N_i dA, (n_nodes,)
+    area = float(weights.sum())
+    nodes = np.flatnonzero(weights)
+    w = weights[nodes] / area
+    xy = system.nodes[nodes, :2]
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    on_axis = r <= 1e-9 * max(float(np.abs(system.nodes[:, :2]).max()), 1e-300)
+    rs = np.where(on_axis, 1.0, r)
+    cos, sin = np.where(on_axis, 0.0, xy[:, 0] / rs), np.where(on_axis, 0.0, xy[:, 1] / rs)
+    rows, cols, vals = [], [], []
+    # axial: u_z; tangential: -sin u_x + cos u_y; radial: cos u_x + sin u_y
+    for comp, coeffs in enumerate([((2, np.ones_like(w)),),
+                                   ((0, -sin), (1, cos)),
+                                   ((0, cos), (1, sin))]):
+        for c, coef in coeffs:
+            rows.append(np.full(len(nodes), comp))
+            cols.append(3 * nodes + c)
+            vals.append(w * coef)
+    R = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(3, system.ndof))
+    return SurfaceFunctional(name, area, R)
+
+
+def _charge_row(system: PiezoSystem, L: sp.csr_matrix) -> np.ndarray:
+    """Dense row r with Q = r @ x (complex; the lossy hot row over -s)."""
+    hot = system.hot_dof
+    row = system.K[hot].toarray().ravel() + 1j * L[hot].toarray().ravel()
+    return -row / system.phi_scale
+
+
+def _check_freqs(freqs) -> np.ndarray:
+    f = np.atleast_1d(np.asarray(freqs, dtype=float))
+    if f.size == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
+        raise ParameterError("freq", freqs, "frequencies must be finite numbers > 0 Hz")
+    return f
+
+
+def _check_voltage(voltage) -> float:
+    check_positive("voltage", voltage, "V")
+    return float(voltage)
+
+
+# --------------------------------------------------------------------------- direct solution
+
+
+def solve_direct(system: PiezoSystem, freq_hz: float, voltage: float = 1.0, *,
+                 clamp: Iterable[str] = (), loss: LossModel = LossModel(),
+                 backend: str | None = None) -> np.ndarray:
+    """Full complex solution vector ``x`` at one frequency by a direct factorisation."""
+    f = _check_freqs(freq_hz)[0]
+    _check_voltage(voltage)
+    split = system.split(tuple(clamp))
+    L = loss_matrix(system, loss)
+    Lf = L[split.free][:, split.free]
+    w2 = (2 * np.pi * f) ** 2
+    A = (split.K - w2 * split.M + 1j * Lf).tocsr()
+    lh = np.asarray(L[:, [system.hot_dof]].toarray()).ravel()[split.free]
+    b = -(split.k_hot + 1j * lh) * (voltage / system.phi_scale)
+    xf = factorize(A, backend=backend)(b)
+    return system.expand(xf, split.free, voltage)
+
+
+# --------------------------------------------------------------------------- modal superposition
+
+
+@dataclass(eq=False)
+class ModalBasis:
+    """Short-circuit modes + residual on the driven free set, ready for superposition.
+
+    ``Phi`` (n_free, n) mass-normalised modes, ``lam`` (n,) eigenvalues (rad/s)^2, ``eta``
+    (n,) modal loss factors (diagonal of ``D / lam``), ``D = Phi^T L Phi`` the modal loss
+    matrix, ``R`` (n_free,) complex residual response to the unit-voltage load ``b1``,
+    ``gamma = Phi^T b1``; ``W = A_T^-1 L Phi`` and ``g = gamma - j Phi^T L R`` carry the
+    first-order loss coupling between modes and truncated space. Solutions scale linearly with
+    the voltage.
+    """
+
+    free: np.ndarray
+    Phi: np.ndarray
+    lam: np.ndarray
+    eta: np.ndarray
+    gamma: np.ndarray
+    R: np.ndarray
+    D: np.ndarray
+    W: np.ndarray
+    g: np.ndarray
+    b1: np.ndarray
+    sigma: float
+    loss: LossModel
+    clamp: tuple[str, ...]
+    f_r_hz: np.ndarray
+    seconds: float = 0.0
+
+    def coordinates(self, freq_hz: np.ndarray) -> np.ndarray:
+        """Modal coordinates per volt, (n_freq, n_modes) complex:
+        ``(Lambda + j D - w^2 I) q = g`` with the full modal loss matrix ``D``."""
+        w2 = (2 * np.pi * np.atleast_1d(np.asarray(freq_hz, dtype=float))) ** 2
+        n = len(self.lam)
+        A = (np.diag(self.lam) + 1j * self.D)[None, :, :] - w2[:, None, None] * np.eye(n)[None]
+        return np.linalg.solve(A, np.broadcast_to(self.g, (len(w2), n))[..., None])[..., 0]
+
+    def columns(self) -> np.ndarray:
+        """(n_free, n_modes + 1): ``x_f = columns @ [q; 1]`` per volt (modes corrected for the
+        loss coupling into the truncated space, then the residual)."""
+        return np.column_stack([self.Phi - 1j * self.W, self.R])
+
+    def solution_free(self, freq_hz: float, voltage: float = 1.0) -> np.ndarray:
+        """``x_f`` at one frequency (complex, on ``free``)."""
+        q = self.coordinates(np.atleast_1d(freq_hz))[0]
+        return self.columns() @ np.append(q, 1.0) * voltage
+
+
+def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp: Iterable[str] = (),
+                loss: LossModel = LossModel(), modes=None, backend: str | None = None) -> ModalBasis:
+    """Build the superposition basis: short-circuit modes near ``near_hz`` and the residual.
+
+    ``modes`` may be a :class:`fem.modal.ModalResult` already computed for the same system and
+    clamp (its vectors are reused); otherwise ``n_modes`` modes are computed. The residual
+    needs one factorisation of ``K - sigma M`` (the modal shift).
+    """
+    from .modal import modal_analysis
+
+    t0 = time.perf_counter()
+    clamp = (clamp,) if isinstance(clamp, str) else tuple(clamp)
+    if system.hot_dof is None:
+        raise ParameterError("electrodes", "none hot", "a driven problem needs a hot electrode")
+    if modes is None:
+        # shift slightly below the centre: a shift exactly on an eigenvalue is singular
+        sigma = (2 * np.pi * near_hz) ** 2 * (1 - 2e-3)
+        modes = modal_analysis(system, near_hz, n_modes, clamp=clamp, backend=backend,
+                               open_circuit=False, sigma=sigma)
+    if tuple(modes.clamp) != clamp:
+        raise ParameterError("clamp", clamp, f"must match the modal analysis' clamp {tuple(modes.clamp)}")
+    split = system.split(clamp)
+    free = split.free
+    Phi = modes.vectors[free]                      # short-circuit free set == driven free set
+    L = loss_matrix(system, loss)
+    Lf = L[free][:, free]
+    lam = (2 * np.pi * modes.f_r_hz) ** 2
+    eta = np.einsum("ij,ij->j", Phi, Lf @ Phi) / lam
+    lh = np.asarray(L[:, [system.hot_dof]].toarray()).ravel()[free]
+    b1 = -(split.k_hot + 1j * lh) / system.phi_scale
+    gamma = Phi.T @ b1
+    sigma = _residual_shift(float(modes.sigma), lam)
+    F = factorize((split.K - sigma * split.M).tocsr(), backend=backend)
+
+    def solve_truncated(v):
+        """(K - sigma M)^-1 v with the basis modes deflated (exact: Phi is M-orthonormal)."""
+        y = F(np.column_stack([v.real, v.imag]))
+        return y[:, 0] + 1j * y[:, 1] - Phi @ ((Phi.T @ v) / (lam - sigma))
+
+    # the truncated modes' response, with their (and the clamped field's) dielectric and
+    # mechanical loss to first order; deflating first keeps the expansion valid near resonance
+    R0 = solve_truncated(b1)
+    R = R0 - 1j * solve_truncated(Lf @ R0)
+    # loss couples the modes with each other and with the truncated space (first order)
+    D = Phi.T @ (Lf @ Phi)
+    W = np.column_stack([solve_truncated(Lf @ Phi[:, i]) for i in range(Phi.shape[1])]) \
+        if Phi.shape[1] else np.zeros((len(free), 0))
+    g = gamma - 1j * (Phi.T @ (Lf @ R0))
+    seconds = time.perf_counter() - t0
+    log.info("harmonic: modal basis of %d modes (%.1f-%.1f kHz) + residual at sigma, %.2f s",
+             len(lam), modes.f_r_hz.min() / 1e3 if len(lam) else 0, modes.f_r_hz.max() / 1e3 if len(lam) else 0,
+             seconds)
+    return ModalBasis(free=free, Phi=Phi, lam=lam, eta=eta, gamma=gamma, R=R, D=D, W=W, g=g, b1=b1,
+                      sigma=sigma,
+                      loss=loss, clamp=clamp, f_r_hz=np.asarray(modes.f_r_hz, float), seconds=seconds)
+
+
+def _residual_shift(sigma: float, lam: np.ndarray) -> float:
+    """A shift in the band but not on an eigenvalue (K - sigma M must be regular)."""
+    for _ in range(50):
+        if len(lam) == 0 or np.min(np.abs(lam - sigma)) > 1e-3 * abs(sigma):
+            return sigma
+        sigma *= 0.995
+    return sigma
+
+
+# --------------------------------------------------------------------------- sweep
+
+
+@dataclass(eq=False)
+class HarmonicResult:
+    """Frequency response at a drive voltage.
+
+    Attributes
+    ----------
+    freqs_hz : (n,) Hz
+    voltage : V (amplitude)
+    admittance : (n,) complex, S
+    current : (n,) complex, A (amplitude)
+    power_w : (n,) W, time-averaged electrical input power
+    surfaces : dict name -> dict component -> (n,) complex mean displacement, m
+    method : "modal" or "direct"
+    f_r_hz, f_a_hz : resonance / anti-resonance of the admittance in the band (Hz): the
+        frequencies of max and min ``|Y|`` refined by parabolic interpolation, NaN if at an edge.
+    timings : dict, s
+    """
+
+    freqs_hz: np.ndarray
+    voltage: float
+    admittance: np.ndarray
+    current: np.ndarray
+    power_w: np.ndarray
+    surfaces: dict
+    method: str
+    loss: LossModel
+    timings: dict = field(default_factory=dict)
+
+    @property
+    def f_r_hz(self) -> float:
+        return _extremum(self.freqs_hz, np.abs(self.admittance), "max")
+
+    @property
+    def f_a_hz(self) -> float:
+        return _extremum(self.freqs_hz, np.abs(self.admittance), "min")
+
+    def amplitude(self, surface: str = "horn_tip", component: str = "axial") -> np.ndarray:
+        """|mean displacement| (m) of a surface component over the band."""
+        if surface not in self.surfaces:
+            raise ParameterError("surface", surface, "not computed; computed: " + ", ".join(self.surfaces))
+        return np.abs(self.surfaces[surface][component])
+
+    def to_json(self) -> dict:
+        return {
+            "method": self.method, "voltage_v": self.voltage,
+            "loss": {"q_mech": self.loss.q_mech, "tan_delta": self.loss.tan_delta},
+            "f_r_hz": _nan_none(self.f_r_hz), "f_a_hz": _nan_none(self.f_a_hz),
+            "freqs_hz": self.freqs_hz.tolist(),
+            "admittance_s": {"re": self.admittance.real.tolist(), "im": self.admittance.imag.tolist()},
+            "power_w": self.power_w.tolist(),
+            "surfaces": {s: {c: {"abs_m": np.abs(v).tolist(), "phase_deg": np.degrees(np.angle(v)).tolist()}
+                             for c, v in comps.items()} for s, comps in self.surfaces.items()},
+            "timings": self.timings,
+        }
+
+
+def _nan_none(v):
+    return None if v is None or not np.isfinite(v) else float(v)
+
+
+def _extremum(f: np.ndarray, y: np.ndarray, kind: str) -> float:
+    k = int(np.argmax(y) if kind == "max" else np.argmin(y))
+    if k == 0 or k == len(f) - 1:
+        return float("nan")
+    # parabola through the three samples around the extremum (in log |Y|: peaks are sharp)
+    y3 = np.log(y[k - 1:k + 2])
+    f3 = f[k - 1:k + 2]
+    c = np.polyfit(f3 - f3[1], y3, 2)
+    if c[0] == 0:
+        return float(f[k])
+    return float(f3[1] - c[1] / (2 * c[0]))
+
+
+def harmonic_sweep(system: PiezoSystem, freqs_hz: Sequence[float], voltage: float = 1.0, *,
+                   clamp: Iterable[str] = (), loss: LossModel = LossModel(),
+                   surfaces: Sequence[str] = ("horn_tip",), method: str = "modal",
+                   basis: ModalBasis | None = None, n_modes: int = 12,
+                   backend: str | None = None, progress=None) -> HarmonicResult:
+    """Admittance and surface motion over a band of frequencies.
+
+    Parameters
+    ----------
+    system : PiezoSystem
+    freqs_hz : sequence of float, Hz
+    voltage : float, V amplitude on the hot electrode (> 0)
+    clamp : facet sets clamped (default: free)
+    loss : LossModel
+    surfaces : facet sets whose mean motion is reported
+    method : "modal" (superposition, default) or "direct" (one factorisation per frequency)
+    basis : a ModalBasis to reuse (modal method)
+    n_modes : modes in the basis if it is built here (centred on the band)
+    progress : optional callable(i, n) for progress reporting
+    """
+    t0 = time.perf_counter()
+    f = _check_freqs(freqs_hz)
+    voltage = _check_voltage(voltage)
+    clamp = (clamp,) if isinstance(clamp, str) else tuple(clamp)
+    if method not in ("modal", "direct"):
+        raise ParameterError("method", method, "must be 'modal' or 'direct'")
+    funcs = [surface_functional(system, s) for s in surfaces]
+    L = loss_matrix(system, loss)
+    qrow = _charge_row(system, L)
+    out_s = {s.name: {c: np.zeros(len(f), complex) for c in COMPONENTS} for s in funcs}
+    Q = np.zeros(len(f), complex)
+    if method == "modal":
+        if basis is None:
+            basis = modal_basis(system, float(np.sqrt(f.min() * f.max())), n_modes, clamp=clamp,
+                                loss=loss, backend=backend)
+        elif basis.loss != loss or basis.clamp != clamp:
+            raise ParameterError("basis", "mismatch", "was built for another loss model or clamp")
+        free = basis.free
+        # outputs as functionals of the basis: cols = modes..., residual
+        cols = basis.columns()
+        full = np.zeros((system.ndof, cols.shape[1]), complex)
+        full[free] = cols
+        hot_x = np.zeros(cols.shape[1], complex)
+        hot_x[-1] = 1.0 / system.phi_scale           # the hot voltage belongs to the particular part
+        full[system.hot_dof] = hot_x
+        qc = qrow @ full
+        sc = {s.name: s.rows @ full for s in funcs}
+        q = basis.coordinates(f)                      # (n_f, n_modes)
+        coef = np.column_stack([q, np.ones(len(f))]) * voltage
+        Q = coef @ qc
+        for s in funcs:
+            vals = coef @ sc[s.name].T                # (n_f, 3)
+            for i, c in enumerate(COMPONENTS):
+                out_s[s.name][c] = vals[:, i]
+    else:
+        for k, fk in enumerate(f):
+            x = solve_direct(system, fk, voltage, clamp=clamp, loss=loss, backend=backend)
+            Q[k] = qrow @ x
+            for s in funcs:
+                vals = s.rows @ x
+                for i, c in enumerate(COMPONENTS):
+                    out_s[s.name][c][k] = vals[i]
+            if progress:
+                progress(k + 1, len(f))
+    w = 2 * np.pi * f
+    current = 1j * w * Q
+    Y = current / voltage
+    power = 0.5 * np.real(voltage * np.conj(current))
+    timings = {"sweep_s": time.perf_counter() - t0}
+    if method == "modal":
+        timings["basis_s"] = basis.seconds
+    return HarmonicResult(f, voltage, Y, current, power, out_s, method, loss, timings)
+
+
+# --------------------------------------------------------------------------- working point
+
+
+@dataclass(eq=False)
+class WorkingPoint:
+    """Response at one frequency and voltage (direct solution).
+
+    ``tip_amplitude_m`` and ``tip_per_volt_m`` are the axial mean amplitude of ``tip_surface``
+    (the first surface requested, ``horn_tip`` by default);
+    ``surfaces`` the complex means of every requested surface; ``admittance`` (S),
+    ``current_a``, ``power_w``; ``x`` the full solution; ``teeth_ellipse_ratio`` the
+    tangential/axial amplitude ratio on ``teeth_tops`` (NaN if absent) and
+    ``teeth_phase_deg`` the phase of the tangential relative to the axial motion.
+    """
+
+    freq_hz: float
+    voltage: float
+    surfaces: dict
+    admittance: complex
+    current_a: complex
+    power_w: float
+    x: np.ndarray
+    method: str
+    seconds: float
+    tip_surface: str = "horn_tip"
+
+    @property
+    def tip_amplitude_m(self) -> float:
+        return float(abs(self.surfaces[self.tip_surface]["axial"]))
+
+    @property
+    def tip_per_volt_m(self) -> float:
+        return self.tip_amplitude_m / self.voltage
+
+    @property
+    def teeth_ellipse_ratio(self) -> float:
+        s = self.surfaces.get("teeth_tops")
+        if s is None or abs(s["axial"]) == 0:
+            return float("nan")
+        return float(abs(s["tangential"]) / abs(s["axial"]))
+
+    @property
+    def teeth_phase_deg(self) -> float:
+        s = self.surfaces.get("teeth_tops")
+        if s is None:
+            return float("nan")
+        return float(np.degrees(np.angle(s["tangential"] / s["axial"])))
+
+    def to_json(self) -> dict:
+        return {
+            "freq_hz": self.freq_hz, "voltage_v": self.voltage, "method": self.method,
+            "tip_amplitude_m": self.tip_amplitude_m, "tip_per_volt_m": self.tip_per_volt_m,
+            "teeth_ellipse_ratio": _nan_none(self.teeth_ellipse_ratio),
+            "teeth_phase_deg": _nan_none(self.teeth_phase_deg),
+            "admittance_s": {"re": float(np.real(self.admittance)), "im": float(np.imag(self.admittance))},
+            "current_a": float(abs(self.current_a)), "power_w": self.power_w,
+            "surfaces": {s: {c: {"abs_m": float(abs(v)), "phase_deg": float(np.degrees(np.angle(v)))}
+                             for c, v in comps.items()} for s, comps in self.surfaces.items()},
+            "seconds": self.seconds,
+        }
+
+
+def working_point(system: PiezoSystem, freq_hz: float, voltage: float, *, clamp: Iterable[str] = (),
+                  loss: LossModel = LossModel(), surfaces: Sequence[str] = ("horn_tip",),
+                  basis: ModalBasis | None = None, backend: str | None = None) -> WorkingPoint:
+    """The response at the working frequency: direct solution, or modal if ``basis`` is given."""
+    t0 = time.perf_counter()
+    f = float(_check_freqs(freq_hz)[0])
+    voltage = _check_voltage(voltage)
+    surfaces = tuple(surfaces)
+    if not surfaces:
+        raise ParameterError("surfaces", surfaces, "name at least one surface (the tip first)")
+    funcs = [surface_functional(system, s) for s in surfaces]
+    if basis is not None:
+        x = system.expand(basis.solution_free(f, voltage), basis.free, voltage)
+        method = "modal"
+    else:
+        x = solve_direct(system, f, voltage, clamp=clamp, loss=loss, backend=backend)
+        method = "direct"
+    L = loss_matrix(system, loss if basis is None else basis.loss)
+    Q = _charge_row(system, L) @ x
+    current = 1j * 2 * np.pi * f * Q
+    sv = {s.name: s(x) for s in funcs}
+    return WorkingPoint(f, voltage, sv, current / voltage, current,
+                        float(0.5 * np.real(voltage * np.conj(current))), x, method,
+                        time.perf_counter() - t0, tip_surface=surfaces[0])

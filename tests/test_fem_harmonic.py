@@ -1,0 +1,146 @@
+"""Harmonic response and ring-up against independent references.
+
+Model: a free stack of four PZT-8 layers (10 x 10 mm, 5 mm each, alternately poled, electrodes
+between them: ground at the ends and the middle, hot in between), P2 fields. References:
+- static capacitance of a free stack: exactly N eps33^T A / t (stress-free uniform field);
+- the modal analysis (resonance / anti-resonance of the open- and short-circuit eigenproblems);
+- the direct complex solution (second method for the modal superposition);
+- full-system Newmark (second method for the modal ring-up).
+"""
+
+import numpy as np
+import pytest
+from skfem import MeshTet
+
+from geometry.common import ParameterError
+from geometry.materials import get_material
+from geometry.mesh import Electrode, Region, TaggedMesh
+from fem.assembly import assemble
+from fem.harmonic import LossModel, harmonic_sweep, modal_basis, working_point
+from fem.materials import piezo_matrices, strain_charge
+from fem.modal import modal_analysis
+from fem.transient import ring_up
+
+A_SIDE, T_LAYER, N_LAYERS = 0.01, 0.005, 4
+
+
+def _stack() -> TaggedMesh:
+    a, t = A_SIDE, T_LAYER
+    m = MeshTet.init_tensor(np.linspace(-a / 2, a / 2, 4), np.linspace(-a / 2, a / 2, 4),
+                            np.linspace(0, N_LAYERS * t, 3 * N_LAYERS + 1))
+    p, cells = m.p.T, m.t.T
+    layer = np.minimum((p[cells, 2].mean(axis=1) // t).astype(int), N_LAYERS - 1)
+    f = m.facets.T
+    sets, electrodes = {}, []
+    for k in range(N_LAYERS + 1):
+        sets[f"electrode_{k}"] = f[np.all(np.isclose(p[f, 2], k * t), axis=1)]
+        electrodes.append(Electrode(f"electrode_{k}", "hot" if k % 2 else "ground"))
+    regions = tuple(Region(f"ring_{i + 1}", "stack", "PZT-8", (0.0, 0.0, 1.0 if i % 2 == 0 else -1.0))
+                    for i in range(N_LAYERS))
+    return TaggedMesh(p, cells, layer, regions, sets, tuple(electrodes))
+
+
+@pytest.fixture(scope="module")
+def system():
+    return assemble(_stack())
+
+
+@pytest.fixture(scope="module")
+def modes(system):
+    return modal_analysis(system, 70e3, 8)
+
+
+def _longitudinal(modes):
+    i = int(np.argmax(modes.shares[:, 0]))
+    return modes.f_r_hz[i], modes.f_a_hz[i]
+
+
+TIP = ("electrode_4",)
+
+
+def test_static_admittance_is_parallel_plate_capacitance(system):
+    _, _, eps_T = strain_charge(piezo_matrices(get_material("PZT-8")))
+    c_pp = N_LAYERS * eps_T[2, 2] * A_SIDE ** 2 / T_LAYER
+    res = harmonic_sweep(system, [100.0], 1.0, loss=LossModel(np.inf, 0.0), method="direct", surfaces=TIP)
+    c_fe = res.admittance[0].imag / (2 * np.pi * 100.0)
+    assert res.admittance[0].real == pytest.approx(0.0, abs=1e-12)
+    assert c_fe == pytest.approx(c_pp, rel=1e-3)          # issue tolerance 1 %
+
+
+def test_admittance_peak_and_dip_at_resonance_and_antiresonance(system, modes):
+    f_r, f_a = _longitudinal(modes)
+    loss = LossModel(1000.0, 0.004)
+    freqs = np.linspace(0.97 * f_r, 1.03 * f_a, 801)
+    basis = modal_basis(system, f_r, 8, loss=loss, modes=modal_analysis(system, 70e3, 8, open_circuit=False))
+    res = harmonic_sweep(system, freqs, 1.0, loss=loss, basis=basis, surfaces=TIP)
+    assert res.f_r_hz == pytest.approx(f_r, rel=5e-3)
+    assert res.f_a_hz == pytest.approx(f_a, rel=5e-3)
+    # the open-circuit eigenvalue problem really is independent: f_a well above f_r (k_eff ~ 0.6)
+    assert f_a / f_r > 1.1
+
+
+@pytest.mark.parametrize("ratio", [0.9, 0.99, 1.0, 1.005, 1.1])
+def test_modal_superposition_equals_direct_solution(system, modes, ratio):
+    f_r, _ = _longitudinal(modes)
+    loss = LossModel(300.0, 0.004)
+    basis = modal_basis(system, f_r, 8, loss=loss)
+    f = ratio * f_r
+    direct = working_point(system, f, 2.0, loss=loss, surfaces=TIP)
+    modal = working_point(system, f, 2.0, loss=loss, surfaces=TIP, basis=basis)
+    assert modal.tip_amplitude_m == pytest.approx(direct.tip_amplitude_m, rel=5e-3)
+    assert abs(modal.admittance - direct.admittance) <= 5e-3 * abs(direct.admittance)
+    assert modal.power_w == pytest.approx(direct.power_w, rel=2e-2)
+
+
+def test_peak_amplitude_scales_with_q_and_is_unbounded_without_loss(system, modes):
+    f_r, _ = _longitudinal(modes)
+    freqs = f_r * np.linspace(0.995, 1.005, 2001)
+    peaks = {}
+    for q in (100.0, 200.0):
+        res = harmonic_sweep(system, freqs, 1.0, loss=LossModel(q, 0.0), surfaces=TIP, n_modes=8)
+        peaks[q] = res.amplitude("electrode_4").max()
+    assert peaks[200.0] / peaks[100.0] == pytest.approx(2.0, rel=2e-2)
+    lossless = LossModel(np.inf, 0.0)
+    amp = [working_point(system, f_r * (1 + eps), 1.0, loss=lossless, surfaces=TIP).tip_amplitude_m
+           for eps in (1e-3, 1e-4, 1e-5)]
+    # |x| ~ 1 / (2 eps) near an undamped resonance: every decade closer, ten times larger
+    assert amp[1] / amp[0] == pytest.approx(10.0, rel=2e-2)
+    assert amp[2] / amp[1] == pytest.approx(10.0, rel=2e-2)
+    assert amp[2] > 100 * peaks[200.0]
+
+
+def test_ring_up_settles_on_the_harmonic_amplitude(system, modes):
+    f_r, _ = _longitudinal(modes)
+    q = 50.0
+    loss = LossModel(q, 0.004)
+    tau = 2 * q / (2 * np.pi * f_r)                 # amplitude envelope time constant
+    res = ring_up(system, f_r, 1.0, 12 * tau, loss=loss, surfaces=TIP, n_modes=8)
+    harmonic = working_point(system, f_r, 1.0, loss=loss, surfaces=TIP)
+    assert res.steady_amplitude("electrode_4") == pytest.approx(harmonic.tip_amplitude_m, rel=2e-2)
+    t_env, env = res.envelope("electrode_4")
+    # the envelope grows as 1 - exp(-t / tau): at one time constant about 63 % of the final value
+    k = np.searchsorted(t_env, tau)
+    assert env[k] / harmonic.tip_amplitude_m == pytest.approx(1 - np.exp(-1), abs=0.05)
+
+
+def test_modal_ring_up_equals_full_newmark(system, modes):
+    f_r, _ = _longitudinal(modes)
+    loss = LossModel(50.0, 0.0)
+    kw = dict(loss=loss, surfaces=TIP, steps_per_cycle=40)
+    modal = ring_up(system, f_r, 1.0, 20 / f_r, prewarp=False, n_modes=8, **kw)
+    direct = ring_up(system, f_r, 1.0, 20 / f_r, method="direct", **kw)
+    ym, yd = modal.surfaces["electrode_4"]["axial"], direct.surfaces["electrode_4"]["axial"]
+    assert np.max(np.abs(ym - yd)) <= 1e-2 * np.max(np.abs(yd))
+
+
+def test_bad_input_is_a_clear_error(system):
+    with pytest.raises(ParameterError, match="voltage = 0"):
+        working_point(system, 50e3, 0.0, surfaces=TIP)
+    with pytest.raises(ParameterError, match="freq"):
+        harmonic_sweep(system, [-1.0, 5.0], 1.0, surfaces=TIP)
+    with pytest.raises(ParameterError, match="surface = 'horn_tip'"):
+        working_point(system, 50e3, 1.0)
+    with pytest.raises(ParameterError, match="q_mech"):
+        LossModel(q_mech=-5.0)
+    with pytest.raises(ParameterError, match="t_end"):
+        ring_up(system, 50e3, 1.0, 0.0, surfaces=TIP)
