@@ -533,6 +533,10 @@ class _Sim:
             else:
                 w, wd = L0 + v, vd
             t = te
+            if L0 + v <= 2.0 * A0:
+                raise SimulationError(
+                    f"the tool face swings back into the horn's stroke at t = {te:.9g} s "
+                    f"(tool face at {L0 + v:.3g} m): the free mass is pinched; increase gap or k0")
             if name == "release":
                 if mode == ON_HORN:
                     # the horn did the work that moved the stuck mass
