@@ -92,14 +92,20 @@ class Mode1D:
 
 
 def _chain(sections, omega):
-    T = np.eye(2, dtype=complex)
+    """(1, 2) entry divided by j of the chain's transfer matrix, for an array of omega."""
+    omega = np.atleast_1d(np.asarray(omega, dtype=float))
+    a = np.ones_like(omega, dtype=float)  # T11, T22 real; T12 = j b, T21 = j c
+    b = np.zeros_like(a)
+    c_ = np.zeros_like(a)
+    d = np.ones_like(a)
     for length, area, E, rho in sections:
         c = math.sqrt(E / rho)
-        k = omega / c
+        kl = omega / c * length
         Z = rho * c * area
-        ck, sk = math.cos(k * length), math.sin(k * length)
-        T = T @ np.array([[ck, 1j * Z * sk], [1j * sk / Z, ck]])
-    return T
+        ck, sk = np.cos(kl), np.sin(kl)
+        # [[a, j b], [j c, d]] @ [[ck, j Z sk], [j sk / Z, ck]]
+        a, b, c_, d = (a * ck - b * sk / Z, a * Z * sk + b * ck, c_ * ck + d * sk / Z, -c_ * Z * sk + d * ck)
+    return b
 
 
 def longitudinal_modes(sections: Sequence[tuple[float, float, str | Material | tuple[float, float]]],
@@ -135,10 +141,10 @@ def longitudinal_modes(sections: Sequence[tuple[float, float, str | Material | t
         props.append((float(length), float(area), float(E), float(rho)))
 
     def g(f):
-        return _chain(props, 2 * math.pi * f)[0, 1].imag
+        return float(_chain(props, 2 * math.pi * f)[0])
 
     freqs = np.linspace(f_max / n_scan, f_max, n_scan)
-    vals = np.array([g(f) for f in freqs])
+    vals = _chain(props, 2 * math.pi * freqs)
     roots = [brentq(g, freqs[i], freqs[i + 1], xtol=1e-9) for i in range(n_scan - 1)
              if np.sign(vals[i]) != np.sign(vals[i + 1]) and vals[i] != 0]
     return [_shape(props, f, z0, samples_per_section) for f in roots]

@@ -1,0 +1,172 @@
+"""Design data: validation naming the field, TOML round trips, dotted paths, 1-D reference."""
+
+import math
+
+import numpy as np
+import pytest
+
+from geometry import examples
+from geometry.common import ParameterError
+from geometry.design import (ElectrodeSpec, RPUDDesign, Segment, StackDesign, default_design, design_from_mapping,
+                             load_design)
+from geometry.onedim import axial_modulus, design_modes, first_longitudinal, longitudinal_modes
+
+
+# ---------------------------------------------------------------- validation
+
+
+@pytest.mark.parametrize("changes, field, words", [
+    ({"horn.length": -0.01}, "horn.length", "> 0"),
+    ({"horn.length": 0.0}, "horn.length", "> 0"),
+    ({"coupler.length": 0.0}, "coupler.length", "> 0"),
+    ({"stack.ring_thickness": -0.005}, "stack.ring_thickness", "> 0"),
+    ({"flange.thickness": 0.0}, "flange.thickness", "> 0"),
+    ({"coupler.slot_depth": 0.011}, "coupler.slot_depth", "wall thickness 0.01 m"),
+    ({"coupler.n_teeth": 40}, "coupler.n_teeth", "more teeth than fit"),
+    ({"bore_diameter": 0.018}, "bore_diameter", "bore larger than the ring"),
+    ({"coupler.inner_diameter": 0.036}, "coupler.inner_diameter", "must be <"),
+    ({"horn.material": "unobtainium"}, "horn.material", "unknown; known:"),
+    ({"stack.material": "steel_45"}, "stack.material", "piezoceramic"),
+    ({"stack.n_rings": 3}, "stack.n_rings", "even"),
+    ({"coupler.length": 0.02}, "coupler.length", "overlap"),
+    ({"coupler.slot_angle_deg": 75.0}, "coupler.slot_angle_deg", "[-60, 60]"),
+    ({"horn.profile": "parabolic"}, "horn.profile", "'stepped'"),
+    ({"flange.outer_diameter": 0.035}, "flange.outer_diameter", "must exceed"),
+])
+def test_bad_rpud_designs_name_the_field(changes, field, words):
+    with pytest.raises(ParameterError) as info:
+        default_design().replace(changes)
+    assert info.value.name == field
+    assert words in str(info.value)
+
+
+def test_bad_stack_designs_name_the_field():
+    rod = Segment("rod", 0.05, outer_diameter=0.01)
+    with pytest.raises(ParameterError, match=r"segments.b.start = 0.04: overlapping parts"):
+        StackDesign(segments=(rod, Segment("b", 0.02, outer_diameter=0.01, start=0.04)))
+    with pytest.raises(ParameterError, match=r"segments.a.length = -0.1"):
+        Segment("a", -0.1, outer_diameter=0.01)
+    with pytest.raises(ParameterError, match=r"segments.a.inner_diameter = 0.012: bore larger than the segment"):
+        Segment("a", 0.1, outer_diameter=0.01, inner_diameter=0.012)
+    with pytest.raises(ParameterError, match=r"segments.p.poling = 'none': a piezoceramic"):
+        Segment("p", 0.01, material="PZT-4", outer_diameter=0.01)
+    with pytest.raises(ParameterError, match=r"segments.a.material = 'wood'"):
+        Segment("a", 0.1, material="wood", outer_diameter=0.01)
+    with pytest.raises(ParameterError, match=r"electrodes.e.segment = 'rod': must be a piezoceramic"):
+        StackDesign(segments=(rod,), electrodes=(ElectrodeSpec("e", "rod", "top"),))
+    with pytest.raises(ParameterError, match=r"electrodes.e.face = '\+x': side faces exist on box"):
+        examples.k33_rod().replace({"electrodes": (ElectrodeSpec("e", "rod", "+x"),)})
+    with pytest.raises(ParameterError, match=r"segments.rod.name"):
+        StackDesign(segments=(rod, rod))
+
+
+def test_toml_round_trip_and_unknown_keys(tmp_path):
+    for name, design in examples.all_examples().items():
+        path = tmp_path / f"{name}.toml"
+        design.save(path)
+        back = load_design(path)
+        assert back == design, name
+    bad = default_design().to_mapping()
+    bad["horn"]["lenght"] = 0.1
+    with pytest.raises(ParameterError, match="horn.lenght"):
+        design_from_mapping(bad)
+
+
+def test_examples_file_holds_every_example():
+    from pathlib import Path
+
+    import geometry
+
+    path = Path(geometry.__file__).with_name("examples.toml")
+    for name, design in examples.all_examples().items():
+        assert load_design(path, name) == design
+    with pytest.raises(ParameterError, match="select one of: k33_rod"):
+        load_design(path)
+    with pytest.raises(ParameterError, match="select = 'nope'"):
+        load_design(path, "nope")
+
+
+# ---------------------------------------------------------------- dotted paths, extents, morph
+
+
+def test_dotted_paths():
+    d = default_design()
+    assert d.get("horn.length") == d.horn.length
+    new = d.replace({"horn.length": 0.062, "coupler.slot_angle_deg": 0})
+    assert new.horn.length == 0.062 and new.coupler.slot_angle_deg == 0.0 and d.horn.length != 0.062
+    assert set(RPUDDesign.default_tuned) <= set(d.tunable_lengths())
+    with pytest.raises(ParameterError, match="horn.colour"):
+        d.get("horn.colour")
+    s = examples.langevin_sandwich()
+    assert s.get("segments.front.length") == 0.04
+    assert s.replace({"segments.front.length": 0.05}).segment_extents()["front"] == pytest.approx((0.05, 0.1))
+    assert s.default_tuned == ("segments.back.length", "segments.front.length")
+
+
+def test_part_extents_and_electrode_planes():
+    d = default_design()
+    ext = d.part_extents()
+    assert ext["coupler"] == (-d.coupler.length, 0.0)
+    assert ext["stack"] == pytest.approx((0.0, 4 * 0.005))
+    assert ext["horn"][1] == pytest.approx(0.02 + d.flange.thickness + d.horn.length)
+    planes = d.electrode_planes()
+    assert [p[0][1] for p in planes.values()] == pytest.approx([0.0, 0.005, 0.01, 0.015, 0.02])
+    assert d.electrode_roles() == {"electrode_0": "ground", "electrode_1": "hot", "electrode_2": "ground",
+                                   "electrode_3": "hot", "electrode_4": "ground"}
+    shims = d.replace({"stack.electrode_shims": True})
+    assert len(shims.electrode_planes()["electrode_2"]) == 2
+    assert shims.part_extents()["electrodes"] == pytest.approx((0.0, shims.stack.length))
+
+
+def test_morph_points_is_a_piecewise_linear_map():
+    d = default_design()
+    new = d.replace({"horn.length": 0.09, "coupler.length": 0.036})
+    zs = np.array([[0, 0, z] for _, z in d.axial_breakpoints()])
+    moved = d.morph_points(zs, new)
+    assert moved[:, 2] == pytest.approx([z for _, z in new.axial_breakpoints()])
+    with pytest.raises(ParameterError, match="differs in more than axial lengths"):
+        d.morph_points(zs, d.replace({"horn.tip_diameter": 0.012}))
+
+
+def test_masses_are_plausible_for_a_590_g_drill():
+    d = default_design()
+    m = d.part_masses()
+    assert m["horn"] == pytest.approx(0.08, rel=0.05)  # Table 1: m_u = 0.08 kg
+    assert 0.25 < d.total_mass() < 0.45
+
+
+# ---------------------------------------------------------------- 1-D reference
+
+
+def test_onedim_uniform_bar_and_stepped_horn():
+    c = math.sqrt(209e9 / 7890)
+    modes = longitudinal_modes([(0.1, 1e-4, "steel_45")], f_max=60e3)
+    assert [m.frequency for m in modes] == pytest.approx([c / 0.2, c / 0.1], rel=1e-9)
+    assert modes[0].nodes == pytest.approx((0.05,), abs=1e-6)
+    # stepped horn: S1 tan(k l1) + S2 tan(k l2) = 0 (references.md)
+    S1, S2, l1, l2 = 4e-4, 1e-4, 0.06, 0.05
+    f = longitudinal_modes([(l1, S1, (5000.0 ** 2, 1.0)), (l2, S2, (5000.0 ** 2, 1.0))], f_max=30e3)[0].frequency
+    k = 2 * math.pi * f / 5000.0
+    assert S1 * math.tan(k * l1) + S2 * math.tan(k * l2) == pytest.approx(0.0, abs=1e-9)
+
+
+def test_onedim_exponential_horn_reference_length():
+    # c = 5000 m/s, 20 kHz, N = 2: L = 128.01 mm is a half-wave exponential horn (references.md)
+    L = 0.12801
+    n = 400
+    secs = [(L / n, math.pi / 4 * (0.02 * 2 ** (-(i + 0.5) / n)) ** 2, (5000.0 ** 2, 1.0)) for i in range(n)]
+    f = longitudinal_modes(secs, f_max=30e3)[0].frequency
+    assert f == pytest.approx(20e3, rel=2e-4)
+
+
+def test_onedim_piezo_modulus_and_default_design_frequency():
+    # open-circuit k33 rod: f_p = 1 / (2 l sqrt(rho s33^D)); library constants give s33^D within 1 % of the datasheet's
+    fp = 1 / (2 * 0.04 * math.sqrt(7500 / axial_modulus("PZT-4", "open")))
+    assert fp == pytest.approx(50271, rel=0.01)
+    d = default_design()
+    m = first_longitudinal(d)
+    assert m.frequency == pytest.approx(20e3, rel=0.005)  # sized with this 1-D model
+    z0, z1 = d.part_extents()["flange"]
+    assert any(z0 - 0.003 < n < z1 + 0.003 for n in m.nodes)  # the flange sits at the nodal plane
+    assert abs(m.amplitude_at(d.part_extents()["horn"][1])) == pytest.approx(1.0)
+    assert len(design_modes(examples.slender_rod(), f_max=30e3)) == 2
