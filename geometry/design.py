@@ -1031,7 +1031,8 @@ def load_design(path: str | os.PathLike, select: str | None = None) -> DesignBas
     ``select`` picks one.
     """
     data = load_toml(path)
-    single = "kind" in data or any(k in data for k in ("horn", "stack", "coupler", "flange", "segments"))
+    known = {f.name for cls in _KINDS.values() for f in dataclasses.fields(cls)}
+    single = not data or any(k in known for k in data) or not all(isinstance(v, Mapping) for v in data.values())
     if single:
         if select is not None:
             raise ParameterError("select", select, f"{path} holds a single design; drop the selection")
