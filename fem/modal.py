@@ -22,6 +22,7 @@ backend=None, tol=0.0, open_circuit=True) -> ModalResult``
   In a free (unclamped) body up to six extra modes are computed; modes below ``rigid_hz``
   (default ``max(10 Hz, 1 % of near_hz)``) are rigid-body modes: reported in ``rigid_hz`` and
   excluded from the pairs.
+* ``tol``: ARPACK relative accuracy of the eigenvalues (default 1e-10).
 
 ``ModalResult``: ``f_r_hz``, ``f_a_hz``, ``k_eff``, ``mac`` (pairing MAC), ``shapes``
 (``(n, n_nodes, 3)`` short-circuit displacement at the P2 nodes, mass-normalised:
@@ -33,7 +34,8 @@ eigen_s, total_s), ``to_json()``.
 CLI
 ---
 ``python -m fem.modal --design FILE --near HZ --modes N [--json OUT] [--mesh-size M]
-[--order 1|2] [--clamp SURFACE ...]`` prints a table (f_r kHz, f_a kHz, k_eff, dominant
+[--order 1|2] [--clamp SURFACE ...] [--select NAME] [--solver auto|pardiso|superlu]``
+(``--design default``: the built-in default design) prints a table (f_r kHz, f_a kHz, k_eff, dominant
 motion) and writes JSON (``modes``: list of ``{f_r_hz, f_a_hz, k_eff, mac, label, shares}``,
 ``ndof``, ``timings``, ``backend``). Bad input: one line, exit 2, no file written.
 """
@@ -53,7 +55,7 @@ import scipy.sparse.linalg as spla
 from geometry.common import ParameterError, check_nonnegative, check_positive
 
 from .assembly import PiezoSystem
-from .solvers import factorize
+from .solvers import blas_threads, factorize
 
 __all__ = ["modal_analysis", "ModalResult", "motion_shares", "main"]
 
@@ -159,10 +161,40 @@ def _labels(system, shapes, shares):
         return _simple_labels(shares)
 
 
+def _rigid_basis(system, free):
+    """M-orthonormal rigid-body modes (3 translations, 3 rotations; zero potential) on ``free``."""
+    x0 = system.nodes.mean(axis=0)
+    r = system.nodes - x0
+    R = np.zeros((system.ndof, 6))
+    for c in range(3):
+        R[c: system.n_u: 3, c] = 1.0
+    for c in range(3):
+        w = np.zeros(3)
+        w[c] = 1.0
+        R[: system.n_u, 3 + c] = np.cross(w, r).ravel()
+    R = R[free]
+    M = system.M[free][:, free]
+    G = R.T @ (M @ R)
+    L = np.linalg.cholesky(G)
+    return np.linalg.solve(L, R.T).T, M       # R L^-T: R^T M R = I
+
+
+def _deflated(solve, R, M):
+    """OPinv followed by the M-orthogonal projection away from span(R)."""
+    if R is None:
+        return solve
+
+    def op(b):
+        y = solve(b)
+        return y - R @ (R.T @ (M @ y))
+    return op
+
+
 def _eig(K, M, k, sigma, solve, tol, n):
     k = int(min(k, n - 2))
     op = spla.LinearOperator((n, n), matvec=solve, dtype=float)
-    vals, vecs = spla.eigsh(K, k=k, M=M, sigma=sigma, OPinv=op, which="LM", tol=tol, mode="normal")
+    with blas_threads(1):
+        vals, vecs = spla.eigsh(K, k=k, M=M, sigma=sigma, OPinv=op, which="LM", tol=tol, mode="normal")
     order = np.argsort(vals)
     vals, vecs = vals[order], vecs[:, order]
     # mass normalisation (ARPACK returns M-orthonormal vectors; enforce against round-off)
@@ -173,7 +205,7 @@ def _eig(K, M, k, sigma, solve, tol, n):
 
 def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Iterable[str] = (), *,
                    sigma: float | None = None, rigid_hz: float | None = None,
-                   backend: str | None = None, tol: float = 0.0,
+                   backend: str | None = None, tol: float = 1e-10,
                    open_circuit: bool = True, mac_min: float = 0.5) -> ModalResult:
     """Short- and open-circuit modes nearest ``near_hz`` (see the module docstring)."""
     check_nonnegative("near_hz", near_hz, "Hz")
@@ -186,14 +218,19 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     if rigid_hz is None:
         rigid_hz = max(10.0, 0.01 * near_hz)
     free_body = len(clamp) == 0
-    n_req = n_modes + (6 if free_body else 0)
+    # A free body has six rigid-body modes at ~0 Hz. Near 0 Hz they are computed (and
+    # reported in rigid_hz); above 1 kHz they are deflated: the shift-invert operator is
+    # followed by the M-orthogonal projector away from the exact rigid-body vectors.
+    deflate = free_body and near_hz >= 1e3
+    n_req = n_modes + (6 if free_body and not deflate else 0)
 
     Ks, Ms, free_s = system.reduce("short", clamp)
     ns = len(free_s)
     A = (Ks - sigma * Ms).tocsr()
     F = factorize(A, backend=backend)
     t1 = time.perf_counter()
-    lam_s, vec_s = _eig(Ks, Ms, n_req, sigma, F, tol, ns)
+    Rs, Ms_ = _rigid_basis(system, free_s) if deflate else (None, None)
+    lam_s, vec_s = _eig(Ks, Ms, n_req, sigma, _deflated(F, Rs, Ms_), tol, ns)
     t2 = time.perf_counter()
 
     def keep_nonrigid(lam, vec, limit=True):
@@ -236,9 +273,10 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
         ns_ = np.einsum("ij,ij->j", us, Mu @ us)
         # anti-resonances lie above their resonances (by up to ~1/sqrt(1-k^2)): widen the
         # open-circuit window until every short-circuit mode has a partner (MAC >= mac_min)
-        k_open = n_req + 4
+        k_open = n_req + 2
+        Ro = _rigid_basis(system, free_o)[0] if deflate else None
         for attempt in range(3):
-            lam_o, vec_o = _eig(Ko, Mo, k_open, sigma, solve_open, tol, ns + 1)
+            lam_o, vec_o = _eig(Ko, Mo, k_open, sigma, _deflated(solve_open, Ro, Mo), tol, ns + 1)
             _, f_o, Vo = keep_nonrigid(lam_o, vec_o, limit=False)
             full_o_all = np.zeros((system.ndof, Vo.shape[1]))
             full_o_all[free_o] = Vo
@@ -305,7 +343,9 @@ def build_parser(prog="python -m fem.modal"):
 
     p = CliParser(prog=prog, description="Resonance (short-circuit) and anti-resonance (open-circuit) "
                   "modes of a design near a target frequency.")
-    p.add_argument("--design", required=True, help="design TOML file (geometry package layout)")
+    p.add_argument("--design", required=True,
+                   help="design TOML file (geometry package layout), or 'default' for the built-in design")
+    p.add_argument("--select", metavar="NAME", help="design to pick from a file holding several")
     p.add_argument("--near", type=float, required=True, metavar="HZ",
                    help="target frequency in Hz (0: lowest modes)")
     p.add_argument("--modes", type=int, default=12, metavar="N", help="number of modes (default 12)")
@@ -320,17 +360,13 @@ def build_parser(prog="python -m fem.modal"):
     return p
 
 
-def mesh_from_design(path, mesh_size=None):
-    """TaggedMesh of a design file through the geometry package's loader and mesher."""
+def mesh_from_design(path, mesh_size=None, select=None, order=2):
+    """TaggedMesh of a design file (``geometry.load_design`` + ``geometry.build_mesh``);
+    ``path == "default"`` meshes ``geometry.default_design()``."""
     import geometry
 
-    load = getattr(geometry, "load_design", None)
-    build = getattr(geometry, "build_mesh", None)
-    if load is None or build is None:
-        raise ParameterError("design", str(path), "the geometry mesher (geometry.load_design/"
-                             "geometry.build_mesh) is not available in this checkout")
-    design = load(path)
-    return build(design, mesh_size=mesh_size) if mesh_size is not None else build(design)
+    design = geometry.default_design() if str(path) == "default" else geometry.load_design(path, select)
+    return geometry.build_mesh(design, mesh_size=mesh_size, order=order)
 
 
 def main(argv=None) -> int:
@@ -340,6 +376,8 @@ def main(argv=None) -> int:
 
     args = build_parser().parse_args(argv)
     setup_logging(args.verbose)
+    if args.verbose < 2:
+        logging.getLogger("skfem").setLevel(logging.WARNING)
     check_nonnegative("--near", args.near, "Hz")
     if args.modes < 1:
         raise ParameterError("--modes", args.modes, "must be >= 1")
@@ -347,7 +385,7 @@ def main(argv=None) -> int:
         check_positive("--mesh-size", args.mesh_size, "m")
     if args.json and not str(args.json).endswith(".json"):
         raise ParameterError("--json", args.json, "must end in .json")
-    mesh = mesh_from_design(args.design, args.mesh_size)
+    mesh = mesh_from_design(args.design, args.mesh_size, args.select)
     for name in args.clamp:
         mesh.facets(name)
     system = assemble(mesh, order=args.order)

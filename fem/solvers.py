@@ -24,6 +24,7 @@ logged at INFO level.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import time
@@ -34,7 +35,7 @@ import scipy.sparse.linalg as spla
 
 from geometry.common import ParameterError, check_choice
 
-__all__ = ["factorize", "backend_name", "Factor", "pardiso_available"]
+__all__ = ["factorize", "backend_name", "Factor", "pardiso_available", "blas_threads"]
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +49,11 @@ def pardiso_available() -> bool:
         try:
             import pypardiso  # noqa: F401
 
-            pypardiso.PyPardisoSolver()
+            solver = pypardiso.PyPardisoSolver()
+            # remember where MKL was found: pypardiso otherwise globs sys.prefix (~0.5 s) per solver
+            path = getattr(solver.libmkl, "_name", None)
+            if path and "PYPARDISO_MKL_RT" not in os.environ:
+                os.environ["PYPARDISO_MKL_RT"] = path
             _PARDISO_OK = True
         except Exception:  # ImportError, missing mkl_rt
             _PARDISO_OK = False
@@ -64,6 +69,39 @@ def backend_name(backend: str | None = None) -> str:
     if choice == "pardiso" and not pardiso_available():
         raise ParameterError("solver backend", choice, "pypardiso/MKL is not available here")
     return choice
+
+
+@contextlib.contextmanager
+def blas_threads(n: int = 1):
+    """Limit the (scipy/numpy bundled) OpenBLAS threads of the calling thread inside the block.
+
+    ARPACK's small dense updates gain nothing from threads, and OpenBLAS threads spinning next to
+    PARDISO's MKL threads on 2 shared cores cost seconds per eigen solve. No-op where the
+    bundled OpenBLAS is not found (Linux ``/proc/self/maps`` is used to locate it).
+    """
+    setters = []
+    try:
+        with open("/proc/self/maps") as fh:
+            libs = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ".so" in ln})
+        import ctypes
+
+        for lib in libs:
+            try:
+                h = ctypes.CDLL(lib)
+                f = h.openblas_set_num_threads_local
+                f.restype = ctypes.c_int
+                f.argtypes = [ctypes.c_int]
+                setters.append(f)
+            except (OSError, AttributeError):
+                pass
+    except OSError:
+        pass
+    old = [f(n) for f in setters]
+    try:
+        yield
+    finally:
+        for f, o in zip(setters, old):
+            f(o)
 
 
 class Factor:

@@ -59,3 +59,47 @@ def bar(length=0.04, width=0.004, thickness=0.001, n=(40, 4, 2), material="PZT-4
     regions = (Region("bar", "bar", material, poling),)
     el = (Electrode("top", "hot"), Electrode("bottom", "ground")) if electrodes else ()
     return _to_tagged(m, lambda p: p, regions, np.zeros(m.t.shape[1], dtype=int), sets, el, curved=False)
+
+
+def sandwich(radius=0.015, back=0.02, ring=0.005, n_rings=4, front=0.045, n_r=2, dz=0.005,
+             back_material="steel_45", ceramic="PZT-8", front_material="al7075"):
+    """A Langevin sandwich: steel back mass, ``n_rings`` PZT discs poled alternately +z/-z,
+    aluminium front mass; solid circular section (no bolt). Electrodes on every ceramic
+    interface: ground at the outer faces and every second interface, hot in between (internal
+    facet sets ``electrode_k``, k = 0..n_rings). Axial element size about ``dz`` (at least two
+    layers per ring); ``n_r`` sets the cross-section (2 n_r x 2 n_r squares mapped to a disk).
+    """
+    z_levels = [0.0, back] + [back + ring * (k + 1) for k in range(n_rings)] + [back + n_rings * ring + front]
+    zs = [np.array([0.0])]
+    for a, b in zip(z_levels[:-1], z_levels[1:]):
+        n = max(2 if (a >= back and b <= back + n_rings * ring + 1e-12) else 1, int(round((b - a) / dz)))
+        zs.append(np.linspace(a, b, n + 1)[1:])
+    z = np.concatenate(zs)
+    s = np.linspace(-1, 1, 2 * n_r + 1)
+    m = MeshTet.init_tensor(s, s, z)
+    zc = m.p[2, m.t].mean(axis=0)
+    regions = [Region("back", "back", back_material), Region("front", "front", front_material)]
+    cell_region = np.where(zc < back, 0, 1)
+    for k in range(n_rings):
+        lo, hi = back + k * ring, back + (k + 1) * ring
+        regions.append(Region(f"ring_{k + 1}", "stack", ceramic, (0.0, 0.0, 1.0 if k % 2 == 0 else -1.0)))
+        cell_region[(zc > lo) & (zc < hi)] = 2 + k
+    sets = {"back_face": lambda p: np.isclose(p[2], 0), "tip": lambda p: np.isclose(p[2], z_levels[-1])}
+
+    def mapping(p):
+        x, y = p[:, 0], p[:, 1]
+        out = p.copy()
+        out[:, 0] = radius * x * np.sqrt(1 - y * y / 2)
+        out[:, 1] = radius * y * np.sqrt(1 - x * x / 2)
+        return out
+
+    tm = _to_tagged(m, mapping, tuple(regions), cell_region, sets, ())
+    # internal electrode facets at the ceramic interfaces
+    facet_sets = dict(tm.facet_sets)
+    electrodes = []
+    fz = m.p[2, m.facets]
+    for k in range(n_rings + 1):
+        zk = back + k * ring
+        facet_sets[f"electrode_{k}"] = m.facets[:, np.all(np.isclose(fz, zk), axis=0)].T
+        electrodes.append(Electrode(f"electrode_{k}", "ground" if k % 2 == 0 else "hot"))
+    return tm.replace(facet_sets=facet_sets, electrodes=tuple(electrodes))
