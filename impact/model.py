@@ -188,13 +188,50 @@ def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
     return _refine(sca, m, b, fm, fpm, fb, fpb, B, tol)
 
 
+def _parabola_reach(p0: float, p1: float, acc: float) -> float:
+    """Smallest s >= 0 with p0 + p1 s + acc s^2/2 <= 0 (inf if never); p0 > 0 expected."""
+    if p0 <= 0.0:
+        return 0.0
+    roots = []
+    if acc == 0.0:
+        if p1 < 0.0:
+            roots.append(-p0 / p1)
+    else:
+        disc = p1 * p1 - 2.0 * acc * p0
+        if disc >= 0.0:
+            sq = math.sqrt(disc)
+            # numerically stable pair of roots of (acc/2) s^2 + p1 s + p0
+            q = -(p1 + math.copysign(sq, p1))
+            cand = [q / acc] if q != 0.0 else []
+            if q != 0.0:
+                cand.append(2.0 * p0 / q)
+            roots = [r for r in cand if r >= 0.0]
+    if not roots:
+        return math.inf
+    # a little early on purpose: the grid search starts before the zone is reached
+    return max(0.0, min(roots) * (1.0 - 1e-9) - 1e-12)
+
+
+def _parabola_leave(p0: float, p1: float, acc: float) -> float:
+    """For acc > 0: the s after which p0 + p1 s + acc s^2/2 stays > 0 for good (else inf)."""
+    if acc <= 0.0:
+        return math.inf
+    disc = p1 * p1 - 2.0 * acc * p0
+    if disc < 0.0:
+        return 0.0
+    r2 = (-p1 + math.sqrt(disc)) / acc
+    # a little late on purpose: the grid search ends after the zone is left
+    return max(0.0, r2) * (1.0 + 1e-9) + 1e-12
+
+
 class _Fn:
     """A contact function: vectorised and scalar (value, derivative), |f''| bound, search start."""
 
-    __slots__ = ("name", "vec", "sca", "B", "start", "h")
+    __slots__ = ("name", "vec", "sca", "B", "start", "h", "end")
 
-    def __init__(self, name, vec, sca, B, start, h):
+    def __init__(self, name, vec, sca, B, start, h, end=math.inf):
         self.name, self.vec, self.sca, self.B, self.start, self.h = name, vec, sca, B, start, h
+        self.end = end
 
 
 def _grid_step(B: float, t_end: float) -> float:
@@ -209,7 +246,7 @@ def _first_event(fns: list[_Fn], t_hi: float) -> tuple[float | None, str | None]
     best_t, best_name = None, None
     for fn in fns:
         lo = fn.start
-        hi = t_hi if best_t is None else best_t
+        hi = min(t_hi if best_t is None else best_t, fn.end)
         if lo >= hi:
             continue
         h = fn.h
@@ -463,8 +500,17 @@ class _Sim:
                     return L0 + vv - (w0 + s * (wd0 + 0.5 * a * s)), vvd - (wd0 + a * s)
 
                 Bt = Bv + abs(a)
-                fns.append(_Fn(HORN, h_vec, h_sca, self.Bh, max(t0, skip_h), _grid_step(self.Bh, t_end)))
-                fns.append(_Fn(TOOL, t_vec, t_sca, Bt, max(t0, skip_t), _grid_step(Bt, t_end)))
+                # g_h >= w - A0 and g_t >= L0 - |C| - w: no contact before the parabola w(s)
+                # comes within 1 nm of these bounds (found analytically)
+                zone_h = t0 + _parabola_reach(w0 - A0 - 1e-9, wd0, a)
+                zone_t = t0 + _parabola_reach(L0 - osc.amp - 1e-9 - w0, -wd0, -a)
+                if zone_h < math.inf:
+                    fns.append(_Fn(HORN, h_vec, h_sca, self.Bh, max(t0, skip_h, zone_h),
+                                   _grid_step(self.Bh, t_end),
+                                   t0 + _parabola_leave(w0 - A0 - 1e-9, wd0, a)))
+                if zone_t < math.inf:
+                    fns.append(_Fn(TOOL, t_vec, t_sca, Bt, max(t0, skip_t, zone_t), _grid_step(Bt, t_end),
+                                   t0 + _parabola_leave(L0 - osc.amp - 1e-9 - w0, -wd0, -a)))
                 t_rel = math.inf
             elif mode == ON_HORN:
                 def g_vec(tg, t0=t0, osc=osc):
@@ -480,7 +526,9 @@ class _Sim:
                     return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
 
                 B = Bv + A0 * om ** 2
-                fns.append(_Fn("pinch", g_vec, g_sca, B, max(t0, skip_t), _grid_step(B, t_end)))
+                # |v| <= |C| and |u| <= A0: a tool face this far away cannot reach the horn
+                if L0 - osc.amp - A0 <= 0.0:
+                    fns.append(_Fn("pinch", g_vec, g_sca, B, max(t0, skip_t), _grid_step(B, t_end)))
                 t_rel = self._next_cross(t0, up=False)
             else:  # ON_TOOL: contact force a - v'' >= 0 ends the stick; horn gap pinches
                 def r_vec(tg, t0=t0, osc=osc):
@@ -506,8 +554,11 @@ class _Sim:
                 Br = osc.amp * osc.wn ** 4
                 B = Bv + A0 * om ** 2
                 # the release function is a force per mass: its tolerance is an acceleration
-                fns.append(_Fn("pinch", g_vec, g_sca, B, t0, _grid_step(B, t_end)))
-                fns.append(_Fn("release", r_vec, r_sca, Br, t0, _grid_step(Br, t_end)))
+                # bounds |v - delta| <= |C|, |v''| <= |C| wn^2 rule out pinch / release at once
+                if L0 + osc.delta - osc.amp - A0 <= 0.0:
+                    fns.append(_Fn("pinch", g_vec, g_sca, B, t0, _grid_step(B, t_end)))
+                if osc.amp * osc.wn ** 2 >= a:
+                    fns.append(_Fn("release", r_vec, r_sca, Br, t0, _grid_step(Br, t_end)))
                 t_rel = math.inf
 
             te, name = _first_event(fns, min(t_end, t_rel))

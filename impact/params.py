@@ -80,11 +80,11 @@ class ImpactParams:
     e2: float = 0.9
     m_horn: float = 0.08
     m_tool: float = 0.05
-    k0: float = 2000.0
-    c: float = 1.0
-    gap: float = 1.0e-3
+    k0: float = 1.8e5
+    c: float = 38.0
+    gap: float = 2.0e-3
     g: float = 9.8
-    v0: float = 1.0
+    v0: float = 4.0
     t_end: float = 0.05
     spring_force: float = 0.0
     horn_law: Literal["kinematic", "article"] = "kinematic"

@@ -1,0 +1,109 @@
+"""Figures (PNG, matplotlib Agg): displacement histories (Fig. 6/7), tool kinetic energy
+against free-mass weight (Fig. 8) and the free-mass spectrum (Fig. 12 analogue).
+
+matplotlib is imported inside the functions only, so ``import impact`` stays light.
+Positions are shown in mm, times in ms (SI inside).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from geometry.common import atomic_output
+
+__all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass"]
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def plot_history(result, path, t_max: float | None = None, title: str = "") -> Path:
+    """Horn tip, free mass and tool face positions (mm) against time (ms) up to ``t_max`` (s)."""
+    plt = _plt()
+    if result.t_grid is None:
+        raise ValueError("the result holds no time series (simulate(..., series=True))")
+    t_max = result.params.t_end if t_max is None else t_max
+    sel = result.t_grid <= t_max * (1 + 1e-12)
+    t = result.t_grid[sel] * 1e3
+    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=120)
+    ax.plot(t, result.tool_face[sel] * 1e3, color="tab:green", lw=1.0, label="drill tool face L0 + v(t)")
+    ax.plot(t, result.w[sel] * 1e3, color="tab:blue", lw=1.0, label="free mass w(t)")
+    ax.plot(t, result.u[sel] * 1e3, color="tab:red", lw=0.5, label="horn tip u(t)")
+    it = result.is_tool & (result.t <= t_max)
+    ax.plot(result.t[it] * 1e3, result.x[it] * 1e3, "k.", ms=3, label="tool impacts")
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel("displacement along the drill (mm)")
+    ax.set_xlim(0, t_max * 1e3)
+    ax.set_title(title or f"First {t_max * 1e3:.0f} ms of the percussive system")
+    ax.legend(loc="upper left", fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp)
+    plt.close(fig)
+    return path
+
+
+def plot_spectrum(result, path, f_max: float = 2000.0) -> Path:
+    """Amplitude spectrum of the free-mass displacement (mm) up to ``f_max`` (Hz)."""
+    plt = _plt()
+    f, amp = result.spectrum()
+    sel = f <= f_max
+    fig, ax = plt.subplots(figsize=(8, 4), dpi=120)
+    ax.plot(f[sel], amp[sel] * 1e3, lw=0.8)
+    ax.set_xlabel("frequency (Hz)")
+    ax.set_ylabel("amplitude (mm)")
+    ax.set_title(f"Free-mass displacement spectrum ({result.params.t_end:g} s run)")
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp)
+    plt.close(fig)
+    return path
+
+
+def plot_ke_vs_mass(sweep_result, path, histories: dict | None = None) -> Path:
+    """Fig. 8 analogue: mean tool KE after impact (mJ) vs free mass (g) with the linear fit;
+    optionally, left panel: tool KE after each impact vs time for each mass
+    (``histories``: mass kg -> ImpactResult)."""
+    plt = _plt()
+    ncol = 2 if histories else 1
+    fig, axes = plt.subplots(1, ncol, figsize=(6 * ncol, 4.5), dpi=120, squeeze=False)
+    if histories:
+        ax = axes[0, 0]
+        for m, r in sorted(histories.items()):
+            it = r.is_tool
+            ax.plot(r.t[it] * 1e3, r.tool_ke_after * 1e3, ".", ms=3, label=f"{m * 1e3:g} g")
+        ax.set_xlabel("time (ms)")
+        ax.set_ylabel("tool kinetic energy after impact (mJ)")
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    ax = axes[0, -1]
+    s = sweep_result
+    m = s.m_free * 1e3
+    ax.errorbar(m, s.mean_ke * 1e3, yerr=np.nan_to_num(s.sem_ke) * 1e3, fmt="o", capsize=3,
+                label=f"model ({s.ensemble} x {s.base.t_end:g} s per mass)")
+    if np.isfinite(s.slope):
+        xx = np.linspace(m.min(), m.max(), 10)
+        ax.plot(xx, (s.slope * xx * 1e-3 + s.intercept) * 1e3, "--",
+                label=f"fit: {s.slope:.3g} J/kg, R² = {s.r2:.3f}")
+    ax.set_xlabel("free mass (g)")
+    ax.set_ylabel("mean tool kinetic energy after impact (mJ)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp)
+    plt.close(fig)
+    return path
