@@ -25,9 +25,9 @@ def design_title(design: DesignBase) -> str:
     if isinstance(design, RPUDDesign):
         h, s, c, f = design.horn, design.stack, design.coupler, design.flange
         return (f"{design.name}: horn {h.profile} {h.length * mm:.1f} mm, D {h.back_diameter * mm:.1f}/"
-                f"{h.tip_diameter * mm:.1f} mm | {s.n_rings} x {s.material} {s.outer_diameter * mm:.0f}/"
+                f"{h.tip_diameter * mm:.1f} mm; {s.n_rings} x {s.material} {s.outer_diameter * mm:.0f}/"
                 f"{s.inner_diameter * mm:.0f} x {s.ring_thickness * mm:.1f} mm\n"
-                f"flange D {f.outer_diameter * mm:.0f} x {f.thickness * mm:.1f} mm | coupler {c.length * mm:.1f} mm, "
+                f"flange D {f.outer_diameter * mm:.0f} x {f.thickness * mm:.1f} mm; coupler {c.length * mm:.1f} mm, "
                 f"D {c.outer_diameter * mm:.0f}/{design.coupler_bore * mm:.0f} mm, {c.n_slots} {c.slot_profile}-slots "
                 f"at {c.slot_angle_deg:g} deg, {c.n_teeth} teeth")
     parts = []
@@ -39,7 +39,7 @@ def design_title(design: DesignBase) -> str:
         else:
             size = f"D {seg.outer_diameter * mm:.1f}" + (f"/{seg.inner_diameter * mm:.1f}" if seg.inner_diameter else "")
         parts.append(f"{seg.name} {seg.material} {size} x {seg.length * mm:.1f} mm")
-    return f"{design.name}: " + " | ".join(parts)
+    return f"{design.name}: " + "; ".join(parts)
 
 
 def render_png(mesh: TaggedMesh, path: str | Path, title: str = "", size: tuple[int, int] = (1400, 700)) -> Path:
