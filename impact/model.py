@@ -174,7 +174,10 @@ def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
     if fb <= -tol:
         # f' <= min(fpa + B s, fpb + B (h - s)) <= (fpa + fpb + B h)/2: monotone => one root.
         if fpa + fpb + B * h < 0.0 or h < _H_MIN:
-            return brentq(lambda t: sca(t)[0] + tol, a, b, xtol=_XTOL, rtol=8.9e-16)
+            # the root of f itself (not f + tol): no systematic shift of the contact position
+            if fa <= 0.0:
+                return a
+            return brentq(lambda t: sca(t)[0], a, b, xtol=_XTOL, rtol=8.9e-16)
     else:
         c2 = B * h * h
         if (min(fa, fb) - 0.125 * c2 > -tol or fa + fpa * h - 0.5 * c2 > -tol

@@ -1,0 +1,165 @@
+"""Impact model: analytic references, a second method (solve_ivp), properties, bad input, CLI."""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+from hypothesis import given, settings, strategies as st
+
+from geometry.common import ParameterError
+from impact.model import simulate
+from impact.params import ImpactParams
+from impact.reference import simulate_ivp
+from impact.sweep import linear_fit, sweep
+
+
+def ball(e, v0=1.0, t_end=1.0):
+    """Fixed table: A0 = 0 horn, gravity toward it (g < 0), tool out of reach."""
+    return ImpactParams(A0=0.0, e2=e, g=-9.81, v0=v0, gap=100.0, t_end=t_end, k0=1e3, c=0.0)
+
+
+def test_bouncing_ball_flight_times_heights_energy():
+    e = 0.8
+    r = simulate(ball(e, t_end=1.0), series=False)
+    assert r.horn_impacts >= 8 and r.tool_impacts == 0
+    t = np.concatenate([[0.0], r.t])
+    flights = np.diff(t)[:8]
+    # flight time 2 v / g exactly, shrinking by e; tolerance: root finding to ~1e-15 s
+    np.testing.assert_allclose(flights[0], 2 * 1.0 / 9.81, rtol=1e-12)
+    np.testing.assert_allclose(flights[1:] / flights[:-1], e, rtol=1e-9)
+    heights = (np.concatenate([[1.0], r.w_after[:7]]) ** 2) / (2 * 9.81)
+    np.testing.assert_allclose(heights[1:] / heights[:-1], e ** 2, rtol=1e-9)
+    # energy lost per impact: (1 - e^2) of the kinetic energy relative to the table
+    ke_b, ke_a = 0.5 * 0.008 * r.w_before[:8] ** 2, 0.5 * 0.008 * r.w_after[:8] ** 2
+    np.testing.assert_allclose((ke_b - ke_a) / ke_b, 1 - e ** 2, rtol=1e-9)
+
+
+def test_bouncing_ball_chattering_terminates_by_sticking():
+    e = 0.5
+    r = simulate(ball(e, t_end=2.0), series=False)
+    # relative speed falls by e per impact until below v_stick = 1e-6 m/s: ~log(1e-6)/log(0.5)
+    assert r.horn_impacts <= math.ceil(math.log(1e-6) / math.log(e)) + 2
+    assert len(r.stick) == 1 and r.stick[0][2] == "horn" and r.stick[0][1] == 2.0
+    # accumulation point of the flights: 2 v0 / (g (1 - e))
+    assert r.stick[0][0] == pytest.approx(2 * 1.0 / (9.81 * (1 - e)), rel=1e-5)
+
+
+def test_bouncing_ball_elastic_conserves_energy_1000_impacts():
+    r = simulate(ball(1.0, v0=0.5, t_end=1000 * 2 * 0.5 / 9.81 + 0.01), series=False)
+    assert r.horn_impacts >= 1000
+    # mechanical energy after every impact equals the initial one to 1e-12 relative
+    np.testing.assert_allclose(r.energy[:1000], r.energy0, rtol=1e-12, atol=0)
+
+
+def test_two_body_tool_impact_momentum_and_restitution():
+    p = ImpactParams()
+    r = simulate(p, series=False)
+    it = r.is_tool
+    assert it.sum() > 10
+    mom_b = p.m_free * r.w_before[it] + p.m_tool * r.v_before[it]
+    mom_a = p.m_free * r.w_after[it] + p.m_tool * r.v_after[it]
+    np.testing.assert_allclose(mom_a, mom_b, rtol=0, atol=1e-15)   # round-off of ~0.01 kg m/s
+    np.testing.assert_allclose(r.w_after[it] - r.v_after[it], -p.e1 * (r.w_before[it] - r.v_before[it]),
+                               rtol=1e-12, atol=1e-14)
+    # kinetic energy lost = (1 - e^2) m1 m2 / (2 (m1 + m2)) (v1 - v2)^2
+    ke = lambda w, v: 0.5 * p.m_free * w ** 2 + 0.5 * p.m_tool * v ** 2
+    lost = ke(r.w_before[it], r.v_before[it]) - ke(r.w_after[it], r.v_after[it])
+    ref = (1 - p.e1 ** 2) * p.m_free * p.m_tool / (2 * (p.m_free + p.m_tool)) * (r.w_before[it] - r.v_before[it]) ** 2
+    np.testing.assert_allclose(lost, ref, rtol=1e-10)
+
+
+@pytest.mark.parametrize("changes", [{}, {"g": 0.0, "v0": 2.0}, {"horn_law": "article", "m_free": 0.004}])
+def test_cross_check_against_solve_ivp(changes):
+    p = ImpactParams(**changes)
+    r = simulate(p, series=False)
+    n = 5   # chaotic: differences grow ~10-30x per impact, compare the first few only
+    ref = simulate_ivp(p, max_events=n)
+    assert list(r.contact[:n]) == ref["contact"]
+    np.testing.assert_allclose(r.t[:n], ref["t"], rtol=0, atol=1e-9)
+    for key in ("w_before", "w_after", "v_before", "v_after"):
+        np.testing.assert_allclose(getattr(r, key)[:n], ref[key], rtol=0, atol=1e-6)
+
+
+@settings(max_examples=25, deadline=None)
+@given(m_free=st.floats(0.002, 0.01), A0=st.floats(5e-6, 25e-6), e1=st.floats(0.3, 1.0),
+       e2=st.floats(0.3, 1.0), gap=st.floats(1.5e-3, 3e-3), v0=st.floats(0.5, 5.0),
+       g=st.sampled_from([9.8, 0.0, -9.8]))
+def test_properties(m_free, A0, e1, e2, gap, v0, g):
+    p = ImpactParams(m_free=m_free, A0=A0, e1=e1, e2=e2, gap=gap, v0=v0, g=g, t_end=0.02)
+    r = simulate(p)
+    assert np.all(np.diff(r.t) > 0)
+    # no interpenetration beyond 1e-12 m, on the output grid and at the events
+    assert (r.w - r.u).min() >= -1e-12
+    assert (r.tool_face - r.w).min() >= -1e-12
+    # energy is never created except by the horn's work (tool damping only removes it)
+    scale = max(r.energy0, 1e-6) + np.abs(r.horn_work).max(initial=0)
+    assert np.all(r.energy - r.energy0 - r.horn_work <= 1e-9 * scale)
+
+
+@pytest.mark.parametrize("field,value", [("m_free", -0.001), ("m_tool", 0.0), ("e1", 1.2), ("e2", -0.1),
+                                         ("A0", -1e-6), ("freq", 0.0), ("t_end", 0.0), ("gap", 0.0),
+                                         ("k0", -1.0), ("c", 1e6), ("v0", -1.0)])
+def test_bad_input_names_the_field(field, value):
+    with pytest.raises(ParameterError, match=rf"^{field} = "):
+        ImpactParams(**{field: value})
+
+
+def _cli(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "impact", *args], cwd=cwd, capture_output=True, text=True)
+
+
+@pytest.mark.parametrize("opt,val,field", [("--m-free", "-0.002", "m_free"), ("--e1", "1.5", "e1"),
+                                           ("--A0", "-1e-6", "A0"), ("--freq", "0", "freq"),
+                                           ("--t-end", "0", "t_end"), ("--gap", "0", "gap")])
+def test_cli_bad_input_exit_2_one_line_no_file(tmp_path, opt, val, field):
+    out = tmp_path / "o.json"
+    cp = _cli(opt, val, "--json", str(out), cwd=tmp_path)
+    assert cp.returncode == 2
+    lines = cp.stderr.strip().splitlines()
+    assert len(lines) == 1 and field in lines[0]
+    assert not out.exists() and list(tmp_path.iterdir()) == []
+
+
+def test_cli_json_schema(tmp_path):
+    out = tmp_path / "o.json"
+    cp = _cli("--t-end", "0.01", "--m-free", "0.006", "--json", str(out), cwd=tmp_path)
+    assert cp.returncode == 0, cp.stderr
+    d = json.loads(out.read_text())
+    for key in ("params", "tool_impacts", "horn_impacts", "tool_impact_rate_hz",
+                "mean_tool_ke_after_impact_j", "events"):
+        assert key in d
+    assert d["params"]["m_free"] == 0.006 and d["params"]["t_end"] == 0.01
+    assert set(ImpactParams().to_dict()) == set(d["params"])
+    assert d["tool_impacts"] + d["horn_impacts"] == len(d["events"]) > 0
+    assert d["tool_impact_rate_hz"] == pytest.approx(d["tool_impacts"] / 0.01)
+    for ev in d["events"]:
+        assert set(ev) == {"t", "contact", "w_before", "w_after", "v_before", "v_after"}
+        assert ev["contact"] in ("horn", "tool")
+
+
+def test_toml_round_trip_and_config(tmp_path):
+    p = ImpactParams(m_free=0.005, horn_law="article")
+    path = tmp_path / "p.toml"
+    path.write_text(p.to_toml())
+    assert ImpactParams.from_toml(path) == p
+    path.write_text("m_fre = 1.0\n")
+    with pytest.raises(ParameterError, match="m_fre"):
+        ImpactParams.from_toml(path)
+
+
+def test_linear_fit_exact_line():
+    x = np.array([1.0, 2.0, 3.0, 4.0])
+    slope, intercept, r2 = linear_fit(x, 2.5 * x - 1.0)
+    assert slope == pytest.approx(2.5, rel=1e-12) and intercept == pytest.approx(-1.0, abs=1e-12)
+    assert r2 == pytest.approx(1.0, abs=1e-12)
+
+
+def test_sweep_small_serial():
+    sw = sweep(None, [0.004, 0.008], ensemble=2, t_end=0.02, workers=1, progress=False)
+    assert sw.n_ok.tolist() == [2, 2]
+    assert np.all(sw.mean_ke > 0) and np.all(sw.rate_hz > 0)
+    # two points define the line exactly
+    assert sw.r2 == pytest.approx(1.0)
