@@ -185,6 +185,11 @@ def _blocks_fast(bk, bm, rdata, cell_region) -> _Blocks:
 
     for ri, rd in enumerate(rdata):
         cells = np.flatnonzero(cell_region == ri)
+        if len(cells) == 0:
+            continue
+        # per-region sums; the loss matrices are these scaled by 1/Q and tan(delta)
+        kuu_r = np.zeros((nnzb, 9))
+        kpp_r = np.zeros(nnzb) if rd.piezo else None
         for start in range(0, len(cells), _CHUNK):
             idx = cells[start:start + _CHUNK]
             E = len(idx)
@@ -197,9 +202,7 @@ def _blocks_fast(bk, bm, rdata, cell_region) -> _Blocks:
             CB = np.matmul(rd.c, B).reshape(E, nq * 6, 3 * nloc)
             Ke = np.matmul(Bw.transpose(0, 2, 1), CB)           # (E, 3nloc, 3nloc)
             blocks = Ke.reshape(E, nloc, 3, nloc, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)
-            acc(kuu, p, blocks)
-            if np.isfinite(rd.q_mech):
-                acc(luu, p, blocks / rd.q_mech)
+            acc(kuu_r, p, blocks)
             # mass (scalar, expanded to 3x3 identity blocks later)
             v = V[:, idx, :]                                     # (nloc, E, nq)
             vw = (v * dxm[idx][None]).transpose(1, 0, 2)         # (E, nloc, nq)
@@ -212,9 +215,14 @@ def _blocks_fast(bk, bm, rdata, cell_region) -> _Blocks:
                 gw = (g * w[:, :, None, None]).reshape(E, nq * 3, nloc)
                 epsg = np.matmul(rd.eps, g).reshape(E, nq * 3, nloc)
                 Kpp_e = np.matmul(gw.transpose(0, 2, 1), epsg).ravel()
-                acc(kpp, p, Kpp_e)
-                if rd.tan_delta:
-                    acc(lpp, p, rd.tan_delta * Kpp_e)
+                acc(kpp_r, p, Kpp_e)
+        kuu += kuu_r
+        if np.isfinite(rd.q_mech):
+            luu += kuu_r / rd.q_mech
+        if rd.piezo:
+            kpp += kpp_r
+            if rd.tan_delta:
+                lpp += rd.tan_delta * kpp_r
 
     def bsr3(data):
         return sp.bsr_matrix((data.reshape(-1, 3, 3), indices, indptr), shape=(3 * n, 3 * n)).tocsr()
@@ -316,7 +324,6 @@ class PiezoSystem:
     mesh: TaggedMesh
     skmesh: object
     basis: object          # scalar CellBasis (P2), the node numbering
-    basis_u: object        # vector CellBasis (ElementVector(P2))
     nodes: np.ndarray      # (n_nodes, 3) coordinates of the scalar nodes
     K: sp.csr_matrix
     M: sp.csr_matrix
@@ -332,6 +339,17 @@ class PiezoSystem:
     order: int
     intorder: tuple[int, int]
     timings: dict = field(default_factory=dict)
+    _basis_u: object = None
+
+    @property
+    def basis_u(self):
+        """Vector P2 ``CellBasis`` (``ElementVector``) on the whole mesh, built on first use;
+        its DOF ``3 k + c`` is node ``k`` component ``c`` (same numbering as ``K``, ``M``)."""
+        if self._basis_u is None:
+            from skfem import CellBasis, ElementVector
+
+            self._basis_u = CellBasis(self.skmesh, ElementVector(self.basis.elem), intorder=self.intorder[0])
+        return self._basis_u
 
     # ------------------------------------------------------------------ layout
     @property
@@ -497,10 +515,11 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     library : mapping of material records, optional
         Default: the built-in library (``fem.materials.load_materials``).
     intorder : (stiffness, mass) quadrature orders, optional
+        ``"skfem"`` (with ``reference=True``): scikit-fem's own default rules.
     reference : bool
         Use plain scikit-fem ``BilinearForm`` assembly (slow baseline) instead of the fast path.
     """
-    from skfem import CellBasis, ElementTetP1, ElementTetP2, ElementVector
+    from skfem import CellBasis, ElementTetP1, ElementTetP2
 
     if order not in (1, 2):
         raise ParameterError("order", order, "must be 1 or 2")
@@ -508,8 +527,13 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     rdata = _region_data(mesh, library)
     skmesh = mesh.to_skfem()
     elem = ElementTetP2() if order == 2 else ElementTetP1()
-    qk, qm = intorder or _default_intorder(order, mesh.order == 2)
-    bk = CellBasis(skmesh, elem, intorder=qk)
+    if intorder == "skfem":      # scikit-fem's default rules (plain-assembly baseline only)
+        if not reference:
+            raise ParameterError("intorder", intorder, "'skfem' is for reference=True only")
+        qk = qm = None
+    else:
+        qk, qm = intorder or _default_intorder(order, mesh.order == 2)
+    bk = CellBasis(skmesh, elem, intorder=qk if qk is not None else _default_intorder(order, mesh.order == 2)[0])
     t1 = time.perf_counter()
     if reference:
         blocks = _blocks_reference(skmesh, elem, qk, qm, rdata, mesh.cell_region)
@@ -561,13 +585,12 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
         A.sum_duplicates()
         A.sort_indices()
     t3 = time.perf_counter()
-    basis_u = CellBasis(skmesh, ElementVector(elem), intorder=qk)
     timings = {"setup_s": t1 - t0, "element_matrices_s": t2 - t1, "reduction_s": t3 - t2,
                "assembly_s": t3 - t0}
     log.info("assembled %d DOFs (%d u, %d phi%s) in %.2f s (%s)", K.shape[0], n_u, n_phi,
              " + V_hot" if has_hot else "", t3 - t0, "reference skfem" if reference else "fast")
     return PiezoSystem(
-        mesh=mesh, skmesh=skmesh, basis=bk, basis_u=basis_u, nodes=bk.doflocs.T.copy(),
+        mesh=mesh, skmesh=skmesh, basis=bk, nodes=bk.doflocs.T.copy(),
         K=K, M=M, K_loss=L, n_u=n_u, n_phi=n_phi, hot_dof=(n_u + n_phi) if has_hot else None,
         phi_scale=phi_scale, phi_nodes=interior, hot_nodes=hot, ground_nodes=ground,
         regions=rdata, order=order, intorder=(qk, qm), timings=timings)
