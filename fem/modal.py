@@ -28,7 +28,7 @@ backend=None, tol=0.0, open_circuit=True) -> ModalResult``
 (``(n, n_nodes, 3)`` short-circuit displacement at the P2 nodes, mass-normalised:
 ``Phi^T M Phi = I``), ``vectors`` / ``vectors_open`` (full ``x`` per mode, ``(ndof, n)``),
 ``shares`` (``(n, 3)`` kinetic-energy share axial / torsional / lateral about the z axis),
-``labels``, ``rigid_hz``, ``ndof``, ``backend``, ``timings`` (assembly_s, factorisation_s,
+``labels`` (computed on first access), ``rigid_hz``, ``ndof``, ``backend``, ``timings`` (assembly_s, factorisation_s,
 eigen_s, total_s), ``to_json()``.
 
 CLI
@@ -74,7 +74,6 @@ class ModalResult:
     vectors: np.ndarray
     vectors_open: np.ndarray | None
     shares: np.ndarray
-    labels: list[str]
     rigid_hz: np.ndarray
     ndof: int
     backend: str
@@ -82,6 +81,21 @@ class ModalResult:
     near_hz: float
     clamp: tuple[str, ...]
     timings: dict = field(default_factory=dict)
+    system: PiezoSystem | None = field(default=None, repr=False)
+    _labels: list[str] | None = field(default=None, repr=False)
+
+    @property
+    def labels(self) -> list[str]:
+        """Dominant motion per mode, computed on first use: ``fem.modeshape.classify`` of its
+        energy shares when that module is importable, else from :attr:`shares`."""
+        if self._labels is None:
+            if self.n_modes == 0:
+                self._labels = []
+            elif self.system is not None:
+                self._labels = list(_labels(self.system, self.shapes, self.shares))
+            else:
+                self._labels = _simple_labels(self.shares)
+        return self._labels
 
     @property
     def n_modes(self) -> int:
@@ -305,7 +319,6 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
         k_eff = np.sqrt(np.clip(1 - ratio ** 2, 0.0, None))
     shapes = system.displacement(full_s) if n_found else np.zeros((0, system.n_nodes, 3))
     shares = motion_shares(system, shapes) if n_found else np.zeros((0, 3))
-    labels = _labels(system, shapes, shares) if n_found else []
     t4 = time.perf_counter()
     timings = {"assembly_s": float(system.timings.get("assembly_s", np.nan)),
                "factorisation_s": F.seconds, "eigen_s": (t2 - t1) + (t3 - t2),
@@ -314,9 +327,9 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     log.info("modal: %d modes near %.1f Hz, %d DOFs, %s, factor %.2f s, eigen %.2f s",
              n_found, near_hz, system.ndof, F.backend, F.seconds, timings["eigen_s"])
     return ModalResult(f_r_hz=f_r, f_a_hz=f_a, k_eff=k_eff, mac=mac, shapes=shapes, vectors=full_s,
-                       vectors_open=full_o, shares=shares, labels=list(labels), rigid_hz=rigid_f,
+                       vectors_open=full_o, shares=shares, rigid_hz=rigid_f,
                        ndof=system.ndof, backend=F.backend, sigma=float(sigma),
-                       near_hz=float(near_hz), clamp=clamp, timings=timings)
+                       near_hz=float(near_hz), clamp=clamp, timings=timings, system=system)
 
 
 # --------------------------------------------------------------------------- CLI
