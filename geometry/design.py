@@ -290,8 +290,8 @@ class HornDesign:
     _prefix: ClassVar[str] = "horn"
     material: str = "ti6al4v"
     profile: Literal["stepped", "conical", "exponential"] = "stepped"
-    length: float = 0.0859
-    back_diameter: float = 0.020
+    length: float = 0.0672
+    back_diameter: float = 0.024
     tip_diameter: float = 0.011
     step_fraction: float = 0.5
 
@@ -451,7 +451,7 @@ class CouplerDesign:
 
     _prefix: ClassVar[str] = "coupler"
     material: str = "ti6al4v"
-    length: float = 0.0336
+    length: float = 0.0499
     outer_diameter: float = 0.035
     inner_diameter: float = 0.015
     n_slots: int = 6

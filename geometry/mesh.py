@@ -192,6 +192,43 @@ class TaggedMesh:
         """A copy with some fields replaced (e.g. morphed ``points``)."""
         return dataclasses.replace(self, **changes)
 
+    def boundary_triangles(self) -> np.ndarray:
+        """(k, 3) corner-node triangles on the boundary of the mesh (faces of one cell only)."""
+        local = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+        faces = np.sort(self.cells[:, :4][:, local].reshape(-1, 3), axis=1)
+        uniq, counts = np.unique(faces, axis=0, return_counts=True)
+        return uniq[counts == 1]
+
+    def submesh(self, cell_mask: np.ndarray) -> "TaggedMesh":
+        """The mesh of the selected cells: nodes renumbered, unused regions dropped, facet sets
+        kept where their triangles are faces of kept cells, electrodes kept while non-empty."""
+        keep = np.flatnonzero(np.asarray(cell_mask, dtype=bool))
+        if keep.size == 0:
+            raise ParameterError("cell_mask", "empty", "select at least one cell")
+        cells = self.cells[keep]
+        used = np.unique(cells)
+        new_index = np.full(self.n_points, -1, dtype=np.int64)
+        new_index[used] = np.arange(len(used))
+        regions_used = np.unique(self.cell_region[keep])
+        region_index = np.full(len(self.regions), -1, dtype=np.int64)
+        region_index[regions_used] = np.arange(len(regions_used))
+        local = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+        faces = np.unique(np.sort(cells[:, :4][:, local].reshape(-1, 3), axis=1), axis=0)
+        facet_sets = {}
+        for name, tri in self.facet_sets.items():
+            if len(tri) == 0 or np.any(new_index[tri] < 0):
+                tri = tri[np.all(new_index[tri] >= 0, axis=1)]
+            if len(tri) == 0:
+                continue
+            try:
+                match_rows(faces, tri)
+            except KeyError:
+                continue                  # e.g. an interface whose other side was cut away
+            facet_sets[name] = new_index[tri]
+        electrodes = tuple(e for e in self.electrodes if e.name in facet_sets)
+        return TaggedMesh(self.points[used], new_index[cells], region_index[self.cell_region[keep]],
+                          tuple(self.regions[i] for i in regions_used), facet_sets, electrodes)
+
     # ------------------------------------------------------------------ conversions
     def _corner_renumbering(self) -> tuple[np.ndarray, np.ndarray]:
         """Corner nodes used by cells and old->new index map (skfem numbers corners first)."""

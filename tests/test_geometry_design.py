@@ -163,10 +163,13 @@ def test_onedim_piezo_modulus_and_default_design_frequency():
     # open-circuit k33 rod: f_p = 1 / (2 l sqrt(rho s33^D)); library constants give s33^D within 1 % of the datasheet's
     fp = 1 / (2 * 0.04 * math.sqrt(7500 / axial_modulus("PZT-4", "open")))
     assert fp == pytest.approx(50271, rel=0.01)
+    # the default lengths are FE-matched (fem.matching); the 1-D chain ignores the slots' 3-D
+    # compliance and lateral inertia and puts the first longitudinal mode ~9 % higher, with its
+    # node inside the stack (z in [0, 20] mm) as the matching intends
     d = default_design()
     m = first_longitudinal(d)
-    assert m.frequency == pytest.approx(20e3, rel=0.005)  # sized with this 1-D model
-    z0, z1 = d.part_extents()["flange"]
-    assert any(z0 - 0.003 < n < z1 + 0.003 for n in m.nodes)  # the flange sits at the nodal plane
+    assert 20e3 < m.frequency < 23e3
+    z0, z1 = d.part_extents()["stack"]
+    assert any(z0 < n < z1 for n in m.nodes)
     assert abs(m.amplitude_at(d.part_extents()["horn"][1])) == pytest.approx(1.0)
     assert len(design_modes(examples.slender_rod(), f_max=30e3)) == 2
