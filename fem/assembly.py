@@ -132,6 +132,36 @@ def _stack_grads(basis, nloc):
     return np.stack([basis.basis[a][0].grad for a in range(nloc)])  # (nloc, 3, nel, nq)
 
 
+def _voigt_index():
+    V = np.zeros((3, 3), dtype=int)
+    for n, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))):
+        V[i, j] = V[j, i] = n
+    return V
+
+
+def _tensor4(c):
+    """Voigt (6,6) stiffness -> (9, 9) array T[(k l), (i j)] = c_ikjl."""
+    V = _voigt_index()
+    T = np.zeros((3, 3, 3, 3))
+    for i in range(3):
+        for k in range(3):
+            for j in range(3):
+                for l in range(3):
+                    T[k, l, i, j] = c[V[i, k], V[j, l]]
+    return T.reshape(9, 9)
+
+
+def _tensor3(e):
+    """Voigt (3,6) piezo stress constants -> (9, 3) array T[(k l), i] = e_l,ik."""
+    V = _voigt_index()
+    T = np.zeros((3, 3, 3))
+    for k in range(3):
+        for l in range(3):
+            for i in range(3):
+                T[k, l, i] = e[l, V[i, k]]
+    return T.reshape(9, 3)
+
+
 def _b_matrix(g):
     """Voigt strain-displacement matrix from scalar gradients g (E, nq, 3, nloc) ->
     (E, nq, 6, 3*nloc), columns ordered (node a, component i) -> 3a + i."""
@@ -153,76 +183,84 @@ def _blocks_fast(bk, bm, rdata, cell_region) -> _Blocks:
     edofs = np.ascontiguousarray(bk.element_dofs.T)  # (nel, nloc)
     nel, nloc = edofs.shape
     n = bk.N
-    # scalar node-pair pattern, sorted CSR, and the position of every element entry in it
+    # Scalar node-pair pattern (sorted CSR) from ONE argsort of the element entries; the
+    # element matrices are then summed by a segmented reduction in that order.
+    nn = nloc * nloc
     rows = np.repeat(edofs, nloc, axis=1).astype(np.int64)
     cols = np.tile(edofs, (1, nloc)).astype(np.int64)
-    keys, pos = np.unique((rows * n + cols).ravel(), return_inverse=True)
-    pos = pos.reshape(nel, nloc * nloc)
+    flat = (rows * n + cols).ravel()
+    del rows, cols
+    order = np.argsort(flat)
+    sk = flat[order]
+    newseg = np.empty(len(sk), dtype=bool)
+    newseg[0] = True
+    np.not_equal(sk[1:], sk[:-1], out=newseg[1:])
+    starts = np.flatnonzero(newseg)
+    keys = sk[starts]
+    del sk, newseg, flat
     nnzb = len(keys)
     indices = (keys % n).astype(np.int32)
     indptr = np.zeros(n + 1, dtype=np.int64)
     np.cumsum(np.bincount(keys // n, minlength=n), out=indptr[1:])
-    del rows, cols, keys
+    del keys
 
     G = _stack_grads(bk, nloc)            # (nloc, 3, nel, nq)
     dxk = bk.dx                           # (nel, nq)
     V = np.stack([bm.basis[a][0].value for a in range(nloc)])  # (nloc, nel, nq)
     dxm = bm.dx
 
-    kuu = np.zeros((nnzb, 9))
-    luu = np.zeros((nnzb, 9))
-    muu = np.zeros(nnzb)
-    kup = np.zeros((nnzb, 3))
-    kpp = np.zeros(nnzb)
-    lpp = np.zeros(nnzb)
-
-    def acc(target, p, vals):
-        if vals.ndim == 1:
-            target += np.bincount(p, weights=vals, minlength=nnzb)
-        else:
-            for c in range(vals.shape[1]):
-                target[:, c] += np.bincount(p, weights=vals[:, c], minlength=nnzb)
+    # element entries, row e * nn + (a * nloc + b)
+    ke = np.empty((nel * nn, 9))
+    me = np.empty(nel * nn)
+    piezo_cells = np.isin(cell_region, [i for i, r in enumerate(rdata) if r.piezo])
+    any_piezo = bool(piezo_cells.any())
+    kupe = np.zeros((nel * nn, 3)) if any_piezo else None
+    kppe = np.zeros(nel * nn) if any_piezo else None
+    inv_q = np.zeros(nel)
+    tand = np.zeros(nel)
+    local = np.arange(nn)
 
     for ri, rd in enumerate(rdata):
         cells = np.flatnonzero(cell_region == ri)
         if len(cells) == 0:
             continue
-        # per-region sums; the loss matrices are these scaled by 1/Q and tan(delta)
-        kuu_r = np.zeros((nnzb, 9))
-        kpp_r = np.zeros(nnzb) if rd.piezo else None
+        inv_q[cells] = 1.0 / rd.q_mech if np.isfinite(rd.q_mech) else 0.0
+        tand[cells] = rd.tan_delta
+        C4 = _tensor4(rd.c)                                      # (kl, ij) for the GEMM below
+        if rd.piezo:
+            E3 = _tensor3(rd.e)                                  # (kl, i)
+            epsv = rd.eps.reshape(9)                             # (kl,)
         for start in range(0, len(cells), _CHUNK):
             idx = cells[start:start + _CHUNK]
             E = len(idx)
-            p = pos[idx].ravel()
-            g = G[:, :, idx, :].transpose(2, 3, 1, 0)          # (E, nq, 3, nloc)
-            nq = g.shape[1]
-            w = dxk[idx]
-            B = _b_matrix(g)                                     # (E, nq, 6, 3nloc)
-            Bw = (B * w[:, :, None, None]).reshape(E, nq * 6, 3 * nloc)
-            CB = np.matmul(rd.c, B).reshape(E, nq * 6, 3 * nloc)
-            Ke = np.matmul(Bw.transpose(0, 2, 1), CB)           # (E, 3nloc, 3nloc)
-            blocks = Ke.reshape(E, nloc, 3, nloc, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)
-            acc(kuu_r, p, blocks)
+            r = (idx[:, None] * nn + local[None, :]).ravel()
+            # S[e, a, b, k, l] = sum_q w dN_a/dx_k dN_b/dx_l   (one batched matmul)
+            g = G[:, :, idx, :].transpose(2, 0, 1, 3).reshape(E, nloc * 3, -1)   # (E, (a k), q)
+            gw = g * dxk[idx][:, None, :]
+            S = np.matmul(gw, g.transpose(0, 2, 1))                            # (E, (a k), (b l))
+            S = S.reshape(E, nloc, 3, nloc, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)
+            # K_uu blocks (a, b): [i, j] = sum_kl S[a,b,k,l] c_ikjl  -- one BLAS GEMM
+            ke[r] = S @ C4
             # mass (scalar, expanded to 3x3 identity blocks later)
             v = V[:, idx, :]                                     # (nloc, E, nq)
             vw = (v * dxm[idx][None]).transpose(1, 0, 2)         # (E, nloc, nq)
-            Me = rd.density * np.matmul(vw, v.transpose(1, 2, 0))  # (E, nloc, nloc)
-            acc(muu, p, Me.ravel())
+            me[r] = rd.density * np.matmul(vw, v.transpose(1, 2, 0)).ravel()
             if rd.piezo:
-                eTg = np.matmul(rd.e.T, g).reshape(E, nq * 6, nloc)     # (E, nq*6, nloc)
-                Kup_e = np.matmul(Bw.transpose(0, 2, 1), eTg)           # (E, 3nloc, nloc)
-                acc(kup, p, Kup_e.reshape(E, nloc, 3, nloc).transpose(0, 1, 3, 2).reshape(-1, 3))
-                gw = (g * w[:, :, None, None]).reshape(E, nq * 3, nloc)
-                epsg = np.matmul(rd.eps, g).reshape(E, nq * 3, nloc)
-                Kpp_e = np.matmul(gw.transpose(0, 2, 1), epsg).ravel()
-                acc(kpp_r, p, Kpp_e)
-        kuu += kuu_r
-        if np.isfinite(rd.q_mech):
-            luu += kuu_r / rd.q_mech
-        if rd.piezo:
-            kpp += kpp_r
-            if rd.tan_delta:
-                lpp += rd.tan_delta * kpp_r
+                # K_uphi[(a i), b] = sum_kl S[a,b,k,l] e_lik ; K_phiphi[a, b] = sum_kl S eps_kl
+                kupe[r] = S @ E3
+                kppe[r] = S @ epsv
+
+    def seg(vals, scale=None):
+        if scale is not None:
+            vals = vals * (np.repeat(scale, nn) if vals.ndim == 1 else np.repeat(scale, nn)[:, None])
+        return np.add.reduceat(vals[order], starts, axis=0)
+
+    kuu, luu, muu = seg(ke), seg(ke, inv_q), seg(me)
+    del ke, me
+    if any_piezo:
+        kup, kpp, lpp = seg(kupe), seg(kppe), seg(kppe, tand)
+    else:
+        kup, kpp, lpp = np.zeros((nnzb, 3)), np.zeros(nnzb), np.zeros(nnzb)
 
     def bsr3(data):
         return sp.bsr_matrix((data.reshape(-1, 3, 3), indices, indptr), shape=(3 * n, 3 * n)).tocsr()
@@ -485,6 +523,14 @@ class PiezoSystem:
         return float(np.real(self.charge(x, lossy=False)))
 
 
+def _pad(A, extra):
+    """``A`` (csr) with ``extra`` empty rows and columns appended, without copying the data."""
+    A = A.tocsr()
+    n = A.shape[0] + extra
+    indptr = np.concatenate([A.indptr, np.full(extra, A.indptr[-1], dtype=A.indptr.dtype)])
+    return sp.csr_matrix((A.data, A.indices, indptr), shape=(n, n))
+
+
 def _sub(A, idx):
     return A[idx][:, idx].tocsr()
 
@@ -577,10 +623,14 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     Kup = (blocks.Kup @ T) * s
     Kpp = (T.T @ blocks.Kpp @ T) * (s * s)
     Lpp = (T.T @ blocks.Lpp @ T) * (s * s)
-    K = sp.bmat([[blocks.Kuu, Kup], [Kup.T, -Kpp]], format="csr") if nr else blocks.Kuu.tocsr()
-    Z = sp.csr_matrix((nr, nr))
-    M = sp.block_diag((blocks.Muu, Z), format="csr") if nr else blocks.Muu.tocsr()
-    L = sp.block_diag((blocks.Luu, Lpp), format="csr") if nr else blocks.Luu.tocsr()
+    if nr:
+        K = sp.vstack([sp.hstack([blocks.Kuu, Kup], format="csr"),
+                       sp.hstack([Kup.T.tocsr(), -Kpp], format="csr")], format="csr")
+        M = _pad(blocks.Muu, nr)
+        L = sp.vstack([sp.hstack([blocks.Luu, sp.csr_matrix((n_u, nr))], format="csr"),
+                       sp.hstack([sp.csr_matrix((nr, n_u)), Lpp], format="csr")], format="csr")
+    else:
+        K, M, L = blocks.Kuu.tocsr(), blocks.Muu.tocsr(), blocks.Luu.tocsr()
     for A in (K, M, L):
         A.sum_duplicates()
         A.sort_indices()
