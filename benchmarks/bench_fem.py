@@ -8,7 +8,7 @@
 3. End to end: modal analysis (assembly + 12 modes near 20 kHz, short + open circuit) of the
    default design at its default mesh (target < 15 s on 2 cores).
 4. Mesh convergence of the working longitudinal mode of the default design (default sizes:
-   11 mm in horn/coupler, capped by ring/slot/tooth features -> uniform 6 mm -> 4 mm).
+   11 mm in horn/coupler, capped by ring/slot/tooth features -> uniform 4 mm -> 2.6 mm).
 
 Usage: ``python benchmarks/bench_fem.py [--quick] [--skip-splu] [--no-convergence]``.
 ``--quick`` uses the default mesh for 1-2 (about 55k DOFs) and skips the convergence study.
@@ -122,7 +122,7 @@ def main(argv=None):
     if not (args.quick or args.no_convergence):
         print("mesh convergence of the working longitudinal mode (default design):")
         prev = None
-        for e in (None, 0.006, 0.004):
+        for e in (None, 0.004, 0.0026):
             tm_e, _ = _mesh(e)
             s_e = assemble(tm_e)
             r_e = modal_analysis(s_e, 20e3, 6)
