@@ -238,22 +238,27 @@ class ModalBasis:
     f_r_hz: np.ndarray
     seconds: float = 0.0
 
-    def coordinates(self, freq_hz: np.ndarray) -> np.ndarray:
+    def coordinates(self, freq_hz: np.ndarray, damper: tuple[np.ndarray, float] | None = None) -> np.ndarray:
         """Modal coordinates per volt, (n_freq, n_modes) complex:
-        ``(Lambda + j D - w^2 I) q = g`` with the full modal loss matrix ``D``."""
-        w2 = (2 * np.pi * np.atleast_1d(np.asarray(freq_hz, dtype=float))) ** 2
+        ``(Lambda + j D + j w c s s^T - w^2 I) q = g`` with the full modal loss matrix ``D``
+        and an optional viscous damper ``damper = (s, c)``: ``c`` (N s/m) acting on the
+        displacement ``s^T q`` (``s``: the damped output per modal coordinate)."""
+        w = 2 * np.pi * np.atleast_1d(np.asarray(freq_hz, dtype=float))
         n = len(self.lam)
-        A = (np.diag(self.lam) + 1j * self.D)[None, :, :] - w2[:, None, None] * np.eye(n)[None]
-        return np.linalg.solve(A, np.broadcast_to(self.g, (len(w2), n))[..., None])[..., 0]
+        A = (np.diag(self.lam) + 1j * self.D)[None, :, :] - (w ** 2)[:, None, None] * np.eye(n)[None]
+        if damper is not None:
+            s, c = damper
+            A = A + 1j * (w * c)[:, None, None] * np.outer(s, s)[None]
+        return np.linalg.solve(A, np.broadcast_to(self.g, (len(w), n))[..., None])[..., 0]
 
     def columns(self) -> np.ndarray:
         """(n_free, n_modes + 1): ``x_f = columns @ [q; 1]`` per volt (modes corrected for the
         loss coupling into the truncated space, then the residual)."""
         return np.column_stack([self.Phi - 1j * self.W, self.R])
 
-    def solution_free(self, freq_hz: float, voltage: float = 1.0) -> np.ndarray:
-        """``x_f`` at one frequency (complex, on ``free``)."""
-        q = self.coordinates(np.atleast_1d(freq_hz))[0]
+    def solution_free(self, freq_hz: float, voltage: float = 1.0, damper=None) -> np.ndarray:
+        """``x_f`` at one frequency (complex, on ``free``); ``damper`` as in :meth:`coordinates`."""
+        q = self.coordinates(np.atleast_1d(freq_hz), damper)[0]
         return self.columns() @ np.append(q, 1.0) * voltage
 
 
@@ -537,8 +542,14 @@ class WorkingPoint:
 
 def working_point(system: PiezoSystem, freq_hz: float, voltage: float, *, clamp: Iterable[str] = (),
                   loss: LossModel = LossModel(), surfaces: Sequence[str] = ("horn_tip",),
-                  basis: ModalBasis | None = None, backend: str | None = None) -> WorkingPoint:
-    """The response at the working frequency: direct solution, or modal if ``basis`` is given."""
+                  basis: ModalBasis | None = None, tip_damping: float = 0.0,
+                  backend: str | None = None) -> WorkingPoint:
+    """The response at the working frequency: direct solution, or modal if ``basis`` is given.
+
+    ``tip_damping`` (N s/m, modal path only) adds a viscous damper on the mean axial motion of
+    the first surface (the tip): the load of the free-mass impacts, for instance. Being a
+    rank-one term on the modal coordinates it couples every mode of the basis.
+    """
     t0 = time.perf_counter()
     f = float(_check_freqs(freq_hz)[0])
     voltage = _check_voltage(voltage)
@@ -546,8 +557,16 @@ def working_point(system: PiezoSystem, freq_hz: float, voltage: float, *, clamp:
     if not surfaces:
         raise ParameterError("surfaces", surfaces, "name at least one surface (the tip first)")
     funcs = [surface_functional(system, s) for s in surfaces]
+    if tip_damping < 0 or not np.isfinite(tip_damping):
+        raise ParameterError("tip_damping", tip_damping, "must be a finite number >= 0 N s/m")
+    if tip_damping > 0 and basis is None:
+        raise ParameterError("tip_damping", tip_damping, "needs the modal method (pass basis=)")
     if basis is not None:
-        x = system.expand(basis.solution_free(f, voltage), basis.free, voltage)
+        damper = None
+        if tip_damping > 0:
+            axial = funcs[0].rows[0, basis.free]
+            damper = (np.asarray(axial @ basis.Phi).ravel(), float(tip_damping))
+        x = system.expand(basis.solution_free(f, voltage, damper), basis.free, voltage)
         method = "modal"
     else:
         x = solve_direct(system, f, voltage, clamp=clamp, loss=loss, backend=backend)

@@ -138,7 +138,8 @@ class SweepResult:
 
 
 def sweep(params: ImpactParams | None, m_free_values, *, ensemble: int = 4,
-          t_end: float | None = 1.0, workers: int = 2, progress: bool = True) -> SweepResult:
+          t_end: float | None = 1.0, workers: int = 2, progress: bool = True,
+          A0_values=None) -> SweepResult:
     """Mean drill-tool kinetic energy after impact for several free masses.
 
     Parameters
@@ -156,6 +157,9 @@ def sweep(params: ImpactParams | None, m_free_values, *, ensemble: int = 4,
         Processes.
     progress : bool
         tqdm bar on stderr.
+    A0_values : sequence of float, optional
+        Horn amplitude per free mass, m (e.g. the FE amplitude loaded by that free mass);
+        default: ``params.A0`` for all.
     """
     base = params if params is not None else ImpactParams()
     if t_end is not None:
@@ -167,7 +171,13 @@ def sweep(params: ImpactParams | None, m_free_values, *, ensemble: int = 4,
         check_positive("m_free", m, "kg")
     if not (isinstance(ensemble, int) and ensemble >= 1):
         raise ParameterError("ensemble", ensemble, "must be an integer >= 1")
-    cases = [q for m in masses for q in ensemble_params(base.with_(m_free=m), ensemble)]
+    if A0_values is None:
+        amps = [base.A0] * len(masses)
+    else:
+        amps = [float(a) for a in A0_values]
+        if len(amps) != len(masses):
+            raise ParameterError("A0_values", A0_values, f"must give one amplitude per mass ({len(masses)})")
+    cases = [q for m, a in zip(masses, amps) for q in ensemble_params(base.with_(m_free=m, A0=a), ensemble)]
     res = run_cases(cases, workers=workers, progress=progress, desc="sweep")
     mean_ke, sem_ke, rate, n_ok, errors = [], [], [], [], []
     for i, m in enumerate(masses):

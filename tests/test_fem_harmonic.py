@@ -144,3 +144,31 @@ def test_bad_input_is_a_clear_error(system):
         LossModel(q_mech=-5.0)
     with pytest.raises(ParameterError, match="t_end"):
         ring_up(system, 50e3, 1.0, 0.0, surfaces=TIP)
+
+
+def test_tip_damper_in_modal_basis_equals_direct_solution(system, modes):
+    """A viscous damper c on the tip's mean axial motion: modal rank-one term vs the direct
+    solution with ``j w c a a^T`` assembled into the full system (a: the mean-axial row)."""
+    import scipy.sparse as sp
+
+    from fem.harmonic import loss_matrix, surface_functional
+    from fem.solvers import factorize
+
+    f_r, _ = _longitudinal(modes)
+    loss = LossModel(300.0, 0.004)
+    basis = modal_basis(system, f_r, 8, loss=loss)
+    c = 10.0                                       # N s/m: comparable to the modal damping here
+    modal = working_point(system, f_r, 1.0, loss=loss, surfaces=TIP, basis=basis, tip_damping=c)
+    free_only = working_point(system, f_r, 1.0, loss=loss, surfaces=TIP, basis=basis)
+    split = system.split(())
+    L = loss_matrix(system, loss)
+    a = surface_functional(system, "electrode_4").rows[0][:, split.free]
+    w = 2 * np.pi * f_r
+    A = (split.K - w ** 2 * split.M + 1j * L[split.free][:, split.free] + 1j * w * c * (a.T @ a)).tocsr()
+    lh = np.asarray(L[:, [system.hot_dof]].toarray()).ravel()[split.free]
+    xf = factorize(sp.csr_matrix(A))(-(split.k_hot + 1j * lh) / system.phi_scale)
+    direct = abs((a @ xf).item())
+    assert modal.tip_amplitude_m == pytest.approx(direct, rel=5e-3)
+    assert modal.tip_amplitude_m < 0.8 * free_only.tip_amplitude_m      # the damper matters here
+    with pytest.raises(ParameterError, match="tip_damping"):
+        working_point(system, f_r, 1.0, loss=loss, surfaces=TIP, tip_damping=1.0)
