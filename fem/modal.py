@@ -355,56 +355,134 @@ def build_parser(prog="python -m fem.modal"):
     from geometry.common import CliParser
 
     p = CliParser(prog=prog, description="Resonance (short-circuit) and anti-resonance (open-circuit) "
-                  "modes of a design near a target frequency.")
-    p.add_argument("--design", required=True,
-                   help="design TOML file (geometry package layout), or 'default' for the built-in design")
-    p.add_argument("--select", metavar="NAME", help="design to pick from a file holding several")
-    p.add_argument("--near", type=float, required=True, metavar="HZ",
-                   help="target frequency in Hz (0: lowest modes)")
-    p.add_argument("--modes", type=int, default=12, metavar="N", help="number of modes (default 12)")
-    p.add_argument("--json", metavar="OUT", help="write the result as JSON to OUT")
-    p.add_argument("--mesh-size", type=float, metavar="M", help="characteristic mesh size in m")
-    p.add_argument("--order", type=int, default=2, choices=(1, 2), help="field order (default 2)")
-    p.add_argument("--clamp", action="append", default=[], metavar="SURFACE",
+                  "modes of a design near a target frequency; with --match, tune the horn and coupler "
+                  "lengths until both resonate together at the target.")
+    g = p.add_argument_group("design")
+    g.add_argument("--design", default="default",
+                   help="design TOML file (geometry package layout), or 'default' for the built-in design "
+                        "(default)")
+    g.add_argument("--select", metavar="NAME", help="design to pick from a file holding several")
+    g.add_argument("--mesh-size", type=float, metavar="M", help="characteristic mesh size in m")
+    g.add_argument("--order", type=int, default=2, choices=(1, 2), help="field order (default 2)")
+    g = p.add_argument_group("modal analysis")
+    g.add_argument("--near", type=float, metavar="HZ",
+                   help="target frequency in Hz (0: lowest modes; default: the design's target frequency)")
+    g.add_argument("--modes", type=int, default=12, metavar="N", help="number of modes (default 12)")
+    g.add_argument("--clamp", action="append", default=[], metavar="SURFACE",
                    help="clamp the named surface (repeatable; default: free)")
-    p.add_argument("--solver", choices=("auto", "pardiso", "superlu"), default=None,
+    g.add_argument("--solver", choices=("auto", "pardiso", "superlu"), default=None,
                    help="sparse direct solver (default: pardiso if installed; env RPUD_SOLVER)")
+    g = p.add_argument_group("resonance matching")
+    g.add_argument("--match", action="store_true",
+                   help="tune design lengths until the working longitudinal mode is at the target and the "
+                        "horn and coupler sides resonate together")
+    g.add_argument("--target", type=float, metavar="HZ",
+                   help="matching target frequency in Hz (default: the design's target_frequency)")
+    g.add_argument("--tune", metavar="A[,B]",
+                   help="design lengths to tune: a horn/flange length, then a coupler/stack length "
+                        "(default horn.length,coupler.length)")
+    g.add_argument("--bracket", metavar="LO,HI", default="0.5,2.0",
+                   help="search interval of each tuned length as factors of its start (default 0.5,2.0)")
+    g.add_argument("--tol", type=float, default=0.005, metavar="REL",
+                   help="relative frequency tolerance of the match (default 0.005 = 0.5 %%)")
+    g.add_argument("--out-design", metavar="FILE",
+                   help="write the tuned design as TOML (default <design name>-tuned.toml)")
+    g = p.add_argument_group("output")
+    g.add_argument("--json", metavar="OUT", help="write the result as JSON to OUT")
+    g.add_argument("--render", metavar="DIR",
+                   help="off-screen PNGs of the working mode and its neighbours into DIR")
+    g.add_argument("--vtu", metavar="FILE", help="VTU file with every computed mode as point data (ParaView)")
     p.add_argument("-v", "--verbose", action="count", default=0)
     return p
 
 
-def mesh_from_design(path, mesh_size=None, select=None, order=2):
-    """TaggedMesh of a design file (``geometry.load_design`` + ``geometry.build_mesh``);
-    ``path == "default"`` meshes ``geometry.default_design()``."""
-    import geometry
+def _factors(text: str, name: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ParameterError(name, text, "must be two numbers LO,HI") from None
+    return lo, hi
 
-    design = geometry.default_design() if str(path) == "default" else geometry.load_design(path, select)
-    return geometry.build_mesh(design, mesh_size=mesh_size, order=order)
+
+def _outputs(args, mesh, res, working: int) -> None:
+    """--render and --vtu: the working mode and two neighbours each side; every mode."""
+    if args.render:
+        from .render import around, render_modes
+
+        paths = render_modes(mesh, res.shapes, args.render, modes=around(working, res.n_modes, 2),
+                             frequencies=res.f_r_hz, labels=res.labels)
+        print(f"renders: {', '.join(str(p) for p in paths)}")
+    if args.vtu:
+        from .render import write_modes_vtu
+
+        print(f"modes: {write_modes_vtu(mesh, res.shapes, args.vtu, frequencies=res.f_r_hz)}")
 
 
 def main(argv=None) -> int:
-    from geometry.common import setup_logging, write_json
+    import geometry
+    from geometry.common import atomic_write_text, setup_logging, write_json
 
     from .assembly import assemble
 
     args = build_parser().parse_args(argv)
-    setup_logging(args.verbose)
+    setup_logging(args.verbose - 1)
     if args.verbose < 2:
         logging.getLogger("skfem").setLevel(logging.WARNING)
-    check_nonnegative("--near", args.near, "Hz")
+    if args.near is not None:
+        check_nonnegative("--near", args.near, "Hz")
     if args.modes < 1:
         raise ParameterError("--modes", args.modes, "must be >= 1")
     if args.mesh_size is not None:
         check_positive("--mesh-size", args.mesh_size, "m")
-    if args.json and not str(args.json).endswith(".json"):
-        raise ParameterError("--json", args.json, "must end in .json")
-    mesh = mesh_from_design(args.design, args.mesh_size, args.select)
+    for opt, suffix in (("json", ".json"), ("vtu", ".vtu"), ("out_design", ".toml")):
+        val = getattr(args, opt)
+        if val and not str(val).endswith(suffix):
+            raise ParameterError("--" + opt.replace("_", "-"), val, f"must end in {suffix}")
+    design = geometry.default_design() if str(args.design) == "default" else geometry.load_design(args.design,
+                                                                                                  args.select)
+    if args.match:
+        from .matching import MatchSettings, match
+
+        settings = MatchSettings(
+            target_hz=float(args.target or getattr(design, "target_frequency", 20e3)), tolerance=args.tol,
+            tune=tuple(args.tune.split(",")) if args.tune else getattr(design, "default_tuned", ()),
+            bracket=_factors(args.bracket, "--bracket"), mesh_size=args.mesh_size, order=args.order)
+        print(f"matching {', '.join(settings.tune)} to {settings.target_hz:.1f} Hz", flush=True)
+
+        def show(rec):
+            print(f"  [{rec['stage']:5s}] {rec['parameter']} = "
+                  f"{rec['value_m'] * 1e3:9.4f} mm -> {rec['f_hz']:10.2f} Hz  ({rec['seconds']:5.1f} s)",
+                  flush=True)
+
+        res_m = match(design, settings, progress=show)
+        res = res_m.modal
+        print(format_table(res))
+        print(f"matched {res_m.matched_hz:.2f} Hz (target {res_m.target_hz:.1f} Hz, "
+              f"{'converged' if res_m.converged else 'NOT converged'}) in {len(res_m.iterations)} iterations, "
+              f"{res_m.timings['total_s']:.1f} s; tuned: "
+              + ", ".join(f"{k} = {v * 1e3:.4f} mm (start {res_m.start[k] * 1e3:.4f})" for k, v in res_m.tuned.items()))
+        if res_m.teeth:
+            print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
+                  f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
+        out_design = args.out_design or f"{res_m.design.name}-tuned.toml"
+        atomic_write_text(out_design, res_m.design.to_toml())
+        print(f"tuned design: {out_design}")
+        _outputs(args, res_m.mesh, res, res_m.working_index)
+        if args.json:
+            write_json(args.json, res_m.to_json())
+        return 0 if res_m.converged else 1
+    near = float(args.near if args.near is not None else getattr(design, "target_frequency", 20e3))
+    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order)
     for name in args.clamp:
         mesh.facets(name)
     system = assemble(mesh, order=args.order)
-    res = modal_analysis(system, args.near, args.modes, clamp=args.clamp,
+    res = modal_analysis(system, near, args.modes, clamp=args.clamp,
                          backend=None if args.solver in (None, "auto") else args.solver)
     print(format_table(res))
+    if args.render or args.vtu:
+        from .matching import working_mode
+
+        _outputs(args, mesh, res, working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0)) if near > 0 else 0)
     if args.json:
         data = res.to_json()
         data["design"] = str(args.design)

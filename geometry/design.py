@@ -290,7 +290,7 @@ class HornDesign:
     _prefix: ClassVar[str] = "horn"
     material: str = "ti6al4v"
     profile: Literal["stepped", "conical", "exponential"] = "stepped"
-    length: float = 0.0672
+    length: float = 0.0671
     back_diameter: float = 0.024
     tip_diameter: float = 0.011
     step_fraction: float = 0.5
@@ -457,7 +457,7 @@ class CouplerDesign:
     n_slots: int = 6
     slot_profile: Literal["v", "rectangular"] = "v"
     slot_width: float = 0.004
-    slot_depth: float = 0.003
+    slot_depth: float = 0.005
     slot_length: float = 0.02
     slot_angle_deg: float = 30.0
     slot_offset: float = 0.004

@@ -47,7 +47,8 @@ def main(argv=None) -> int:
                                 ensemble=args.ensemble, render=not args.no_render)
     design = geometry.load_design(args.design) if args.design else geometry.default_design()
     out = Path(args.out) if args.out else Path("results") / ("default" if not args.design else design.name)
-    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, file=sys.stderr, flush=True))
+    # progress on stdout: stderr carries only the one-line error of a failed run (and tqdm bars)
+    say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
     run_pipeline(design, settings, out, progress=say)
     return 0
 
