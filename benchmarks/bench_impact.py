@@ -5,6 +5,7 @@ and a 1,000-case sweep (50 ms each) on 2 worker processes."""
 import time
 
 import numpy as np
+from _table import print_table
 
 from impact.model import simulate
 from impact.params import ImpactParams
@@ -34,11 +35,7 @@ def main():
     t_sw = time.perf_counter() - t0
     fails = sum(x["error"] is not None for x in res)
     rows.append(("sweep: 1,000 cases x 50 ms, 2 workers", f"{t_sw:.2f} s", f"{fails} failed, target < 10 s"))
-    w = max(len(a) for a, _, _ in rows)
-    print(f"| {'benchmark'.ljust(w)} | time | note |")
-    print(f"|{'-' * (w + 2)}|---|---|")
-    for a, b, c in rows:
-        print(f"| {a.ljust(w)} | {b} | {c} |")
+    print_table(rows)
 
 
 if __name__ == "__main__":

@@ -81,20 +81,7 @@ def elastic_matrix(material: Material | str, library=None) -> np.ndarray:
 
 
 def _material_frame(m: Material) -> PiezoConstants:
-    c = m.c_E
-    C = np.zeros((6, 6))
-    C[0, 0] = C[1, 1] = c["c11"]
-    C[0, 1] = C[1, 0] = c["c12"]
-    C[0, 2] = C[2, 0] = C[1, 2] = C[2, 1] = c["c13"]
-    C[2, 2] = c["c33"]
-    C[3, 3] = C[4, 4] = c["c44"]
-    C[5, 5] = c["c66"]
-    e = np.zeros((3, 6))
-    e[2, 0] = e[2, 1] = m.e["e31"]
-    e[2, 2] = m.e["e33"]
-    e[1, 3] = e[0, 4] = m.e["e15"]
-    eps = np.diag([m.eps_S["eps11"], m.eps_S["eps11"], m.eps_S["eps33"]]) * EPS0
-    return PiezoConstants(C, e, eps)
+    return PiezoConstants(*m.voigt_matrices())
 
 
 def rotation_to(poling) -> np.ndarray:

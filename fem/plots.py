@@ -7,26 +7,9 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.common import atomic_output
+from geometry.common import pyplot as _plt
+from geometry.common import save_figure as _save
 
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def _save(fig, path) -> Path:
-    plt = _plt()
-    path = Path(path)
-    fig.tight_layout()
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp)
-    plt.close(fig)
-    return path
 
 
 def admittance(res, f_r: float, f_a: float, path) -> Path:

@@ -38,6 +38,8 @@ __all__ = [
     "atomic_output",
     "atomic_write_text",
     "write_json",
+    "save_figure",
+    "pyplot",
     "to_jsonable",
     "CliParser",
     "run_cli",
@@ -256,6 +258,28 @@ def atomic_write_text(path: str | os.PathLike, text: str) -> Path:
     with atomic_output(path) as tmp:
         tmp.write_text(text, encoding="utf-8")
     return Path(path)
+
+
+def pyplot():
+    """matplotlib's pyplot on the non-interactive Agg backend (imported on first use)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(fig, path: str | os.PathLike) -> Path:
+    """Lay out, save (atomically, format from the suffix) and close a matplotlib figure."""
+    import matplotlib.pyplot as plt
+
+    path = Path(path)
+    fig.tight_layout()
+    with atomic_output(path) as tmp:
+        fig.savefig(tmp)
+    plt.close(fig)
+    return path
 
 
 def write_json(path: str | os.PathLike, data: Any) -> Path:

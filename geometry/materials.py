@@ -98,6 +98,28 @@ class Material:
     def is_piezo(self) -> bool:
         return self.kind == "piezo"
 
+    def voigt_matrices(self):
+        """Stress-charge constants in the material frame (poling along +z), Voigt order
+        xx yy zz yz xz xy: ``(c_E (6, 6) Pa, e (3, 6) C/m^2, eps_S (3, 3) F/m)``."""
+        import numpy as np
+
+        if not self.is_piezo:
+            raise ParameterError(f"materials.{self.name}.kind", self.kind, "is not a piezoceramic")
+        c = self.c_E
+        C = np.zeros((6, 6))
+        C[0, 0] = C[1, 1] = c["c11"]
+        C[0, 1] = C[1, 0] = c["c12"]
+        C[0, 2] = C[2, 0] = C[1, 2] = C[2, 1] = c["c13"]
+        C[2, 2] = c["c33"]
+        C[3, 3] = C[4, 4] = c["c44"]
+        C[5, 5] = c["c66"]
+        e = np.zeros((3, 6))
+        e[2, 0] = e[2, 1] = self.e["e31"]
+        e[2, 2] = self.e["e33"]
+        e[1, 3] = e[0, 4] = self.e["e15"]
+        eps = np.diag([self.eps_S["eps11"], self.eps_S["eps11"], self.eps_S["eps33"]]) * EPS0
+        return C, e, eps
+
 
 def _records(data: Mapping, source: str) -> dict[str, Material]:
     out = {}

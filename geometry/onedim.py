@@ -22,28 +22,11 @@ import numpy as np
 from scipy.optimize import brentq
 
 from .common import ParameterError, check_positive
-from .materials import EPS0, Material, get_material
+from .materials import Material, get_material
 
 __all__ = ["Mode1D", "axial_modulus", "longitudinal_modes", "design_modes", "first_longitudinal"]
 
 log = logging.getLogger(__name__)
-
-
-def _piezo_matrices(m: Material) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    c = m.c_E
-    C = np.zeros((6, 6))
-    C[0, 0] = C[1, 1] = c["c11"]
-    C[2, 2] = c["c33"]
-    C[0, 1] = C[1, 0] = c["c12"]
-    C[0, 2] = C[2, 0] = C[1, 2] = C[2, 1] = c["c13"]
-    C[3, 3] = C[4, 4] = c["c44"]
-    C[5, 5] = c["c66"]
-    e = np.zeros((3, 6))
-    e[2, 0] = e[2, 1] = m.e["e31"]
-    e[2, 2] = m.e["e33"]
-    e[0, 4] = e[1, 3] = m.e["e15"]
-    eps = np.diag([m.eps_S["eps11"], m.eps_S["eps11"], m.eps_S["eps33"]]) * EPS0
-    return C, e, eps
 
 
 def axial_modulus(material: str | Material, electrical: Literal["short", "open"] = "short") -> float:
@@ -56,7 +39,7 @@ def axial_modulus(material: str | Material, electrical: Literal["short", "open"]
     m = get_material(material) if isinstance(material, str) else material
     if not m.is_piezo:
         return float(m.youngs_modulus)
-    C, e, eps = _piezo_matrices(m)
+    C, e, eps = m.voigt_matrices()
     s = np.linalg.inv(C)
     if electrical == "short":
         return float(1.0 / s[2, 2])

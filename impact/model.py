@@ -237,6 +237,23 @@ class _Fn:
         self.end = end
 
 
+def _tool_horn_gap(osc, t0: float, L0: float, A0: float, om: float):
+    """Gap between the tool face and the horn tip while the free mass rides on one of them,
+    and its time derivative: vectorised (for bracketing grids) and scalar (for root finding)."""
+
+    def g_vec(tg):
+        vv, vvd = osc.pv_vec(tg - t0)
+        ph = om * tg
+        return L0 + vv - A0 * np.cos(ph), vvd + A0 * om * np.sin(ph)
+
+    def g_sca(tt):
+        vv, vvd = osc.pv(tt - t0)
+        ph = om * tt
+        return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
+
+    return g_vec, g_sca
+
+
 def _grid_step(B: float, t_end: float) -> float:
     # Chord bound B h^2/8 = 0.1 µm: far from contact every interval is cleared at once.
     if B <= 0.0:
@@ -516,17 +533,7 @@ class _Sim:
                                    t0 + _parabola_leave(L0 - osc.amp - 1e-9 - w0, -wd0, -a)))
                 t_rel = math.inf
             elif mode == ON_HORN:
-                def g_vec(tg, t0=t0, osc=osc):
-                    s = tg - t0
-                    vv, vvd = osc.pv_vec(s)
-                    ph = om * tg
-                    return L0 + vv - A0 * np.cos(ph), vvd + A0 * om * np.sin(ph)
-
-                def g_sca(tt, t0=t0, osc=osc):
-                    s = tt - t0
-                    vv, vvd = osc.pv(s)
-                    ph = om * tt
-                    return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
+                g_vec, g_sca = _tool_horn_gap(osc, t0, L0, A0, om)
 
                 B = Bv + A0 * om ** 2
                 # |v| <= |C| and |u| <= A0: a tool face this far away cannot reach the horn
@@ -542,17 +549,7 @@ class _Sim:
                     acc, jerk = osc.acc_jerk(tt - t0)
                     return a - acc, -jerk
 
-                def g_vec(tg, t0=t0, osc=osc):
-                    s = tg - t0
-                    vv, vvd = osc.pv_vec(s)
-                    ph = om * tg
-                    return L0 + vv - A0 * np.cos(ph), vvd + A0 * om * np.sin(ph)
-
-                def g_sca(tt, t0=t0, osc=osc):
-                    s = tt - t0
-                    vv, vvd = osc.pv(s)
-                    ph = om * tt
-                    return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
+                g_vec, g_sca = _tool_horn_gap(osc, t0, L0, A0, om)
 
                 Br = osc.amp * osc.wn ** 4
                 B = Bv + A0 * om ** 2

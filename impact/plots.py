@@ -11,18 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.common import atomic_output
+from geometry.common import pyplot as _plt
+from geometry.common import save_figure
 
 __all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass"]
 
-
-def _plt():
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
 
 
 def plot_history(result, path, t_max: float | None = None, title: str = "") -> Path:
@@ -45,12 +38,7 @@ def plot_history(result, path, t_max: float | None = None, title: str = "") -> P
     ax.set_title(title or f"First {t_max * 1e3:.0f} ms of the percussive system")
     ax.legend(loc="upper left", fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    path = Path(path)
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_spectrum(result, path, f_max: float = 2000.0) -> Path:
@@ -64,12 +52,7 @@ def plot_spectrum(result, path, f_max: float = 2000.0) -> Path:
     ax.set_ylabel("amplitude (mm)")
     ax.set_title(f"Free-mass displacement spectrum ({result.params.t_end:g} s run)")
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    path = Path(path)
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)
 
 
 def plot_ke_vs_mass(sweep_result, path, histories: dict | None = None) -> Path:
@@ -101,9 +84,4 @@ def plot_ke_vs_mass(sweep_result, path, histories: dict | None = None) -> Path:
     ax.set_ylabel("mean tool kinetic energy after impact (mJ)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    fig.tight_layout()
-    path = Path(path)
-    with atomic_output(path) as tmp:
-        fig.savefig(tmp)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -8,7 +8,9 @@ from pathlib import Path
 
 import numpy as np
 
-from fem.plots import _plt, _save, admittance, ring_up, tip_response  # noqa: F401  (re-exported)
+from fem.plots import admittance, ring_up, tip_response  # noqa: F401  (re-exported)
+from geometry.common import pyplot as _plt
+from geometry.common import save_figure as _save
 
 
 def impact_history(result, path) -> Path:
