@@ -24,8 +24,11 @@ Two solution methods
         x_f(w) = sum_i phi_i (phi_i^T b) / (lambda_i (1 + j eta_i) - w^2) + R
 
     (in full: the modal loss matrix ``Phi^T L Phi`` is kept whole, a small dense solve per
-    frequency, and the first-order loss coupling between the modes and the truncated space is
-    included; see :class:`ModalBasis`). The modal basis and the residual are computed once; each frequency then costs O(n_modes),
+    frequency; the first-order loss coupling between the modes and the truncated space is
+    included; and the truncated response is expanded to second order in ``w^2 - sigma``,
+    ``R(w) = R + d A_T^-1 M R0 + d^2 (A_T^-1 M)^2 R0``, because the higher longitudinal modes that
+    carry the clamped-field charge change by ~10 % across a resonance/anti-resonance band; see
+    :class:`ModalBasis`). The modal basis and the residual are computed once; each frequency then costs O(n_modes),
     because every output (surface means, charge) is a linear functional precomputed on the
     basis. This is what makes a 200-point admittance sweep cheap.
 
@@ -228,6 +231,7 @@ class ModalBasis:
     eta: np.ndarray
     gamma: np.ndarray
     R: np.ndarray
+    R_terms: np.ndarray
     D: np.ndarray
     W: np.ndarray
     g: np.ndarray
@@ -252,18 +256,25 @@ class ModalBasis:
         return np.linalg.solve(A, np.broadcast_to(self.g, (len(w), n))[..., None])[..., 0]
 
     def columns(self) -> np.ndarray:
-        """(n_free, n_modes + 1): ``x_f = columns @ [q; 1]`` per volt (modes corrected for the
-        loss coupling into the truncated space, then the residual)."""
-        return np.column_stack([self.Phi - 1j * self.W, self.R])
+        """(n_free, n_modes + n_terms): ``x_f = columns @ weights(f)`` per volt: the modes
+        (corrected for the loss coupling into the truncated space), then the residual terms."""
+        return np.column_stack([self.Phi - 1j * self.W, self.R_terms])
+
+    def weights(self, freq_hz: np.ndarray, damper=None) -> np.ndarray:
+        """(n_freq, n_modes + n_terms): modal coordinates, then ``(w^2 - sigma)^k``."""
+        f = np.atleast_1d(np.asarray(freq_hz, dtype=float))
+        d = (2 * np.pi * f) ** 2 - self.sigma
+        powers = d[:, None] ** np.arange(self.R_terms.shape[1])[None, :]
+        return np.column_stack([self.coordinates(f, damper), powers])
 
     def solution_free(self, freq_hz: float, voltage: float = 1.0, damper=None) -> np.ndarray:
         """``x_f`` at one frequency (complex, on ``free``); ``damper`` as in :meth:`coordinates`."""
-        q = self.coordinates(np.atleast_1d(freq_hz), damper)[0]
-        return self.columns() @ np.append(q, 1.0) * voltage
+        return self.columns() @ self.weights(freq_hz, damper)[0] * voltage
 
 
 def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp: Iterable[str] = (),
-                loss: LossModel = LossModel(), modes=None, backend: str | None = None) -> ModalBasis:
+                loss: LossModel = LossModel(), modes=None, residual_order: int = 2,
+                backend: str | None = None) -> ModalBasis:
     """Build the superposition basis: short-circuit modes near ``near_hz`` and the residual.
 
     ``modes`` may be a :class:`fem.modal.ModalResult` already computed for the same system and
@@ -305,6 +316,13 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
     # mechanical loss to first order; deflating first keeps the expansion valid near resonance
     R0 = solve_truncated(b1)
     R = R0 - 1j * solve_truncated(Lf @ R0)
+    # frequency dependence of the truncated modes: (A_T - d M)^-1 b = sum_k d^k (A_T^-1 M)^k A_T^-1 b
+    # with d = w^2 - sigma; the higher longitudinal modes that carry the clamped-field charge
+    # change by ~10 % across the band, so the series is kept to second order
+    Mf = split.M
+    terms = [R]
+    for _ in range(residual_order):
+        terms.append(solve_truncated(Mf @ terms[-1] if len(terms) > 1 else Mf @ R0))
     # loss couples the modes with each other and with the truncated space (first order)
     D = Phi.T @ (Lf @ Phi)
     W = np.column_stack([solve_truncated(Lf @ Phi[:, i]) for i in range(Phi.shape[1])]) \
@@ -315,7 +333,7 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
              len(lam), modes.f_r_hz.min() / 1e3 if len(lam) else 0, modes.f_r_hz.max() / 1e3 if len(lam) else 0,
              seconds)
     return ModalBasis(free=free, Phi=Phi, lam=lam, eta=eta, gamma=gamma, R=R, D=D, W=W, g=g, b1=b1,
-                      sigma=sigma,
+                      R_terms=np.column_stack(terms), sigma=sigma,
                       loss=loss, clamp=clamp, f_r_hz=np.asarray(modes.f_r_hz, float), seconds=seconds)
 
 
@@ -447,12 +465,11 @@ def harmonic_sweep(system: PiezoSystem, freqs_hz: Sequence[float], voltage: floa
         full = np.zeros((system.ndof, cols.shape[1]), complex)
         full[free] = cols
         hot_x = np.zeros(cols.shape[1], complex)
-        hot_x[-1] = 1.0 / system.phi_scale           # the hot voltage belongs to the particular part
+        hot_x[len(basis.lam)] = 1.0 / system.phi_scale   # the hot voltage rides on the weight-1 term
         full[system.hot_dof] = hot_x
         qc = qrow @ full
         sc = {s.name: s.rows @ full for s in funcs}
-        q = basis.coordinates(f)                      # (n_f, n_modes)
-        coef = np.column_stack([q, np.ones(len(f))]) * voltage
+        coef = basis.weights(f) * voltage
         Q = coef @ qc
         for s in funcs:
             vals = coef @ sc[s.name].T                # (n_f, 3)
