@@ -44,7 +44,8 @@ def _case(p: ImpactParams) -> dict:
     return {"tool_impacts": r.tool_impacts, "horn_impacts": r.horn_impacts,
             "tool_impact_rate_hz": r.tool_impact_rate_hz,
             "mean_tool_ke_after_impact_j": float(ke.mean()) if ke.size else 0.0,
-            "sum_tool_ke_j": float(ke.sum()), "error": None}
+            "sum_tool_ke_j": float(ke.sum()),
+            "horn_work_j": float(r.horn_work[-1]) if len(r.horn_work) else 0.0, "error": None}
 
 
 def run_cases(cases: list[ImpactParams], workers: int = 2, progress: bool = True,
@@ -63,7 +64,8 @@ def run_cases(cases: list[ImpactParams], workers: int = 2, progress: bool = True
     -------
     list of dict
         Per case: ``tool_impacts``, ``horn_impacts``, ``tool_impact_rate_hz``,
-        ``mean_tool_ke_after_impact_j`` (J), ``sum_tool_ke_j`` (J), ``error`` (None or text).
+        ``mean_tool_ke_after_impact_j`` (J), ``sum_tool_ke_j`` (J), ``horn_work_j`` (work the horn
+        did on the free mass over the run, J), ``error`` (None or text).
     """
     from tqdm import tqdm
 

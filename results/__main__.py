@@ -26,7 +26,7 @@ def build_parser() -> CliParser:
     p.add_argument("--no-couple", action="store_true", help="do not load the horn tip with the impacts (A0 unloaded)")
     p.add_argument("--impact-time", type=float, default=1.0, metavar="S",
                    help="simulated time per impact run, s (default 1)")
-    p.add_argument("--ensemble", type=int, default=4, metavar="N", help="impact runs per free mass (default 4)")
+    p.add_argument("--ensemble", type=int, default=8, metavar="N", help="impact runs per free mass (default 8)")
     p.add_argument("--no-render", action="store_true", help="skip the mode-shape PNGs and the VTU")
     p.add_argument("-q", "--quiet", action="store_true", help="no stage progress")
     return p
