@@ -9,7 +9,6 @@ Target: under 60 s on 2 cores from the default start."""
 
 import time
 
-import numpy as np
 from _table import print_table
 
 import geometry

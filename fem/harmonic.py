@@ -46,7 +46,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field
-from typing import Iterable, Mapping, Sequence
+from typing import Iterable, Sequence
 
 import numpy as np
 import scipy.sparse as sp
@@ -641,8 +641,6 @@ def _parse_band(text: str) -> tuple[float, float]:
 
 
 def main(argv=None) -> int:
-    import sys
-
     import geometry
     from geometry.common import setup_logging, write_json
 

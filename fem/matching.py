@@ -17,8 +17,8 @@ Method (two bracketed 1-D root findings)
    the horn side being resonant there, the coupler side must be too, and the node stays in the
    stack (reported: axial motion of the mounting flange relative to the tip).
 
-Each bracket is checked first: if the target is not between the frequencies at the bracket
-ends, the match stops with a clear error (``ParameterError``) instead of extrapolating.
+If the search reaches the ends of the bracket without passing the target, the match stops with
+a clear error (``ParameterError``: "outside the bracket") instead of extrapolating.
 
 What is reused between iterations
 ---------------------------------
@@ -46,8 +46,8 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
-from typing import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 from scipy.optimize import brentq

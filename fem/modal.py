@@ -49,7 +49,6 @@ from dataclasses import dataclass, field
 from typing import Iterable
 
 import numpy as np
-import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from geometry.common import ParameterError, check_nonnegative, check_positive

@@ -495,7 +495,7 @@ class CouplerDesign:
                                      f"must be < {per - _MIN_WALL:g} m so that {self.n_slots} slots leave "
                                      f"a {_MIN_WALL * 1e3:g} mm land between them")
             if self.slot_width >= 2 * R * 0.9:
-                raise ParameterError(f"{p}.slot_width", self.slot_width, f"must be < 0.9 x outer diameter")
+                raise ParameterError(f"{p}.slot_width", self.slot_width, f"must be < 0.9 x outer diameter = {1.8 * R:g} m")
         if self.n_teeth:
             per = 2 * math.pi * R / self.n_teeth
             if self.tooth_width > per / 1.2:

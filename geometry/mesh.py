@@ -182,7 +182,6 @@ class TaggedMesh:
     def cell_volumes(self) -> np.ndarray:
         """Volume of every cell in m^3 (exact for curved cells: 4-point rule on the P2 map)."""
         from skfem import CellBasis, ElementTetP0
-        from skfem.helpers import dot  # noqa: F401  (keeps skfem import local)
 
         m = self.to_skfem(with_tags=False)
         basis = CellBasis(m, ElementTetP0(), intorder=2 if self.order == 2 else 0)

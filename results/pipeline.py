@@ -190,7 +190,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
     Files: ``summary.json``, ``report.md``, ``figures/*.png``, ``renders/*.png``, ``modes.vtu``.
     """
     import geometry
-    from fem.harmonic import LossModel, harmonic_sweep, modal_basis, surface_functional, working_point
+    from fem.harmonic import LossModel, harmonic_sweep, modal_basis, working_point
     from fem.matching import MatchSettings, match, working_mode
     from fem.modal import modal_analysis
     from fem.transient import ring_up

@@ -3,10 +3,9 @@ electrodes, capacitance, solver backends."""
 
 import numpy as np
 import pytest
-import scipy.sparse as sp
 
 from fem.assembly import assemble
-from fem.materials import EPS0, piezo_matrices, strain_charge
+from fem.materials import piezo_matrices, strain_charge
 from fem.solvers import backend_name, factorize, pardiso_available
 from geometry.common import ParameterError
 from geometry.mesh import Electrode

@@ -8,7 +8,7 @@ from geometry.common import ParameterError
 from fem.modeshape import p2_nodes
 from fem.render import around, mode_names, render_mode, render_modes, write_modes_vtu
 
-from test_fem_modeshape import L, bar, fields
+from test_fem_modeshape import bar, fields
 
 
 @pytest.fixture(scope="module")

@@ -8,7 +8,6 @@ import pytest
 from geometry import examples
 from geometry.builder import DEFAULT_ORDER, MIN_QUALITY, MIN_SICN_DEFAULT, build
 from geometry.design import default_design
-from geometry.materials import get_material
 from geometry.report import mesh_part_volumes
 
 VOLUME_TOL = 0.005  # the 0.5 %
