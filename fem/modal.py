@@ -86,7 +86,7 @@ class ModalResult:
     @property
     def labels(self) -> list[str]:
         """Dominant motion per mode, computed on first use: ``fem.modeshape.classify`` of its
-        energy shares when that module is importable, else from :attr:`shares`."""
+        energy shares (from :attr:`shares` alone when the result carries no system)."""
         if self._labels is None:
             if self.n_modes == 0:
                 self._labels = []
@@ -165,13 +165,10 @@ def _simple_labels(shares: np.ndarray) -> list[str]:
 
 
 def _labels(system, shapes, shares):
-    try:  # full identification when the modeshape module is available
-        from .modeshape import classify, energy_shares
+    """Full identification (``fem.modeshape``): errors there are bugs and must surface."""
+    from .modeshape import classify, energy_shares
 
-        return classify(energy_shares(system.mesh, shapes))
-    except Exception as exc:  # noqa: BLE001 - optional module, fall back to the simple indicator
-        log.debug("fem.modeshape unavailable (%s): simple labels", exc)
-        return _simple_labels(shares)
+    return classify(energy_shares(system.mesh, shapes))
 
 
 def _rigid_basis(system, free):
