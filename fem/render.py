@@ -40,10 +40,9 @@ _SURF: "weakref.WeakKeyDictionary[TaggedMesh, _Surface]" = weakref.WeakKeyDictio
 
 
 def _pv():
-    import pyvista as pv
+    from geometry.render import offscreen_pyvista
 
-    pv.OFF_SCREEN = True
-    return pv
+    return offscreen_pyvista()
 
 
 def _surface(mesh: TaggedMesh) -> _Surface:

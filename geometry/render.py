@@ -42,6 +42,23 @@ def design_title(design: DesignBase) -> str:
     return f"{design.name}: " + "; ".join(parts)
 
 
+def offscreen_pyvista():
+    """pyvista set up for off-screen rendering.
+
+    Without a display, VTK would try an X window first and print "bad X server connection"
+    before falling back; asking for its EGL window directly renders the same picture quietly
+    (a user's own ``VTK_DEFAULT_OPENGL_WINDOW`` is respected).
+    """
+    import os
+
+    if not os.environ.get("DISPLAY"):
+        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
+    import pyvista as pv
+
+    pv.OFF_SCREEN = True
+    return pv
+
+
 def render_png(mesh: TaggedMesh, path: str | Path, title: str = "", size: tuple[int, int] = (1400, 700)) -> Path:
     """Render ``mesh`` off screen, one colour per part, and write a PNG atomically.
 
@@ -55,7 +72,7 @@ def render_png(mesh: TaggedMesh, path: str | Path, title: str = "", size: tuple[
     size : (int, int)
         Window size in pixels.
     """
-    import pyvista as pv
+    pv = offscreen_pyvista()
 
     corners = mesh.cells[:, :4]
     cells = np.hstack([np.full((len(corners), 1), 4), corners]).ravel()
