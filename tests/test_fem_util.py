@@ -10,6 +10,19 @@ from skfem import Basis, ElementTetP2, MeshTet, MeshTet2
 from geometry.mesh import Electrode, Region, TaggedMesh
 
 
+def _disk_map(radius):
+    """Map the square [-1, 1]^2 cross-section onto a disk of ``radius`` (z unchanged)."""
+
+    def mapping(p):
+        x, y = p[:, 0], p[:, 1]
+        out = p.copy()
+        out[:, 0] = radius * x * np.sqrt(1 - y * y / 2)
+        out[:, 1] = radius * y * np.sqrt(1 - x * x / 2)
+        return out
+
+    return mapping
+
+
 def _to_tagged(m, mapping, regions, cell_region, sets, electrodes, curved=True):
     f = m.facets[:, m.boundary_facets()].T
     facet_sets = {}
@@ -34,12 +47,7 @@ def rod(length=0.1, radius=0.0025, n_r=2, n_z=40, material="steel_45", poling=No
     s = np.linspace(-1, 1, 2 * n_r + 1)
     m = MeshTet.init_tensor(s, s, np.linspace(0, length, n_z + 1))
 
-    def mapping(p):
-        x, y = p[:, 0], p[:, 1]
-        out = p.copy()
-        out[:, 0] = radius * x * np.sqrt(1 - y * y / 2)
-        out[:, 1] = radius * y * np.sqrt(1 - x * x / 2)
-        return out
+    mapping = _disk_map(radius)
 
     sets = {"bottom": lambda p: np.isclose(p[2], 0), "top": lambda p: np.isclose(p[2], length),
             "side": lambda p: np.isclose(np.maximum(abs(p[0]), abs(p[1])), 1)}
@@ -86,12 +94,7 @@ def sandwich(radius=0.015, back=0.02, ring=0.005, n_rings=4, front=0.045, n_r=2,
         cell_region[(zc > lo) & (zc < hi)] = 2 + k
     sets = {"back_face": lambda p: np.isclose(p[2], 0), "tip": lambda p: np.isclose(p[2], z_levels[-1])}
 
-    def mapping(p):
-        x, y = p[:, 0], p[:, 1]
-        out = p.copy()
-        out[:, 0] = radius * x * np.sqrt(1 - y * y / 2)
-        out[:, 1] = radius * y * np.sqrt(1 - x * x / 2)
-        return out
+    mapping = _disk_map(radius)
 
     tm = _to_tagged(m, mapping, tuple(regions), cell_region, sets, ())
     # internal electrode facets at the ceramic interfaces
