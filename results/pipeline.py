@@ -174,15 +174,6 @@ def coupled_amplitudes(point_fn: Callable[[float], float], base, masses, *, omeg
 # --------------------------------------------------------------------------- pipeline
 
 
-def _part_mass(mesh, part: str) -> float:
-    """Mass of a part from the mesh volumes and the material densities, kg."""
-    from geometry.materials import get_material
-
-    vol = mesh.cell_volumes()
-    return float(sum(vol[mesh.cells_in(region=r.name)].sum() * get_material(r.material).density
-                     for r in mesh.regions if r.part == part))
-
-
 
 def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Callable[[str], None] | None = None) -> dict:
     """Run every stage and write the results into ``out_dir``; returns the summary dict.
@@ -190,6 +181,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
     Files: ``summary.json``, ``report.md``, ``figures/*.png``, ``renders/*.png``, ``modes.vtu``.
     """
     import geometry
+    from geometry.report import mesh_part_volumes
     from fem.harmonic import LossModel, harmonic_sweep, modal_basis, working_point
     from fem.matching import MatchSettings, match, working_mode
     from fem.modal import modal_analysis
@@ -261,7 +253,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
 
     # 4. A0 with the impact load
     t0 = stage("A0 coupled with the impacts", 4)
-    horn_mass = _part_mass(mesh, "horn") if "horn" in mesh.parts else ImpactParams().m_horn
+    horn_mass = mesh_part_volumes(mesh)[1].get("horn", ImpactParams().m_horn)
     base = ImpactParams(A0=wp.tip_amplitude_m, freq=f_w, m_horn=horn_mass, t_end=min(settings.impact_t_end, 0.5))
     omega = 2 * np.pi * f_w
 
