@@ -75,13 +75,12 @@ import scipy.sparse as sp
 from geometry.common import ParameterError, check_choice
 from geometry.mesh import TaggedMesh
 
+from .fastasm import assemble_matrices
 from .materials import elastic_matrix, piezo_matrices, resolve
 
 __all__ = ["assemble", "PiezoSystem", "Split", "RegionData"]
 
 log = logging.getLogger(__name__)
-
-_CHUNK = 4000
 
 
 @dataclass(frozen=True)
@@ -126,152 +125,6 @@ class _Blocks:
     Kup: sp.csr_matrix   # (3n, n)
     Kpp: sp.csr_matrix   # (n, n)
     Lpp: sp.csr_matrix   # tan_delta-weighted Kpp
-
-
-def _stack_grads(basis, nloc):
-    return np.stack([basis.basis[a][0].grad for a in range(nloc)])  # (nloc, 3, nel, nq)
-
-
-def _voigt_index():
-    V = np.zeros((3, 3), dtype=int)
-    for n, (i, j) in enumerate(((0, 0), (1, 1), (2, 2), (1, 2), (0, 2), (0, 1))):
-        V[i, j] = V[j, i] = n
-    return V
-
-
-def _tensor4(c):
-    """Voigt (6,6) stiffness -> (9, 9) array T[(k l), (i j)] = c_ikjl."""
-    V = _voigt_index()
-    T = np.zeros((3, 3, 3, 3))
-    for i in range(3):
-        for k in range(3):
-            for j in range(3):
-                for l in range(3):
-                    T[k, l, i, j] = c[V[i, k], V[j, l]]
-    return T.reshape(9, 9)
-
-
-def _tensor3(e):
-    """Voigt (3,6) piezo stress constants -> (9, 3) array T[(k l), i] = e_l,ik."""
-    V = _voigt_index()
-    T = np.zeros((3, 3, 3))
-    for k in range(3):
-        for l in range(3):
-            for i in range(3):
-                T[k, l, i] = e[l, V[i, k]]
-    return T.reshape(9, 3)
-
-
-def _b_matrix(g):
-    """Voigt strain-displacement matrix from scalar gradients g (E, nq, 3, nloc) ->
-    (E, nq, 6, 3*nloc), columns ordered (node a, component i) -> 3a + i."""
-    E, nq, _, nloc = g.shape
-    B = np.zeros((E, nq, 6, nloc, 3))
-    B[:, :, 0, :, 0] = g[:, :, 0]
-    B[:, :, 1, :, 1] = g[:, :, 1]
-    B[:, :, 2, :, 2] = g[:, :, 2]
-    B[:, :, 3, :, 1] = g[:, :, 2]
-    B[:, :, 3, :, 2] = g[:, :, 1]
-    B[:, :, 4, :, 0] = g[:, :, 2]
-    B[:, :, 4, :, 2] = g[:, :, 0]
-    B[:, :, 5, :, 0] = g[:, :, 1]
-    B[:, :, 5, :, 1] = g[:, :, 0]
-    return B.reshape(E, nq, 6, 3 * nloc)
-
-
-def _blocks_fast(bk, bm, rdata, cell_region) -> _Blocks:
-    edofs = np.ascontiguousarray(bk.element_dofs.T)  # (nel, nloc)
-    nel, nloc = edofs.shape
-    n = bk.N
-    # Scalar node-pair pattern (sorted CSR) from ONE argsort of the element entries; the
-    # element matrices are then summed by a segmented reduction in that order.
-    nn = nloc * nloc
-    rows = np.repeat(edofs, nloc, axis=1).astype(np.int64)
-    cols = np.tile(edofs, (1, nloc)).astype(np.int64)
-    flat = (rows * n + cols).ravel()
-    del rows, cols
-    order = np.argsort(flat)
-    sk = flat[order]
-    newseg = np.empty(len(sk), dtype=bool)
-    newseg[0] = True
-    np.not_equal(sk[1:], sk[:-1], out=newseg[1:])
-    starts = np.flatnonzero(newseg)
-    keys = sk[starts]
-    del sk, newseg, flat
-    nnzb = len(keys)
-    indices = (keys % n).astype(np.int32)
-    indptr = np.zeros(n + 1, dtype=np.int64)
-    np.cumsum(np.bincount(keys // n, minlength=n), out=indptr[1:])
-    del keys
-
-    G = _stack_grads(bk, nloc)            # (nloc, 3, nel, nq)
-    dxk = bk.dx                           # (nel, nq)
-    V = np.stack([bm.basis[a][0].value for a in range(nloc)])  # (nloc, nel, nq)
-    dxm = bm.dx
-
-    # element entries, row e * nn + (a * nloc + b)
-    ke = np.empty((nel * nn, 9))
-    me = np.empty(nel * nn)
-    piezo_cells = np.isin(cell_region, [i for i, r in enumerate(rdata) if r.piezo])
-    any_piezo = bool(piezo_cells.any())
-    kupe = np.zeros((nel * nn, 3)) if any_piezo else None
-    kppe = np.zeros(nel * nn) if any_piezo else None
-    inv_q = np.zeros(nel)
-    tand = np.zeros(nel)
-    local = np.arange(nn)
-
-    for ri, rd in enumerate(rdata):
-        cells = np.flatnonzero(cell_region == ri)
-        if len(cells) == 0:
-            continue
-        inv_q[cells] = 1.0 / rd.q_mech if np.isfinite(rd.q_mech) else 0.0
-        tand[cells] = rd.tan_delta
-        C4 = _tensor4(rd.c)                                      # (kl, ij) for the GEMM below
-        if rd.piezo:
-            E3 = _tensor3(rd.e)                                  # (kl, i)
-            epsv = rd.eps.reshape(9)                             # (kl,)
-        for start in range(0, len(cells), _CHUNK):
-            idx = cells[start:start + _CHUNK]
-            E = len(idx)
-            r = (idx[:, None] * nn + local[None, :]).ravel()
-            # S[e, a, b, k, l] = sum_q w dN_a/dx_k dN_b/dx_l   (one batched matmul)
-            g = G[:, :, idx, :].transpose(2, 0, 1, 3).reshape(E, nloc * 3, -1)   # (E, (a k), q)
-            gw = g * dxk[idx][:, None, :]
-            S = np.matmul(gw, g.transpose(0, 2, 1))                            # (E, (a k), (b l))
-            S = S.reshape(E, nloc, 3, nloc, 3).transpose(0, 1, 3, 2, 4).reshape(-1, 9)
-            # K_uu blocks (a, b): [i, j] = sum_kl S[a,b,k,l] c_ikjl  -- one BLAS GEMM
-            ke[r] = S @ C4
-            # mass (scalar, expanded to 3x3 identity blocks later)
-            v = V[:, idx, :]                                     # (nloc, E, nq)
-            vw = (v * dxm[idx][None]).transpose(1, 0, 2)         # (E, nloc, nq)
-            me[r] = rd.density * np.matmul(vw, v.transpose(1, 2, 0)).ravel()
-            if rd.piezo:
-                # K_uphi[(a i), b] = sum_kl S[a,b,k,l] e_lik ; K_phiphi[a, b] = sum_kl S eps_kl
-                kupe[r] = S @ E3
-                kppe[r] = S @ epsv
-
-    def seg(vals, scale=None):
-        if scale is not None:
-            vals = vals * (np.repeat(scale, nn) if vals.ndim == 1 else np.repeat(scale, nn)[:, None])
-        return np.add.reduceat(vals[order], starts, axis=0)
-
-    kuu, luu, muu = seg(ke), seg(ke, inv_q), seg(me)
-    del ke, me
-    if any_piezo:
-        kup, kpp, lpp = seg(kupe), seg(kppe), seg(kppe, tand)
-    else:
-        kup, kpp, lpp = np.zeros((nnzb, 3)), np.zeros(nnzb), np.zeros(nnzb)
-
-    def bsr3(data):
-        return sp.bsr_matrix((data.reshape(-1, 3, 3), indices, indptr), shape=(3 * n, 3 * n)).tocsr()
-
-    eye = np.eye(3).ravel()
-    return _Blocks(
-        Kuu=bsr3(kuu), Luu=bsr3(luu), Muu=bsr3(muu[:, None] * eye[None, :]),
-        Kup=sp.bsr_matrix((kup.reshape(-1, 3, 1), indices, indptr), shape=(3 * n, n)).tocsr(),
-        Kpp=sp.csr_matrix((kpp, indices, indptr), shape=(n, n)),
-        Lpp=sp.csr_matrix((lpp, indices, indptr), shape=(n, n)),
-    )
 
 
 def _voigt(Eps):
@@ -531,6 +384,18 @@ def _pad(A, extra):
     return sp.csr_matrix((A.data, A.indices, indptr), shape=(n, n))
 
 
+def _stack_diagonal(A, B):
+    """``[[A, 0], [0, B]]`` (csr) by concatenating the CSR arrays."""
+    A, B = A.tocsr(), B.tocsr()
+    n = A.shape[0] + B.shape[0]
+    idx = np.int64 if n >= np.iinfo(np.int32).max or A.nnz + B.nnz >= np.iinfo(np.int32).max else np.int32
+    out = sp.csr_matrix((np.concatenate([A.data, B.data]),
+                         np.concatenate([A.indices.astype(idx), B.indices.astype(idx) + A.shape[1]]),
+                         np.concatenate([A.indptr.astype(idx), B.indptr[1:].astype(idx) + A.nnz])),
+                        shape=(n, n))
+    return out
+
+
 def _sub(A, idx):
     return A[idx][:, idx].tocsr()
 
@@ -579,13 +444,13 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
         qk = qm = None
     else:
         qk, qm = intorder or _default_intorder(order, mesh.order == 2)
-    bk = CellBasis(skmesh, elem, intorder=qk if qk is not None else _default_intorder(order, mesh.order == 2)[0])
+    # the node numbering and the mapping; its own one-point quadrature is never used
+    bk = CellBasis(skmesh, elem, intorder=1)
     t1 = time.perf_counter()
     if reference:
         blocks = _blocks_reference(skmesh, elem, qk, qm, rdata, mesh.cell_region)
     else:
-        bm = CellBasis(skmesh, elem, intorder=qm)
-        blocks = _blocks_fast(bk, bm, rdata, mesh.cell_region)
+        blocks = _Blocks(**assemble_matrices(bk, qk, qm, rdata, mesh.cell_region))
     t2 = time.perf_counter()
     n = bk.N
     n_u = 3 * n
@@ -614,8 +479,9 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     T = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, nr))
 
     if nr:
-        dk = blocks.Kuu.diagonal().reshape(n, 3)[interior].mean()
-        dp = blocks.Kpp.diagonal()[interior].mean() if n_phi else blocks.Kpp.diagonal()[hot].mean()
+        scaled = interior if n_phi else hot
+        dk = blocks.Kuu.diagonal().reshape(n, 3)[scaled].mean()
+        dp = blocks.Kpp.diagonal()[scaled].mean()
         phi_scale = float(10.0 ** np.round(np.log10(np.sqrt(dk / dp))))
     else:
         phi_scale = 1.0
@@ -624,13 +490,13 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     Kpp = (T.T @ blocks.Kpp @ T) * (s * s)
     Lpp = (T.T @ blocks.Lpp @ T) * (s * s)
     if nr:
-        K = sp.vstack([sp.hstack([blocks.Kuu, Kup], format="csr"),
-                       sp.hstack([Kup.T.tocsr(), -Kpp], format="csr")], format="csr")
+        # the u-u blocks, padded without a copy, plus the (ceramic-only, small) potential blocks
+        K = _pad(blocks.Kuu, nr) + sp.bmat([[None, Kup], [Kup.T, -Kpp]], format="csr")
         M = _pad(blocks.Muu, nr)
-        L = sp.vstack([sp.hstack([blocks.Luu, sp.csr_matrix((n_u, nr))], format="csr"),
-                       sp.hstack([sp.csr_matrix((nr, n_u)), Lpp], format="csr")], format="csr")
+        L = _stack_diagonal(blocks.Luu, Lpp)
     else:
-        K, M, L = blocks.Kuu.tocsr(), blocks.Muu.tocsr(), blocks.Luu.tocsr()
+        # the fast path's Kuu and Luu share their index arrays: give L its own
+        K, M, L = blocks.Kuu.tocsr(), blocks.Muu.tocsr(), blocks.Luu.tocsr().copy()
     for A in (K, M, L):
         A.sum_duplicates()
         A.sort_indices()

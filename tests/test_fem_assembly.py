@@ -9,20 +9,22 @@ from fem.materials import piezo_matrices, strain_charge
 from fem.solvers import backend_name, factorize, pardiso_available
 from geometry.common import ParameterError
 from geometry.mesh import Electrode
-from test_fem_util import bar, rod
+from test_fem_util import bar, bent_bimorph, rod
 
 
 def _rel(a, b):
     return abs(a - b).max() / abs(b).max()
 
 
-@pytest.mark.parametrize("builder", [
-    lambda: rod(0.04, 0.001, 1, 6, "PZT-4", (0, 0, -1), True),            # curved P2 geometry
-    lambda: bar(n=(8, 2, 1)),                                               # straight tetrahedra
+@pytest.mark.parametrize("builder, order", [
+    (lambda: rod(0.04, 0.001, 1, 6, "PZT-4", (0, 0, -1), True), 2),         # curved P2 geometry
+    (lambda: bar(n=(8, 2, 1)), 2),                                          # straight tetrahedra
+    (bent_bimorph, 2),             # straight + curved 10-node cells, ceramic + metal, two Q_m
+    (bent_bimorph, 1),             # P1 fields on curved geometry
 ])
-def test_fast_assembly_equals_plain_skfem(builder):
+def test_fast_assembly_equals_plain_skfem(builder, order):
     tm = builder()
-    fast, ref = assemble(tm), assemble(tm, reference=True)
+    fast, ref = assemble(tm, order=order), assemble(tm, order=order, reference=True)
     assert fast.phi_scale == ref.phi_scale
     for a, b in ((fast.K, ref.K), (fast.M, ref.M), (fast.K_loss, ref.K_loss)):
         assert a.shape == b.shape

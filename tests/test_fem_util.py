@@ -106,3 +106,23 @@ def sandwich(radius=0.015, back=0.02, ring=0.005, n_rings=4, front=0.045, n_r=2,
         facet_sets[f"electrode_{k}"] = m.facets[:, np.all(np.isclose(fz, zk), axis=0)].T
         electrodes.append(Electrode(f"electrode_{k}", "ground" if k % 2 == 0 else "hot"))
     return tm.replace(facet_sets=facet_sets, electrodes=tuple(electrodes))
+
+
+def bent_bimorph(length=0.04, width=0.004, thickness=0.002, n=(8, 2, 2)):
+    """A bar whose first half (x < length/2) is poled PZT-4 and whose second half is steel bent
+    upwards (z += 2 (x - length/2)^2 / length): straight and curved 10-node cells, two
+    materials with different Q_m; electrodes on the top (hot) and bottom (ground) faces."""
+    m = MeshTet.init_tensor(np.linspace(0, length, n[0] + 1), np.linspace(0, width, n[1] + 1),
+                            np.linspace(0, thickness, n[2] + 1))
+    sets = {"bottom": lambda p: np.isclose(p[2], 0), "top": lambda p: np.isclose(p[2], thickness)}
+    regions = (Region("ceramic", "stack", "PZT-4", (0.0, 0.0, 1.0)), Region("metal", "horn", "steel_45", None))
+    cell_region = (m.p[0, m.t].mean(axis=0) > length / 2).astype(int)
+
+    def bend(p):
+        out = p.copy()
+        out[:, 2] += 2 * np.maximum(p[:, 0] - length / 2, 0) ** 2 / length
+        return out
+
+    el = (Electrode("top", "hot"), Electrode("bottom", "ground"))
+    return _to_tagged(m, bend, regions, cell_region, sets, el)
+
