@@ -4,9 +4,8 @@ Why it is fast
 --------------
 * **Symmetry.** ``K_uu``, ``M`` and ``K_phiphi`` are symmetric and ``K_uphi`` comes in transposed
   pairs, so only the local node pairs ``a <= b`` of each element are computed and summed (55 of
-  the 100 pairs of a P2 tetrahedron). Each element's local nodes are first renumbered by
-  ascending global node, so that every local pair ``a <= b`` is a global pair ``i <= j`` and
-  every element block lands in the upper triangle as it is.
+  the 100 pairs of a P2 tetrahedron), each into the unordered global pair ``i <= j`` (the block
+  transposed where the local order is the reverse of the global one).
 * **One sort.** The global node pairs are numbered by ONE ``np.sort`` of the pair keys with the
   entry number packed into the low bits (numpy's sort of int64 is SIMD-vectorised, its argsort
   is several times slower); the element values are then summed with ``np.bincount`` in element
@@ -15,17 +14,19 @@ Why it is fast
   (block and transposed block), then moved into the interleaved ``3 k + c`` CSR order by one
   gather of 3-value rows; the column indices come from the same gather. No ``U + U^T``, no
   BSR->CSR, no COO sorting.
-* **Geometry once.** The Jacobian of the (curved) geometry is one matrix product of the element
-  nodes with the reference gradients of the mesh's own element, inverted by cofactors, per
-  quadrature point (scikit-fem's ``CellBasis`` re-evaluates it for every basis function). The
-  mass needs no gradients: the reference values are the same on every element, so the element
-  masses of a chunk are one matrix product ``dx @ (N_a N_b)``.
+* **Geometry once.** Cells whose 10-node geometry is straight (mid-edge nodes at the midpoints;
+  about half of a gmsh mesh of curved parts) have a constant Jacobian: their gradient products
+  are ``|J| R @ (J^-1 (x) J^-1)`` with the reference integrals ``R`` of the quadrature rule (the
+  same sums, regrouped) and their masses ``|J| M_ref``, for all cells of a chunk in one GEMM.
+  On curved cells the Jacobian is one matrix product of the element nodes with the reference
+  gradients of the mesh's own element, inverted by cofactors, per quadrature point
+  (scikit-fem's ``CellBasis`` re-evaluates it for every basis function).
 * **BLAS for the constitutive law.** The gradient products ``S[(a b), (k l)] = int dN_a/dx_k
   dN_b/dx_l`` of a chunk of elements come from one batched ``matmul``; ``K_uu`` (c_ijkl),
   ``K_uphi`` (e_kij) and ``K_phiphi`` (eps_kl) are then single GEMMs with the 9x9, 9x3, 9x1
   tensor tables of the region.
-* **The loss matrix from the stiffness.** ``K_loss = sum_r K_uu^r / Q_r`` is ``K_uu / Q`` of the
-  most common ``Q`` plus a correction summed over the other regions' elements only.
+* **The loss matrix from the stiffness.** ``K_loss = sum_r K_uu^r / Q_r``: the element values
+  are summed once per loss level (cells are ordered by ``Q``) and weighted afterwards.
 
 Any scikit-fem H1 element on tetrahedra works (P1 or P2 fields, straight or curved geometry);
 the tests check the result against plain ``BilinearForm`` assembly to 1e-12.
@@ -161,7 +162,9 @@ class VectorLayout:
         self._pair = owner[entry] % P
         idx = _index_dtype(9 * nnz, 3 * n)
         col3 = 3 * pairs.col[entry].astype(idx)
-        self._indices = (col3[:, None] + np.arange(3, dtype=idx)[None, :]).ravel()
+        self._indices = np.empty(9 * nnz, dtype=idx)
+        for d in range(3):            # strided writes: much faster than broadcasting over (N, 3)
+            np.add(col3, d, out=self._indices[d::3])
         self._indptr = self._row_starts(pairs, 3).astype(idx)
         idx1 = _index_dtype(3 * nnz, 3 * n)
         self._indices1 = (col3 + comp).astype(idx1)
