@@ -129,3 +129,52 @@ def test_solver_backends_agree_real_and_complex():
         assert np.linalg.norm(xc_p - xc_lu) < 1e-8 * np.linalg.norm(xc_lu)
     with pytest.raises(ParameterError):
         factorize(A, backend="mumps")
+
+
+def test_unique_inverse_matches_numpy_including_the_fallback():
+    from fem.fastasm import unique_inverse
+
+    rng = np.random.default_rng(1)
+    for keys in (rng.integers(0, 50, 1000), rng.integers(0, 2 ** 60, 1000),   # packed / fallback
+                 np.zeros(0, dtype=np.int64), np.array([7])):
+        u, inv = unique_inverse(keys)
+        u0, inv0 = np.unique(keys, return_inverse=True)
+        assert np.array_equal(u, u0) and np.array_equal(inv, inv0.ravel())
+
+
+def test_node_pair_pattern_and_block_layout_match_scipy():
+    import scipy.sparse as sp
+
+    from fem.fastasm import VectorLayout, node_pairs
+
+    rng = np.random.default_rng(2)
+    n, nel, nloc = 30, 40, 4
+    edofs = np.array([rng.choice(n, nloc, replace=False) for _ in range(nel)])
+    pairs, pair, flip = node_pairs(edofs, n)
+    ia, ib = np.triu_indices(nloc)
+    assert np.array_equal(pairs.pi[pair], np.minimum(edofs[:, ia], edofs[:, ib]))
+    assert np.array_equal(pairs.pj[pair], np.maximum(edofs[:, ia], edofs[:, ib]))
+    assert np.array_equal(flip, edofs[:, ia] > edofs[:, ib])
+    rows, cols = np.repeat(edofs, nloc, axis=1).ravel(), np.tile(edofs, (1, nloc)).ravel()
+    ref = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    ref.sort_indices()
+    assert np.array_equal(pairs.indptr, ref.indptr) and np.array_equal(pairs.col, ref.indices)
+    # random upper blocks -> the symmetric matrix with B and B^T, and a scalar "mass"
+    B = rng.normal(size=(pairs.n_pairs, 3, 3))
+    B[pairs.pi == pairs.pj] += B[pairs.pi == pairs.pj].transpose(0, 2, 1)
+    dense = np.zeros((3 * n, 3 * n))
+    for p, (i, j) in enumerate(zip(pairs.pi, pairs.pj)):
+        dense[3 * i:3 * i + 3, 3 * j:3 * j + 3] = B[p]
+        dense[3 * j:3 * j + 3, 3 * i:3 * i + 3] = B[p].T
+    layout = VectorLayout(pairs)
+    A = layout.blocks(B)
+    assert np.array_equal(A.toarray(), dense)
+    C = A.copy()
+    C.has_sorted_indices = False
+    C.sort_indices()
+    assert np.array_equal(C.indices, A.indices)           # rows really are sorted
+    m = rng.normal(size=pairs.n_pairs)
+    Mm = layout.diagonal_blocks(m).toarray()
+    S = sp.csr_matrix((m, (pairs.pi, pairs.pj)), shape=(n, n)).toarray()
+    S = S + np.triu(S, 1).T
+    assert np.array_equal(Mm, np.kron(S, np.eye(3)))
