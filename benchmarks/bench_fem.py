@@ -138,7 +138,7 @@ def main(argv=None):
             prev = (fr, fa)
 
     print()
-    print("| DOFs | assembly ours s | plain skfem (min. quadrature) s | plain skfem (default quadrature) s "
+    print("| DOFs | assembly ours s | plain skfem (same quadrature) s | plain skfem (its default quadrature) s "
           "| factorisation PARDISO s | scipy splu s |")
     print("|---:|---:|---:|---:|---:|---:|")
     for n, a, r, rd, f, l in rows:
