@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
+
 from geometry.common import atomic_write_text
 
 
@@ -44,10 +46,17 @@ def write_report(s: dict, path) -> Path:
         "|---|---|---|---|---|",
     ]
     for r in s["kinetic_energy_table"]:
-        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_f(r['A0_m'], 1e6, '.2f')} | {r['mean_tool_ke_j'] * 1e3:.2f} | "
+        sem = r.get("sem_tool_ke_j")
+        ke = f"{r['mean_tool_ke_j'] * 1e3:.2f}" + (f" ± {sem * 1e3:.2f}" if sem is not None and np.isfinite(sem) else "")
+        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_f(r['A0_m'], 1e6, '.2f')} | {ke} | "
                      f"{r['mean_tool_ke_article_j'] * 1e3:.2f} | {_f(r.get('tool_impact_rate_hz'), 1, '.0f')} |")
     imp = s["impacts"]
-    lines += ["", f"Linear fit of KE against mass: {imp['fit_fe']['slope_j_per_kg']:.3g} J/kg "
+    lines += ["", "± is the standard error of the mean over the ensemble members (launch speeds spread "
+              "±5 %). Reruns scatter by more than that: the free-mass bouncing is chaotic, so an "
+              "amplitude that differs only in its last digits (the parallel sparse solver does not "
+              "round identically every run) gives other trajectories, and the impact-loaded A0 "
+              "comes from a fixed point converged to 3 %.",
+              "", f"Linear fit of KE against mass: {imp['fit_fe']['slope_j_per_kg']:.3g} J/kg "
               f"(R² {imp['fit_fe']['r2']:.3f}) with the FE amplitude; {imp['fit_article']['slope_j_per_kg']:.3g} J/kg "
               f"(R² {imp['fit_article']['r2']:.3f}) with the article's 15 um.", "", "## Figures", ""]
     for name, rel in s["files"]["figures"].items():
