@@ -53,7 +53,7 @@ def write_report(s: dict, path) -> Path:
     imp = s["impacts"]
     lines += ["", "± is the standard error of the mean over the ensemble members (launch speeds spread "
               "±5 %). Reruns scatter by more than that: the free-mass bouncing is chaotic, so an "
-              "amplitude that differs only in its last digits (the parallel sparse solver does not "
+              "amplitude that differs only in its last digits (threaded linear algebra does not "
               "round identically every run) gives other trajectories, and the impact-loaded A0 "
               "comes from a fixed point converged to 3 %.",
               "", f"Linear fit of KE against mass: {imp['fit_fe']['slope_j_per_kg']:.3g} J/kg "
