@@ -52,7 +52,7 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import brentq
 
-from geometry.common import ParameterError, check_positive, check_range
+from geometry.common import ParameterError, check_integer, check_positive, check_range
 from geometry.mesh import TaggedMesh
 
 from .assembly import PiezoSystem, assemble
@@ -115,11 +115,9 @@ class MatchSettings:
         if not (0 < lo < 1 < hi):
             raise ParameterError("bracket", self.bracket, "must be two factors lo < 1 < hi, lo > 0")
         check_positive("xtol", self.xtol, "m")
-        if not isinstance(self.max_rounds, int) or self.max_rounds < 1:
-            raise ParameterError("max_rounds", self.max_rounds, "must be an integer >= 1")
+        check_integer("max_rounds", self.max_rounds, 1)
         check_range("max_stretch", self.max_stretch, 0.0, 1.0, lo_open=True)
-        if not isinstance(self.n_modes, int) or self.n_modes < 1:
-            raise ParameterError("n_modes", self.n_modes, "must be an integer >= 1")
+        check_integer("n_modes", self.n_modes, 1)
         if self.mesh_size is not None:
             check_positive("mesh_size", self.mesh_size, "m")
 

@@ -82,6 +82,12 @@ def check_nonnegative(name: str, value: Any, unit: str = "") -> None:
         raise ParameterError(name, value, f"must be a finite number >= 0{' ' + unit if unit else ''}")
 
 
+def check_integer(name: str, value: Any, minimum: int) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is an ``int`` >= ``minimum``."""
+    if not (isinstance(value, int) and value >= minimum):
+        raise ParameterError(name, value, f"must be an integer >= {minimum}")
+
+
 def check_range(name: str, value: Any, lo: float, hi: float, unit: str = "",
                 lo_open: bool = False, hi_open: bool = False) -> None:
     """Raise :class:`ParameterError` unless ``lo <= value <= hi`` (bounds optionally open)."""

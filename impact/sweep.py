@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geometry.common import ParameterError, check_positive
+from geometry.common import ParameterError, check_integer, check_positive
 
 from .model import SimulationError, simulate
 from .params import ImpactParams
@@ -69,8 +69,7 @@ def run_cases(cases: list[ImpactParams], workers: int = 2, progress: bool = True
     """
     from tqdm import tqdm
 
-    if not (isinstance(workers, int) and workers >= 1):
-        raise ParameterError("workers", workers, "must be an integer >= 1")
+    check_integer("workers", workers, 1)
     bar = tqdm(total=len(cases), desc=desc, file=sys.stderr, disable=not progress, leave=False)
     out: list[dict] = []
     try:
@@ -171,8 +170,7 @@ def sweep(params: ImpactParams | None, m_free_values, *, ensemble: int = 4,
         raise ParameterError("m_free", m_free_values, "must list at least one mass in kg")
     for m in masses:
         check_positive("m_free", m, "kg")
-    if not (isinstance(ensemble, int) and ensemble >= 1):
-        raise ParameterError("ensemble", ensemble, "must be an integer >= 1")
+    check_integer("ensemble", ensemble, 1)
     if A0_values is None:
         amps = [base.A0] * len(masses)
     else:

@@ -35,7 +35,7 @@ from typing import Callable
 
 import numpy as np
 
-from geometry.common import ParameterError, check_positive, check_range, write_json
+from geometry.common import ParameterError, check_integer, check_positive, check_range, write_json
 
 log = logging.getLogger(__name__)
 
@@ -91,11 +91,9 @@ class PipelineSettings:
             raise ParameterError("m_free_values", self.m_free_values, "must be masses >= 0 kg")
         check_positive("reference_m_free", self.reference_m_free, "kg")
         check_positive("impact_t_end", self.impact_t_end, "s")
-        if not isinstance(self.ensemble, int) or self.ensemble < 1:
-            raise ParameterError("ensemble", self.ensemble, "must be an integer >= 1")
+        check_integer("ensemble", self.ensemble, 1)
         check_range("band", self.band, 0.0, 0.5, lo_open=True)
-        if not isinstance(self.n_points, int) or self.n_points < 3:
-            raise ParameterError("n_points", self.n_points, "must be an integer >= 3")
+        check_integer("n_points", self.n_points, 3)
 
 
 # --------------------------------------------------------------------------- A0 <-> impacts
