@@ -1,9 +1,6 @@
 """Impact model: analytic references, a second method (solve_ivp), properties, bad input, CLI."""
 
-import json
 import math
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -13,7 +10,6 @@ from geometry.common import ParameterError
 from impact.model import simulate
 from impact.params import ImpactParams
 from impact.reference import simulate_ivp
-from impact.sweep import linear_fit, sweep
 
 
 def ball(e, v0=1.0, t_end=1.0):
@@ -107,39 +103,6 @@ def test_bad_input_names_the_field(field, value):
         ImpactParams(**{field: value})
 
 
-def _cli(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "impact", *args], cwd=cwd, capture_output=True, text=True)
-
-
-@pytest.mark.parametrize("opt,val,field", [("--m-free", "-0.002", "m_free"), ("--e1", "1.5", "e1"),
-                                           ("--A0", "-1e-6", "A0"), ("--freq", "0", "freq"),
-                                           ("--t-end", "0", "t_end"), ("--gap", "0", "gap")])
-def test_cli_bad_input_exit_2_one_line_no_file(tmp_path, opt, val, field):
-    out = tmp_path / "o.json"
-    cp = _cli(opt, val, "--json", str(out), cwd=tmp_path)
-    assert cp.returncode == 2
-    lines = cp.stderr.strip().splitlines()
-    assert len(lines) == 1 and field in lines[0]
-    assert not out.exists() and list(tmp_path.iterdir()) == []
-
-
-def test_cli_json_schema(tmp_path):
-    out = tmp_path / "o.json"
-    cp = _cli("--t-end", "0.01", "--m-free", "0.006", "--json", str(out), cwd=tmp_path)
-    assert cp.returncode == 0, cp.stderr
-    d = json.loads(out.read_text())
-    for key in ("params", "tool_impacts", "horn_impacts", "tool_impact_rate_hz",
-                "mean_tool_ke_after_impact_j", "events"):
-        assert key in d
-    assert d["params"]["m_free"] == 0.006 and d["params"]["t_end"] == 0.01
-    assert set(ImpactParams().to_dict()) == set(d["params"])
-    assert d["tool_impacts"] + d["horn_impacts"] == len(d["events"]) > 0
-    assert d["tool_impact_rate_hz"] == pytest.approx(d["tool_impacts"] / 0.01)
-    for ev in d["events"]:
-        assert set(ev) == {"t", "contact", "w_before", "w_after", "v_before", "v_after"}
-        assert ev["contact"] in ("horn", "tool")
-
-
 def test_toml_round_trip_and_config(tmp_path):
     p = ImpactParams(m_free=0.005, horn_law="article")
     path = tmp_path / "p.toml"
@@ -148,18 +111,3 @@ def test_toml_round_trip_and_config(tmp_path):
     path.write_text("m_fre = 1.0\n")
     with pytest.raises(ParameterError, match="m_fre"):
         ImpactParams.from_toml(path)
-
-
-def test_linear_fit_exact_line():
-    x = np.array([1.0, 2.0, 3.0, 4.0])
-    slope, intercept, r2 = linear_fit(x, 2.5 * x - 1.0)
-    assert slope == pytest.approx(2.5, rel=1e-12) and intercept == pytest.approx(-1.0, abs=1e-12)
-    assert r2 == pytest.approx(1.0, abs=1e-12)
-
-
-def test_sweep_small_serial():
-    sw = sweep(None, [0.004, 0.008], ensemble=2, t_end=0.02, workers=1, progress=False)
-    assert sw.n_ok.tolist() == [2, 2]
-    assert np.all(sw.mean_ke > 0) and np.all(sw.rate_hz > 0)
-    # two points define the line exactly
-    assert sw.r2 == pytest.approx(1.0)
