@@ -15,19 +15,22 @@ from __future__ import annotations
 
 import logging
 import math
+import os
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from . import common
 from .common import ParameterError, check_choice, check_positive, check_range
 from .design import DesignBase, RPUDDesign, StackDesign
 from .materials import get_material
 from .mesh import Electrode, Region, TaggedMesh
 
 __all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "ALGORITHMS",
-           "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT"]
+           "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT"]
 
 log = logging.getLogger(__name__)
 
@@ -49,6 +52,10 @@ OPTIMISE_BELOW = 0.1
 """Minimum gamma of the linear mesh below which a Netgen optimisation pass runs (a sliver just
 above ``MIN_QUALITY`` still curves badly at second order)."""
 """Lower bound on the minimum SICN of the default design at its default size (tested)."""
+
+GMSH_TIME_LIMIT = 600.0
+"""Default wall-clock limit of one Gmsh build, s (the environment variable ``RPUD_GMSH_TIMEOUT``
+overrides it). Meshes inside the resource guard's budget take well under a minute."""
 
 _GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 """Gmsh's 10-node tetrahedron lists edge (2,3) before (1,3); meshio/VTK the other way round."""
@@ -356,7 +363,62 @@ def build_mesh(design: DesignBase, mesh_size: float | None = None, order: int = 
 
 def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
-          verbose: bool = False, msh_path: str | None = None) -> tuple[TaggedMesh, BuildReport]:
+          verbose: bool = False, msh_path: str | None = None,
+          time_limit: float | None = None) -> tuple[TaggedMesh, BuildReport]:
+    """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
+
+    Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
+    handled at once (Gmsh's own native loop would hold them until it returns) and a run that
+    exceeds ``time_limit`` seconds (default :data:`GMSH_TIME_LIMIT` or ``RPUD_GMSH_TIMEOUT``)
+    ends with a :class:`ParameterError` instead of hanging. An abandoned Gmsh thread cannot be
+    stopped; the CLI wrapper (:func:`geometry.common.run_cli`) then ends the process.
+    See :func:`_build` for the other parameters and the result.
+    """
+    if time_limit is None:
+        env = os.environ.get("RPUD_GMSH_TIMEOUT")
+        try:
+            time_limit = float(env) if env else GMSH_TIME_LIMIT
+        except ValueError:
+            raise ParameterError("RPUD_GMSH_TIMEOUT", env, "must be a number of seconds") from None
+    check_range("gmsh time limit", time_limit, 0.0, 86400.0, "s", lo_open=True)
+    if any(t.is_alive() for t in common._NATIVE_WORKERS):
+        raise ParameterError("design", getattr(design, "name", design),
+                             "an abandoned Gmsh run is still going in this process; start a new one")
+    box: dict[str, Any] = {}
+
+    def work():
+        try:
+            box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
+                                   msh_path)
+        except ParameterError as exc:
+            box["error"] = exc
+        except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
+            box["error"] = ParameterError("--mesh-size", mesh_size, f"Gmsh failed on design "
+                                          f"{getattr(design, 'name', '?')!r} ({exc}); change the mesh "
+                                          "size or the design's smallest features")
+        except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
+            box["error"] = exc
+
+    worker = threading.Thread(target=work, name="gmsh", daemon=True)
+    worker.start()
+    try:
+        worker.join(time_limit)
+    except BaseException:
+        common._NATIVE_WORKERS.append(worker)
+        raise
+    if worker.is_alive():
+        common._NATIVE_WORKERS.append(worker)
+        raise ParameterError("--gmsh-timeout", time_limit,
+                             f"Gmsh did not finish {getattr(design, 'name', '?')!r} within the limit: use a "
+                             "coarser --mesh-size or allow more time (--gmsh-timeout / RPUD_GMSH_TIMEOUT, s)")
+    if "error" in box:
+        raise box["error"]
+    return box["result"]
+
+
+def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
+           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
+           verbose: bool = False, msh_path: str | None = None) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -392,7 +454,9 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
-    gmsh.initialize(readConfigFiles=False)
+    # not interruptible: Gmsh would set SIGINT to SIG_DFL (death by the signal); the waiting main
+    # thread handles signals instead
+    gmsh.initialize(readConfigFiles=False, interruptible=False)
     try:
         gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
         gmsh.option.setNumber("General.Verbosity", 5 if verbose else 1)

@@ -14,7 +14,10 @@ import json
 import logging
 import math
 import os
+import shutil
+import signal
 import sys
+import threading
 import tempfile
 import tomllib
 import types
@@ -43,6 +46,14 @@ __all__ = [
     "to_jsonable",
     "CliParser",
     "run_cli",
+    "check_finite",
+    "check_integer",
+    "check_output_paths",
+    "atomic_folder",
+    "toml_section",
+    "Terminated",
+    "MAX_TOML_BYTES",
+    "MAX_TOML_DEPTH",
 ]
 
 
@@ -63,7 +74,10 @@ class ParameterError(ValueError):
         self.name = name
         self.value = value
         self.allowed = allowed
-        super().__init__(f"{name} = {value!r}: {allowed}")
+        shown = repr(value)
+        if len(shown) > 80:  # a whole hostile file or list must not flood the one-line message
+            shown = shown[:60] + "..." + shown[-12:]
+        super().__init__(f"{name} = {shown}: {allowed}")
 
 
 def _is_number(value: Any) -> bool:
@@ -82,10 +96,20 @@ def check_nonnegative(name: str, value: Any, unit: str = "") -> None:
         raise ParameterError(name, value, f"must be a finite number >= 0{' ' + unit if unit else ''}")
 
 
-def check_integer(name: str, value: Any, minimum: int) -> None:
-    """Raise :class:`ParameterError` unless ``value`` is an ``int`` >= ``minimum``."""
-    if not (isinstance(value, int) and value >= minimum):
-        raise ParameterError(name, value, f"must be an integer >= {minimum}")
+def check_finite(name: str, value: Any, unit: str = "") -> None:
+    """Raise :class:`ParameterError` unless ``value`` is a finite number (any sign)."""
+    if not (_is_number(value) and math.isfinite(value)):
+        raise ParameterError(name, value, f"must be a finite number{' ' + unit if unit else ''}")
+
+
+def check_integer(name: str, value: Any, minimum: int, maximum: int | None = None) -> None:
+    """Raise :class:`ParameterError` unless ``value`` is an ``int`` in ``[minimum, maximum]``."""
+    ok = isinstance(value, (int, np.integer)) and not isinstance(value, bool) and value >= minimum
+    if ok and maximum is not None:
+        ok = value <= maximum
+    if not ok:
+        bound = f"in [{minimum}, {maximum}]" if maximum is not None else f">= {minimum}"
+        raise ParameterError(name, value, f"must be an integer {bound}")
 
 
 def check_range(name: str, value: Any, lo: float, hi: float, unit: str = "",
@@ -110,16 +134,84 @@ def check_choice(name: str, value: Any, choices: typing.Iterable[Any]) -> None:
 # --------------------------------------------------------------------------- TOML
 
 
-def load_toml(path: str | os.PathLike) -> dict:
-    """Read a TOML file; a missing or malformed file is a :class:`ParameterError`."""
-    path = Path(path)
+MAX_TOML_BYTES = 1_000_000
+"""Largest design/config file read, bytes (real ones are a few kB)."""
+
+MAX_TOML_DEPTH = 8
+"""Deepest table/array nesting accepted in a design/config file (real ones use 3)."""
+
+
+def _depth(obj: Any, level: int = 0) -> int:
+    if level > MAX_TOML_DEPTH:
+        return level
+    if isinstance(obj, Mapping):
+        return max([_depth(v, level + 1) for v in obj.values()], default=level + 1)
+    if isinstance(obj, list):
+        return max([_depth(v, level + 1) for v in obj], default=level + 1)
+    return level
+
+
+def load_toml(path: str | os.PathLike, name: str = "config") -> dict:
+    """Read a TOML file as UTF-8; every way it can be unusable is a :class:`ParameterError`.
+
+    Refused: an empty path, a missing, unreadable or non-regular file, more than
+    :data:`MAX_TOML_BYTES`, bytes that are not UTF-8, malformed TOML, nesting deeper than
+    :data:`MAX_TOML_DEPTH`.
+
+    Parameters
+    ----------
+    path : path-like
+    name : str
+        Parameter name used in the messages (e.g. ``"--design"``).
+    """
+    text_path = os.fspath(path) if isinstance(path, (str, os.PathLike)) else path
+    if not isinstance(text_path, str) or not text_path.strip() or "\0" in text_path:
+        raise ParameterError(name, path, "must name a TOML file")
+    p = Path(text_path)
     try:
-        with path.open("rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError:
-        raise ParameterError("config", str(path), "file does not exist") from None
+        if not p.exists():
+            raise ParameterError(name, text_path, "file does not exist")
+        if not p.is_file():
+            raise ParameterError(name, text_path, "is not a regular file")
+        size = p.stat().st_size
+        if size > MAX_TOML_BYTES:
+            raise ParameterError(name, text_path, f"is {size} bytes; at most {MAX_TOML_BYTES} are read")
+        raw = p.read_bytes()
+    except OSError as exc:
+        raise ParameterError(name, text_path, f"cannot be read ({exc.strerror or exc})") from None
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ParameterError(name, text_path, f"is not UTF-8 text (byte {raw[exc.start]:#04x} at offset "
+                                              f"{exc.start})") from None
+    if text.startswith("\ufeff"):  # a BOM is legal UTF-8 but not TOML
+        text = text[1:]
+    try:
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
-        raise ParameterError("config", str(path), f"is not valid TOML ({exc})") from None
+        raise ParameterError(name, text_path, f"is not valid TOML ({exc})") from None
+    except RecursionError:
+        raise ParameterError(name, text_path, f"nests deeper than {MAX_TOML_DEPTH} levels") from None
+    if _depth(data) > MAX_TOML_DEPTH:
+        raise ParameterError(name, text_path, f"nests deeper than {MAX_TOML_DEPTH} levels")
+    return data
+
+
+def toml_section(data: Mapping[str, Any], table: str, source: str = "config") -> Mapping[str, Any]:
+    """The parameters of a file that may hold them at top level or in one ``[table]``.
+
+    Both at once is ambiguous (which one wins?), so a top-level key next to the table is a
+    :class:`ParameterError` naming that key, as is a ``table`` key that is not a table.
+    """
+    if table not in data:
+        return data
+    stray = sorted(k for k in data if k != table)
+    if stray:
+        raise ParameterError(stray[0], data[stray[0]], f"top-level key next to the [{table}] table in "
+                                                       f"{source}: move it into [{table}] or drop the table")
+    if not isinstance(data[table], Mapping):
+        raise ParameterError(table, data[table], f"must be a table ([{table}]) in {source}")
+    return data[table]
 
 
 def dump_toml(data: Mapping[str, Any]) -> str:
@@ -168,7 +260,10 @@ def _convert(value: Any, hint: Any, where: str) -> Any:
     if hint is float:
         if not _is_number(value):
             raise ParameterError(where, value, "must be a number")
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:  # an integer beyond the float range
+            raise ParameterError(where, value, "must be a finite number") from None
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
             if isinstance(value, float) and value.is_integer():
@@ -192,9 +287,16 @@ def from_mapping(cls: type, data: Mapping[str, Any], where: str = "") -> Any:
     Unknown keys are an error (a misspelt option must not be silently ignored); missing keys
     take the dataclass defaults. Validation in ``__post_init__`` runs as usual.
     """
+    if not isinstance(data, Mapping):
+        raise ParameterError(where or cls.__name__, data, f"must be a table of {cls.__name__} fields")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     hints = _resolve_hints(cls)
-    unknown = sorted(set(data) - set(fields))
+    missing = [k for k, f in fields.items() if k not in data and f.default is dataclasses.MISSING
+               and f.default_factory is dataclasses.MISSING]
+    if missing:
+        name = f"{where}.{missing[0]}" if where else missing[0]
+        raise ParameterError(name, None, "required field is missing")
+    unknown = sorted(set(data) - set(fields), key=str)
     if unknown:
         name = f"{where}.{unknown[0]}" if where else unknown[0]
         raise ParameterError(name, data[unknown[0]], f"unknown key; allowed: {', '.join(fields)}")
@@ -288,9 +390,190 @@ def save_figure(fig, path: str | os.PathLike) -> Path:
     return path
 
 
-def write_json(path: str | os.PathLike, data: Any) -> Path:
-    """Write ``data`` (numpy values allowed) as indented JSON, atomically."""
-    return atomic_write_text(path, json.dumps(to_jsonable(data), indent=2, allow_nan=False) + "\n")
+def _nonfinite(obj: Any, where: str) -> tuple[str, float] | None:
+    """Dotted path and value of the first NaN/inf in a JSON-friendly structure, or None."""
+    if isinstance(obj, float):
+        return None if math.isfinite(obj) else (where, obj)
+    if isinstance(obj, Mapping):
+        for k, v in obj.items():
+            hit = _nonfinite(v, f"{where}.{k}" if where else str(k))
+            if hit:
+                return hit
+    elif isinstance(obj, list):
+        for i, v in enumerate(obj):
+            hit = _nonfinite(v, f"{where}[{i}]")
+            if hit:
+                return hit
+    return None
+
+
+def _null_nonfinite(obj: Any) -> Any:
+    if isinstance(obj, float):
+        return obj if math.isfinite(obj) else None
+    if isinstance(obj, Mapping):
+        return {k: _null_nonfinite(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_null_nonfinite(v) for v in obj]
+    return obj
+
+
+def json_text(data: Any, nonfinite: str = "error", name: str = "json") -> str:
+    """``data`` as indented JSON text (numpy values allowed).
+
+    Parameters
+    ----------
+    nonfinite : {"error", "null"}
+        NaN/inf are not JSON: "error" raises :class:`ParameterError` naming the first such
+        entry by its dotted path; "null" writes them as ``null`` (for fields where NaN
+        documents "not available").
+    name : str
+        Parameter (option) name used in the error.
+    """
+    obj = to_jsonable(data)
+    if nonfinite == "null":
+        obj = _null_nonfinite(obj)
+    else:
+        hit = _nonfinite(obj, "")
+        if hit:
+            raise ParameterError(name, hit[1], f"result entry '{hit[0]}' is not finite, so it cannot be "
+                                               "written as JSON; change the inputs that produced it")
+    return json.dumps(obj, indent=2, allow_nan=False) + "\n"
+
+
+def write_json(path: str | os.PathLike, data: Any, nonfinite: str = "error", name: str = "json") -> Path:
+    """Write ``data`` as indented JSON, atomically; the text is complete before any file exists.
+
+    A NaN/inf is a :class:`ParameterError` raised before anything is created (see
+    :func:`json_text` for ``nonfinite`` and ``name``).
+    """
+    return atomic_write_text(path, json_text(data, nonfinite, name))
+
+
+# --------------------------------------------------------------------------- output paths
+
+NAME_MAX = 255
+"""Longest file-name component, bytes (ext4, APFS, NTFS)."""
+
+PATH_MAX = 4000
+"""Longest path accepted, bytes (Linux PATH_MAX is 4096)."""
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return os.path.normcase(os.path.abspath(a)) == os.path.normcase(os.path.abspath(b))
+
+
+def check_output_paths(*, inputs: Mapping[str, Any] | None = None, folders: typing.Iterable[str] = (),
+                       **outputs: Any) -> dict[str, Path]:
+    """Refuse unusable output paths before any computation starts.
+
+    Parameters
+    ----------
+    inputs : mapping of str to path, optional
+        Files the run reads (e.g. ``{"--design": "d.toml"}``): no output may overwrite one.
+    folders : iterable of str
+        Names (keys of ``outputs``) that are output folders rather than files.
+    **outputs : path or None
+        Output option name -> path (``None`` entries are skipped). Keyword names may use
+        underscores; the messages show them as ``--option-name``.
+
+    Returns
+    -------
+    dict of str to Path
+        The checked outputs (``None`` skipped).
+
+    Raises
+    ------
+    ParameterError
+        Empty name or NUL byte; a name component longer than :data:`NAME_MAX` bytes or a path
+        longer than :data:`PATH_MAX`; a parent folder that is missing, not a folder or not
+        writable; a file output that is an existing folder or a folder output that is an
+        existing file; two outputs on one path; an output on an input file.
+    """
+    folders = set(folders)
+    checked: dict[str, Path] = {}
+    for key, value in outputs.items():
+        if value is None:
+            continue
+        opt = key if key.startswith("-") else "--" + key.replace("_", "-")
+        if not isinstance(value, (str, os.PathLike)) or not os.fspath(value).strip() or "\0" in os.fspath(value):
+            raise ParameterError(opt, value, "must be a path")
+        text = os.fspath(value)
+        if len(os.fsencode(text)) > PATH_MAX:
+            raise ParameterError(opt, text, f"path longer than {PATH_MAX} bytes")
+        path = Path(text)
+        for part in path.parts:
+            if len(os.fsencode(part)) > NAME_MAX:
+                raise ParameterError(opt, text, f"has a name of {len(os.fsencode(part))} bytes; at most "
+                                                f"{NAME_MAX} are allowed")
+        if path.name in ("", ".", ".."):
+            raise ParameterError(opt, text, "must end in a file or folder name")
+        parent = path.parent
+        if not parent.exists():
+            raise ParameterError(opt, text, f"parent folder {str(parent)!r} does not exist")
+        if not parent.is_dir():
+            raise ParameterError(opt, text, f"parent {str(parent)!r} is not a folder")
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise ParameterError(opt, text, f"parent folder {str(parent)!r} is not writable")
+        if key in folders:
+            if path.exists() and not path.is_dir():
+                raise ParameterError(opt, text, "is an existing file; an output folder is expected")
+        elif path.is_dir():
+            raise ParameterError(opt, text, "is a folder; give a file path")
+        for other, other_path in checked.items():
+            if _same(path, other_path):
+                raise ParameterError(opt, text, f"is also the output of {other}")
+        for name, inp in (inputs or {}).items():
+            if inp is not None and isinstance(inp, (str, os.PathLike)) and os.fspath(inp) \
+                    and _same(path, Path(inp)):
+                raise ParameterError(opt, text, f"would overwrite the input {name}")
+        checked[opt] = path
+    return {k.lstrip("-").replace("-", "_"): v for k, v in checked.items()}
+
+
+@contextlib.contextmanager
+def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
+    """Yield a temporary folder beside ``path``; swap it into place only on success.
+
+    The folder is built under a hidden sibling name; on success an existing ``path`` is moved
+    aside, the new folder renamed onto ``path`` and the old one removed (signals are held for
+    the two renames, so an interrupt never leaves neither). On any exception, interrupt or
+    termination the temporary folder is removed and ``path`` is left as it was: a results
+    folder is whole or absent, never a mix of two runs.
+    """
+    path = Path(path)
+    if not path.parent.is_dir():
+        raise ParameterError("out", str(path), f"parent folder {str(path.parent)!r} does not exist")
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.part-", dir=path.parent))
+    try:
+        yield tmp
+        old = None
+        with _signals_held():
+            if path.exists():
+                old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=path.parent))
+                os.replace(path, old / path.name)
+            os.replace(tmp, path)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """Defer SIGINT/SIGTERM for a few system calls that must happen together."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)
 
 
 # --------------------------------------------------------------------------- command line
@@ -304,25 +587,106 @@ class CliParser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
+class Terminated(BaseException):
+    """Raised in the main thread by SIGTERM while :func:`run_cli` runs (like KeyboardInterrupt)."""
+
+
+_NATIVE_WORKERS: list[threading.Thread] = []
+"""Threads running native code (Gmsh) that a signal or time limit abandoned: a CLI must end by
+``os._exit`` then, since native code cannot be stopped and interpreter shutdown would wait for it
+or run library destructors under it."""
+
+
+def _on_sigterm(signum, frame):
+    raise Terminated()
+
+
+def _one_line(text: str, limit: int = 600) -> str:
+    text = " ".join(str(text).replace("\r", "\n").split("\n"))
+    text = "".join(ch if ch.isprintable() else repr(ch)[1:-1] for ch in text)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def library_error(exc: BaseException) -> str | None:
+    """One line naming the cause and what to change for a known library failure, else None."""
+    kind = type(exc).__name__
+    module = type(exc).__module__ or ""
+    text = str(exc) or kind
+    if isinstance(exc, MemoryError):
+        return "out of memory: use a coarser --mesh-size, fewer --modes or --points"
+    if kind in ("ArpackNoConvergence", "ArpackError"):
+        return f"eigen solver failed ({text}): change --near, --modes or --mesh-size"
+    if kind == "LinAlgError" or "singular" in text.lower() or "factor is exactly singular" in text:
+        return f"sparse solver failed ({text}): the model is singular; check --clamp, the materials and --mesh-size"
+    if module.startswith("gmsh") or text.startswith("Gmsh") or "gmsh" in module:
+        return f"Gmsh failed ({text}): change --mesh-size or the design's small features"
+    if kind == "SimulationError":
+        return f"simulation failed ({text}): change the parameter it names"
+    if isinstance(exc, OSError):
+        where = f": {exc.filename}" if exc.filename else ""
+        return f"cannot read or write a file ({exc.strerror or text}){where}: check the path"
+    if isinstance(exc, RecursionError):
+        return "input nested too deeply"
+    return None
+
+
 def run_cli(main: Callable[[list[str] | None], int | None], argv: list[str] | None = None,
             prog: str = "rpud") -> int:
-    """Run a CLI entry point: bad input becomes one readable line and exit code 2.
+    """Run a CLI entry point: every failure becomes one stderr line and an exit code.
 
-    ``ParameterError`` (and ``FileNotFoundError``/``PermissionError`` on the user's paths) are
-    reported without a traceback. Other exceptions are bugs and propagate.
+    - bad input (:class:`ParameterError`, unusable paths, known library failures): exit 2;
+    - SIGINT: "interrupted", exit 130; SIGTERM: "terminated", exit 143 (both raise inside
+      ``main``, so ``atomic_output``/``atomic_folder`` remove their temporaries);
+    - any other exception is a bug: one line saying so, exit 1 (``RPUD_DEBUG=1`` re-raises it
+      with its traceback).
+
+    If native code (Gmsh) was abandoned by an interrupt or time limit, the process ends here
+    through ``os._exit`` after flushing the streams.
     """
+    in_main = threading.current_thread() is threading.main_thread()
+    saved = {}
+    if in_main:
+        saved[signal.SIGTERM] = signal.signal(signal.SIGTERM, _on_sigterm)
+        saved[signal.SIGINT] = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        code = main(argv)
-    except ParameterError as exc:
-        sys.stderr.write(f"{prog}: error: {exc}\n")
-        return 2
-    except (FileNotFoundError, PermissionError, IsADirectoryError) as exc:
-        sys.stderr.write(f"{prog}: error: {exc.strerror or exc}: {exc.filename}\n")
-        return 2
-    except KeyboardInterrupt:
-        sys.stderr.write(f"{prog}: interrupted\n")
-        return 130
-    return int(code or 0)
+        try:
+            code = int(main(argv) or 0)
+        except ParameterError as exc:
+            code = _fail(prog, f"error: {exc}", 2)
+        except KeyboardInterrupt:
+            code = _fail(prog, "interrupted", 130)
+        except Terminated:
+            code = _fail(prog, "terminated", 143)
+        except SystemExit:
+            raise
+        except BaseException as exc:  # noqa: BLE001 - the last line of defence of a CLI
+            line = library_error(exc)
+            if line is not None:
+                logging.getLogger("rpud.cli").debug("library error", exc_info=True)
+                code = _fail(prog, f"error: {line}", 2)
+            elif os.environ.get("RPUD_DEBUG"):
+                raise
+            else:
+                code = _fail(prog, f"internal error: {type(exc).__name__}: {exc} (a bug: please report it; "
+                                   "RPUD_DEBUG=1 shows the traceback)", 1)
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+    if any(t.is_alive() for t in _NATIVE_WORKERS):
+        with contextlib.suppress(Exception):
+            sys.stdout.flush()
+            sys.stderr.flush()
+        os._exit(code)
+    return code
+
+
+def _fail(prog: str, text: str, code: int) -> int:
+    # a signal arriving while the line is written must not produce a second, traceback line
+    with _signals_held():
+        sys.stderr.write(_one_line(f"{prog}: {text}") + "\n")
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+    return code
 
 
 def setup_logging(verbose: int = 0) -> None:

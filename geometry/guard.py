@@ -1,0 +1,175 @@
+"""Resource guard: estimate the mesh and the FE problem of a design before building them.
+
+Meshing and solving cost grows with the cube of the inverse element size, so a mistyped
+``--mesh-size`` or a sub-millimetre feature can ask for billions of elements and hang Gmsh or
+exhaust memory long after the run started. :func:`estimate` predicts the element count from
+the same per-region sizes the builder uses (:func:`geometry.builder.region_sizes`), capped as
+Gmsh caps them (curvature: 12 elements per circle; at least one layer across a thin part), and
+derives nodes, degrees of freedom and the memory of a sparse direct factorisation from it.
+:func:`check_budget` refuses a run above the budget with one line naming the option to change.
+
+Calibration (default RPUD design and its textbook variants, order 2): the estimate lies within
+a factor of about two of Gmsh's count; the budgets leave a margin of that size.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+from .common import ParameterError
+
+__all__ = ["Estimate", "estimate", "check_budget", "MAX_ELEMENTS", "MAX_DOFS", "TETS_PER_CUBE"]
+
+log = logging.getLogger(__name__)
+
+MAX_ELEMENTS = 300_000
+"""Budget of estimated tetrahedra for meshing alone (``python -m geometry``): ~25x the default
+design, about a minute of Gmsh and 2 GB."""
+
+MAX_DOFS = 500_000
+"""Budget of estimated degrees of freedom for an FE solve (``fem``, ``results``): ~7x the
+default design (68 561 DOFs, 1 GB peak); the factorisation memory model below puts 500 000 DOFs
+near 10 GB."""
+
+TETS_PER_CUBE = 7.0
+"""Tetrahedra per cube of the target size ``h`` in a Delaunay mesh (a regular tetrahedron of
+edge h fills h^3 / 8.5; Gmsh's are a little larger on average)."""
+
+_CURVATURE_FRACTION = 2 * math.pi / 12
+"""Gmsh's Mesh.MeshSizeFromCurvature = 12 caps the size at radius x 2 pi / 12."""
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Predicted size of a mesh and of its FE problem.
+
+    Attributes
+    ----------
+    elements : int
+        Tetrahedra.
+    nodes : int
+        Mesh nodes at the requested order.
+    dofs : int
+        Degrees of freedom of the piezo-elastic model (3 displacements + potential per node).
+    memory_bytes : float
+        Peak memory of assembly and sparse direct factorisation, bytes (rough: fill-in of a 3-D
+        nested-dissection factor grows as DOFs^(4/3); calibrated at 68 561 DOFs -> 1 GB).
+    smallest_size : float
+        Smallest effective element size, m.
+    """
+
+    elements: int
+    nodes: int
+    dofs: int
+    memory_bytes: float
+    smallest_size: float
+
+    def describe(self) -> str:
+        return (f"~{self.elements:,} tetrahedra, ~{self.dofs:,} DOFs, ~{self.memory_bytes / 1e9:.1f} GB "
+                f"(smallest element ~{self.smallest_size * 1e3:.3g} mm)")
+
+
+def _regions(design) -> list[tuple[str, float, float, float]]:
+    """``(region, volume m^3, axial length m, radius m)`` of every region."""
+    from .design import RPUDDesign
+
+    out = []
+    if isinstance(design, RPUDDesign):
+        lengths = {"coupler": design.coupler.length, "flange_disc": design.flange.thickness,
+                   "horn": design.horn.length}
+        radii = {"coupler": design.coupler.outer_diameter / 2, "flange_disc": design.flange.outer_diameter / 2,
+                 "horn": min(design.horn.back_diameter, design.horn.tip_diameter) / 2}
+        s = design.stack
+        for region, kind, z0, z1 in design.stack_layers():
+            lengths[region] = z1 - z0
+            radii[region] = s.outer_diameter / 2
+        for region, _part, _mat, vol in design.region_table():
+            out.append((region, vol, lengths[region], radii[region]))
+    else:
+        for seg in design.segments:
+            if seg.kind == "box":
+                radius = math.inf  # flat sides: no curvature cap, thin sides are handled by the size rule
+            else:
+                radius = min(seg.outer_diameter, seg.end_diameter if seg.kind == "cone" else math.inf) / 2
+            out.append((seg.name, seg.volume(), seg.length, radius))
+    return out
+
+
+def estimate(design, mesh_size: float | None = None, order: int = 2,
+             elements_per_wavelength: float | None = None) -> Estimate:
+    """Predict the mesh and FE size of ``design`` meshed as :func:`geometry.builder.build` would.
+
+    Parameters
+    ----------
+    design : RPUDDesign or StackDesign
+    mesh_size : float, optional
+        Base element size, m (as ``build``).
+    order : {1, 2}
+    elements_per_wavelength : float, optional
+
+    Returns
+    -------
+    Estimate
+    """
+    from .builder import region_sizes
+
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength)
+    n = 0.0
+    smallest = math.inf
+    for region, vol, length, radius in _regions(design):
+        h = min(sizes[region], _CURVATURE_FRACTION * radius, max(length, 1e-12))
+        smallest = min(smallest, h)
+        n += TETS_PER_CUBE * vol / h ** 3
+    for key, h in sizes.items():
+        # refinement boxes around slots and teeth: their zone of the coupler at the feature size
+        if key.startswith("@"):
+            c = design.coupler
+            zone = c.slot_length if key == "@slots" else c.tooth_height
+            shell = math.pi / 4 * (c.outer_diameter ** 2 - design.coupler_bore ** 2) * zone
+            smallest = min(smallest, h)
+            n += TETS_PER_CUBE * shell / h ** 3
+    elements = int(min(n, 1e18))
+    nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
+    dofs = 4 * nodes
+    memory = 3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3)
+    return Estimate(elements=elements, nodes=nodes, dofs=dofs, memory_bytes=memory, smallest_size=smallest)
+
+
+def check_budget(design, mesh_size: float | None = None, order: int = 2,
+                 elements_per_wavelength: float | None = None, *, solve: bool = True,
+                 allow_large: bool = False, option: str = "--allow-large") -> Estimate:
+    """Refuse a build/solve whose estimate exceeds the budget, before anything runs.
+
+    Parameters
+    ----------
+    solve : bool
+        The mesh is solved (budget :data:`MAX_DOFS`) or only written (:data:`MAX_ELEMENTS`).
+    allow_large : bool
+        The user's explicit override: log the estimate and go on.
+    option : str
+        Name of the override option, quoted in the message.
+
+    Raises
+    ------
+    ParameterError
+        Naming ``--mesh-size`` (with the smallest size that fits) or the design.
+    """
+    est = estimate(design, mesh_size, order, elements_per_wavelength)
+    value, budget, what = ((est.dofs, MAX_DOFS, "DOFs") if solve else (est.elements, MAX_ELEMENTS, "tetrahedra"))
+    if value <= budget:
+        log.debug("resource estimate: %s", est.describe())
+        return est
+    if allow_large:
+        log.warning("above the budget of %s %s: %s (%s given)", f"{budget:,}", what, est.describe(), option)
+        return est
+    # the count grows as size^-3: the size that would fit, for the message
+    if mesh_size is not None:
+        fit = mesh_size * (value / budget) ** (1 / 3)
+        raise ParameterError("--mesh-size", mesh_size, f"gives {est.describe()}, above the budget of "
+                                                       f"{budget:,} {what}: use --mesh-size >= {fit:.3g} m "
+                                                       f"or {option}")
+    raise ParameterError("design", getattr(design, "name", "?"),
+                         f"gives {est.describe()}, above the budget of {budget:,} {what}: enlarge its "
+                         f"smallest features, lower elements_per_wavelength, or give {option}")
