@@ -32,9 +32,12 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from .common import (ParameterError, check_choice, check_nonnegative, check_positive, check_range,
-                     dump_toml, from_mapping, load_toml, to_mapping, atomic_write_text)
+from .common import (ParameterError, check_choice, check_range, dump_toml, from_mapping, load_toml,
+                     to_mapping, atomic_write_text)
+from .dotted import _child, _radial_signature, _replace_path
 from .materials import get_material
+from .validate import (check_bore, check_count, check_frequency, check_length, check_material, check_name,
+                       design_table, finite_or_none)
 
 __all__ = [
     "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign", "RPUDDesign",
@@ -56,13 +59,7 @@ _MIN_WALL = 0.5e-3
 """Smallest metal wall (m) left by a bore, a slot or a tooth gap: below it Gmsh needs sliver elements."""
 
 
-def _material(name: str, value: str) -> None:
-    if not isinstance(value, str):
-        raise ParameterError(name, value, "must be a material name (string)")
-    try:
-        get_material(value)
-    except ParameterError as exc:
-        raise ParameterError(name, value, exc.allowed) from None
+_material = check_material
 
 
 def _annulus(d_out: float, d_in: float) -> float:
@@ -209,60 +206,6 @@ class DesignBase:
         raise NotImplementedError
 
 
-def _child(obj: Any, key: str, path: str) -> Any:
-    if isinstance(obj, tuple):
-        for item in obj:
-            if getattr(item, "name", None) == key:
-                return item
-        if key.isdigit() and int(key) < len(obj):
-            return obj[int(key)]
-        raise ParameterError(path, key, "unknown item; known: " + ", ".join(str(getattr(i, "name", i)) for i in obj))
-    if not dataclasses.is_dataclass(obj) or key not in {f.name for f in dataclasses.fields(obj)}:
-        allowed = ", ".join(f.name for f in dataclasses.fields(obj)) if dataclasses.is_dataclass(obj) else "none"
-        raise ParameterError(path, key, f"unknown parameter; allowed here: {allowed}")
-    return getattr(obj, key)
-
-
-def _replace_path(obj: Any, keys: list[str], value: Any, path: str) -> Any:
-    key = keys[0]
-    if isinstance(obj, tuple):
-        child = _child(obj, key, path)
-        idx = obj.index(child)
-        new_child = _replace_path(child, keys[1:], value, path) if len(keys) > 1 else value
-        return obj[:idx] + (new_child,) + obj[idx + 1:]
-    child = _child(obj, key, path)
-    if len(keys) > 1:
-        return dataclasses.replace(obj, **{key: _replace_path(child, keys[1:], value, path)})
-    if key == "kind":
-        raise ParameterError(path, value, "the design kind cannot be replaced")
-    hint = type(child) if child is not None else None
-    if isinstance(child, float) and isinstance(value, (int, np.integer, np.floating)) and not isinstance(value, bool):
-        value = float(value)
-    elif hint is int and isinstance(value, float) and value.is_integer():
-        value = int(value)
-    return dataclasses.replace(obj, **{key: value})
-
-
-def _radial_signature(design: DesignBase) -> list:
-    """Every non-tunable value of the design (used to refuse an inexact morph)."""
-    tun = set(design.tunable_lengths())
-    flat = _flatten(design.to_mapping(), "")
-    return sorted((k, repr(v)) for k, v in flat.items() if k not in tun and k != "name")
-
-
-def _flatten(obj: Any, prefix: str) -> dict:
-    out = {}
-    if isinstance(obj, Mapping):
-        for k, v in obj.items():
-            out.update(_flatten(v, f"{prefix}.{k}" if prefix else str(k)))
-    elif isinstance(obj, list) and obj and isinstance(obj[0], Mapping):
-        for i, v in enumerate(obj):
-            out.update(_flatten(v, f"{prefix}.{v.get('name', i)}"))
-    else:
-        out[prefix] = obj
-    return out
-
-
 # ============================================================================ RPUD parts
 
 
@@ -299,9 +242,9 @@ class HornDesign:
         p = self._prefix
         _material(f"{p}.material", self.material)
         check_choice(f"{p}.profile", self.profile, ("stepped", "conical", "exponential"))
-        check_positive(f"{p}.length", self.length, "m")
-        check_positive(f"{p}.back_diameter", self.back_diameter, "m")
-        check_positive(f"{p}.tip_diameter", self.tip_diameter, "m")
+        check_length(f"{p}.length", self.length)
+        check_length(f"{p}.back_diameter", self.back_diameter)
+        check_length(f"{p}.tip_diameter", self.tip_diameter)
         check_range(f"{p}.step_fraction", self.step_fraction, 0.05, 0.95)
         if self.profile == "exponential" and math.isclose(self.back_diameter, self.tip_diameter):
             raise ParameterError(f"{p}.tip_diameter", self.tip_diameter,
@@ -365,15 +308,14 @@ class StackRings:
         _material(f"{p}.material", self.material)
         if not get_material(self.material).is_piezo:
             raise ParameterError(f"{p}.material", self.material, "must be a piezoceramic (kind = 'piezo')")
-        if isinstance(self.n_rings, bool) or not isinstance(self.n_rings, int) or self.n_rings < 2 or self.n_rings % 2:
-            raise ParameterError(f"{p}.n_rings", self.n_rings, "must be an even integer >= 2 (ground at both ends)")
-        check_positive(f"{p}.outer_diameter", self.outer_diameter, "m")
-        check_nonnegative(f"{p}.inner_diameter", self.inner_diameter, "m")
+        check_count(f"{p}.n_rings", self.n_rings, 2, even=True)
+        check_length(f"{p}.outer_diameter", self.outer_diameter)
+        check_bore(f"{p}.inner_diameter", self.inner_diameter)
         if self.inner_diameter >= self.outer_diameter - 2 * _MIN_WALL:
             raise ParameterError(f"{p}.inner_diameter", self.inner_diameter,
                                  f"must be < outer_diameter - {2 * _MIN_WALL:g} = {self.outer_diameter - 2 * _MIN_WALL:g} m")
-        check_positive(f"{p}.ring_thickness", self.ring_thickness, "m")
-        check_positive(f"{p}.shim_thickness", self.shim_thickness, "m")
+        check_length(f"{p}.ring_thickness", self.ring_thickness)
+        check_length(f"{p}.shim_thickness", self.shim_thickness)
         _material(f"{p}.shim_material", self.shim_material)
 
     @property
@@ -406,8 +348,8 @@ class FlangeDesign:
     def __post_init__(self):
         p = self._prefix
         _material(f"{p}.material", self.material)
-        check_positive(f"{p}.thickness", self.thickness, "m")
-        check_positive(f"{p}.outer_diameter", self.outer_diameter, "m")
+        check_length(f"{p}.thickness", self.thickness)
+        check_length(f"{p}.outer_diameter", self.outer_diameter)
 
 
 @dataclass(frozen=True)
@@ -468,21 +410,19 @@ class CouplerDesign:
     def __post_init__(self):
         p = self._prefix
         _material(f"{p}.material", self.material)
-        check_positive(f"{p}.length", self.length, "m")
-        check_positive(f"{p}.outer_diameter", self.outer_diameter, "m")
-        check_nonnegative(f"{p}.inner_diameter", self.inner_diameter, "m")
+        check_length(f"{p}.length", self.length)
+        check_length(f"{p}.outer_diameter", self.outer_diameter)
+        check_bore(f"{p}.inner_diameter", self.inner_diameter)
         for name in ("n_slots", "n_teeth"):
-            v = getattr(self, name)
-            if isinstance(v, bool) or not isinstance(v, int) or v < 0:
-                raise ParameterError(f"{p}.{name}", v, "must be an integer >= 0")
+            check_count(f"{p}.{name}", getattr(self, name))
         check_choice(f"{p}.slot_profile", self.slot_profile, ("v", "rectangular"))
-        check_positive(f"{p}.slot_width", self.slot_width, "m")
-        check_positive(f"{p}.slot_depth", self.slot_depth, "m")
-        check_positive(f"{p}.slot_length", self.slot_length, "m")
+        check_length(f"{p}.slot_width", self.slot_width)
+        check_length(f"{p}.slot_depth", self.slot_depth)
+        check_length(f"{p}.slot_length", self.slot_length)
         check_range(f"{p}.slot_angle_deg", self.slot_angle_deg, -60.0, 60.0, "degrees")
-        check_nonnegative(f"{p}.slot_offset", self.slot_offset, "m")
-        check_positive(f"{p}.tooth_width", self.tooth_width, "m")
-        check_positive(f"{p}.tooth_height", self.tooth_height, "m")
+        check_bore(f"{p}.slot_offset", self.slot_offset)
+        check_length(f"{p}.tooth_width", self.tooth_width)
+        check_length(f"{p}.tooth_height", self.tooth_height)
         self.check_bore(self.inner_diameter, f"{p}.inner_diameter")
         if self.n_teeth and self.inner_diameter <= 0:
             raise ParameterError(f"{p}.inner_diameter", self.inner_diameter,
@@ -576,11 +516,10 @@ class RPUDDesign(DesignBase):
 
     def __post_init__(self):
         check_choice("kind", self.kind, ("rpud",))
-        if not isinstance(self.name, str) or not self.name:
-            raise ParameterError("name", self.name, "must be a non-empty string")
-        check_positive("target_frequency", self.target_frequency, "Hz")
+        check_name("name", self.name)
+        check_frequency("target_frequency", self.target_frequency)
         check_range("elements_per_wavelength", self.elements_per_wavelength, 1.0, 200.0)
-        check_nonnegative("bore_diameter", self.bore_diameter, "m")
+        check_bore("bore_diameter", self.bore_diameter)
         for name, cls in (("horn", HornDesign), ("stack", StackRings), ("flange", FlangeDesign),
                           ("coupler", CouplerDesign)):
             if not isinstance(getattr(self, name), cls):
@@ -784,10 +723,9 @@ class Segment:
     start: float | None = None
 
     def __post_init__(self):
-        if not isinstance(self.name, str) or not self.name or "." in self.name:
-            raise ParameterError("segments.name", self.name, "must be a non-empty string without dots")
+        check_name("segments.name", self.name, dots=False)
         p = f"segments.{self.name}"
-        check_positive(f"{p}.length", self.length, "m")
+        check_length(f"{p}.length", self.length)
         check_choice(f"{p}.kind", self.kind, ("cylinder", "cone", "box"))
         _material(f"{p}.material", self.material)
         check_choice(f"{p}.poling", self.poling, tuple(POLING_VECTORS))
@@ -797,24 +735,23 @@ class Segment:
         if not piezo and self.poling != "none":
             raise ParameterError(f"{p}.poling", self.poling, f"must be 'none' for passive material {self.material}")
         if self.kind == "box":
-            check_positive(f"{p}.thickness", self.thickness, "m")
-            check_positive(f"{p}.width", self.width, "m")
+            check_length(f"{p}.thickness", self.thickness)
+            check_length(f"{p}.width", self.width)
         else:
-            check_positive(f"{p}.outer_diameter", self.outer_diameter, "m")
-            check_nonnegative(f"{p}.inner_diameter", self.inner_diameter, "m")
+            check_length(f"{p}.outer_diameter", self.outer_diameter)
+            check_bore(f"{p}.inner_diameter", self.inner_diameter)
             smallest = self.outer_diameter
             if self.kind == "cone":
-                check_positive(f"{p}.end_diameter", self.end_diameter, "m")
+                check_length(f"{p}.end_diameter", self.end_diameter)
                 smallest = min(smallest, self.end_diameter)
             if self.inner_diameter > 0 and self.inner_diameter >= smallest - 2 * _MIN_WALL:
                 raise ParameterError(f"{p}.inner_diameter", self.inner_diameter,
                                      f"bore larger than the segment: must be < {smallest - 2 * _MIN_WALL:g} m")
-        if not isinstance(self.part, str):
-            raise ParameterError(f"{p}.part", self.part, "must be a string")
-        if not self.part:
+        if self.part != "":
+            check_name(f"{p}.part", self.part, dots=False)
+        else:
             object.__setattr__(self, "part", self.name)
-        if self.start is not None and not (isinstance(self.start, (int, float)) and math.isfinite(self.start)):
-            raise ParameterError(f"{p}.start", self.start, "must be a finite number (m) or absent")
+        finite_or_none(f"{p}.start", self.start)
 
     @property
     def poling_vector(self) -> tuple[float, float, float] | None:
@@ -866,8 +803,9 @@ class ElectrodeSpec:
 
     def __post_init__(self):
         p = f"electrodes.{self.name}"
-        if not isinstance(self.name, str) or not self.name:
-            raise ParameterError("electrodes.name", self.name, "must be a non-empty string")
+        check_name("electrodes.name", self.name, dots=False)
+        if not isinstance(self.segment, str):
+            raise ParameterError(f"{p}.segment", self.segment, "must be a segment name")
         check_choice(f"{p}.face", self.face, ("bottom", "top", "+x", "-x", "+y", "-y"))
         check_choice(f"{p}.role", self.role, ("hot", "ground"))
 
@@ -897,14 +835,15 @@ class StackDesign(DesignBase):
 
     def __post_init__(self):
         check_choice("kind", self.kind, ("stack",))
-        if not isinstance(self.name, str) or not self.name:
-            raise ParameterError("name", self.name, "must be a non-empty string")
-        check_positive("target_frequency", self.target_frequency, "Hz")
+        check_name("name", self.name)
+        check_frequency("target_frequency", self.target_frequency)
         check_range("elements_per_wavelength", self.elements_per_wavelength, 1.0, 200.0)
         object.__setattr__(self, "segments", tuple(self.segments))
         object.__setattr__(self, "electrodes", tuple(self.electrodes))
         if not self.segments:
             raise ParameterError("segments", [], "need at least one segment")
+        check_count("segments", len(self.segments), 1)
+        check_count("electrodes", len(self.electrodes), 0, 2 * 64)
         names = [s.name for s in self.segments]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
@@ -1030,16 +969,7 @@ def load_design(path: str | os.PathLike, select: str | None = None) -> DesignBas
     collection of designs, one table each (``[k33_rod]``, ``[k31_bar]``...) from which
     ``select`` picks one.
     """
-    data = load_toml(path)
+    data = load_toml(path, "design")
     known = {f.name for cls in _KINDS.values() for f in dataclasses.fields(cls)}
-    single = not data or any(k in known for k in data) or not all(isinstance(v, Mapping) for v in data.values())
-    if single:
-        if select is not None:
-            raise ParameterError("select", select, f"{path} holds a single design; drop the selection")
-        return design_from_mapping(data)
-    names = [k for k, v in data.items() if isinstance(v, Mapping)]
-    if select is None:
-        raise ParameterError("design", str(path), "holds several designs; select one of: " + ", ".join(names))
-    if select not in names:
-        raise ParameterError("select", select, "unknown design; known: " + ", ".join(names))
-    return design_from_mapping(data[select], where=select)
+    table, where = design_table(data, str(path), select, known)
+    return design_from_mapping(table, where=where)
