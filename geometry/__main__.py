@@ -13,7 +13,7 @@ import logging
 import sys
 from pathlib import Path
 
-from .common import CliParser, ParameterError, run_cli, setup_logging, write_json, check_positive
+from .common import CliParser, ParameterError, check_output_paths, check_range, run_cli, setup_logging, write_json
 
 log = logging.getLogger("geometry")
 
@@ -40,6 +40,10 @@ def _parser() -> CliParser:
     p.add_argument("--order", type=int, choices=(1, 2), default=2, help="tetrahedron order (default 2, curved)")
     p.add_argument("--algorithm", choices=("delaunay", "frontal", "hxt"), default="delaunay",
                    help="Gmsh 3-D algorithm (default delaunay)")
+    p.add_argument("--allow-large", action="store_true", help="mesh even above the resource budget "
+                   "(geometry.guard.MAX_ELEMENTS estimated tetrahedra)")
+    p.add_argument("--gmsh-timeout", type=float, metavar="S", help="wall-clock limit of Gmsh, s (default "
+                   "geometry.builder.GMSH_TIME_LIMIT = 600, or RPUD_GMSH_TIMEOUT)")
     p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: Gmsh too)")
     p.add_argument("-q", "--quiet", action="store_true", help="warnings only")
     return p
@@ -54,21 +58,24 @@ def main(argv: list[str] | None = None) -> int:
         value = getattr(args, key)
         if value is not None and Path(value).suffix.lower() != suffix:
             raise ParameterError(f"--{key.replace('_', '-')}", value, f"must end in {suffix}")
-    if args.mesh_size is not None:
-        check_positive("--mesh-size", args.mesh_size, "m")
+    check_options(args)
+    check_output_paths(inputs={"--design": args.design}, mesh=args.mesh, vtu=args.vtu, json=args.json,
+                                 png=args.png, write_default=args.write_default)
     if args.write_default:
         default_design().save(args.write_default)
         log.info("wrote %s", args.write_default)
         return 0
-    if args.select and not args.design:
+    if args.select is not None and args.design is None:
         raise ParameterError("--select", args.select, "needs --design FILE")
-    design = load_design(args.design, args.select) if args.design else default_design()
+    design = load_design(args.design, args.select) if args.design is not None else default_design()
 
+    from .guard import check_budget
     from .report import build_report
 
+    check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large)
     tm, report = build_report(design, mesh_size=args.mesh_size, order=args.order,
                               elements_per_wavelength=args.epw, algorithm=args.algorithm,
-                              verbose=args.verbose >= 2)
+                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout)
     sys.stdout.write(format_table(report) + "\n")
     if args.mesh:
         tm.write(args.mesh)
@@ -81,6 +88,16 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         write_json(args.json, report)
     return 0
+
+
+def check_options(args) -> None:
+    """Numeric options: finite and inside their stated ranges (before anything is built)."""
+    if args.mesh_size is not None:
+        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    if args.epw is not None:
+        check_range("--epw", args.epw, 1.0, 200.0)
+    if args.gmsh_timeout is not None:
+        check_range("--gmsh-timeout", args.gmsh_timeout, 0.0, 86400.0, "s", lo_open=True)
 
 
 def format_table(report: dict) -> str:
