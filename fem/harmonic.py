@@ -626,8 +626,40 @@ def build_parser():
                    help="also integrate the ring-up for S seconds (0: six time constants)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON")
     p.add_argument("--plots", metavar="DIR", help="write admittance / tip response / ring-up PNGs into DIR")
+    p.add_argument("--allow-large", action="store_true",
+                   help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
     p.add_argument("-v", "--verbose", action="count", default=0)
     return p
+
+
+MAX_POINTS = 20_000
+"""Most frequencies of one admittance sweep."""
+
+MAX_RING_UP = 1.0
+"""Longest ring-up integrated, s (20 000 drive periods at 20 kHz)."""
+
+
+def _check_options(args) -> None:
+    """Every option finite and inside its stated range, outputs usable, before meshing."""
+    from geometry.common import check_integer, check_output_paths
+    from geometry.validate import FREQUENCY_BAND
+
+    check_range("--voltage", args.voltage, 0.0, 1e4, "V", lo_open=True)
+    if args.freq is not None:
+        check_range("--freq", args.freq, *FREQUENCY_BAND, "Hz")
+    check_integer("--points", args.points, 3, MAX_POINTS)
+    check_integer("--modes", args.modes, 1, 200)
+    if args.q_mech is not None:
+        check_range("--q-mech", args.q_mech, 1.0, 1e6)
+    if args.tan_delta is not None:
+        check_range("--tan-delta", args.tan_delta, 0.0, 1.0)
+    if args.mesh_size is not None:
+        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    if args.ring_up is not None:
+        check_range("--ring-up", args.ring_up, 0.0, MAX_RING_UP, "s (0: six time constants)")
+    if args.json is not None and not args.json.endswith(".json"):
+        raise ParameterError("--json", args.json, "must end in .json")
+    check_output_paths(inputs={"--design": args.design}, folders=("plots",), json=args.json, plots=args.plots)
 
 
 def _parse_band(text: str) -> tuple[float, float]:
@@ -635,14 +667,15 @@ def _parse_band(text: str) -> tuple[float, float]:
         lo, hi = (float(v) for v in text.split(","))
     except ValueError:
         raise ParameterError("--band", text, "must be two frequencies in Hz, LO,HI") from None
-    if not (0 < lo < hi) or not np.isfinite(hi):
-        raise ParameterError("--band", text, "must satisfy 0 < LO < HI (Hz)")
+    if not (100.0 <= lo < hi <= 1e6):
+        raise ParameterError("--band", text, "must satisfy 100 <= LO < HI <= 1e6 (Hz)")
     return lo, hi
 
 
 def main(argv=None) -> int:
     import geometry
-    from geometry.common import setup_logging, write_json
+    from geometry.common import atomic_write_text, json_text, setup_logging
+    from geometry.guard import check_budget
 
     from .assembly import assemble
     from .matching import working_mode
@@ -650,18 +683,13 @@ def main(argv=None) -> int:
 
     args = build_parser().parse_args(argv)
     setup_logging(args.verbose - 1)
-    check_positive("--voltage", args.voltage, "V")
-    if args.freq is not None:
-        check_positive("--freq", args.freq, "Hz")
+    _check_options(args)
     band = _parse_band(args.band) if args.band else None
     if band and args.freq is not None and not band[0] <= args.freq <= band[1]:
         raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
-    if args.points < 3:
-        raise ParameterError("--points", args.points, "must be >= 3")
-    if args.json and not args.json.endswith(".json"):
-        raise ParameterError("--json", args.json, "must end in .json")
     loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
-    design = geometry.load_design(args.design) if args.design else geometry.default_design()
+    design = geometry.load_design(args.design) if args.design is not None else geometry.default_design()
+    check_budget(design, args.mesh_size, allow_large=args.allow_large)
     mesh = geometry.build_mesh(design, mesh_size=args.mesh_size)
     surfaces = tuple(args.surface) if args.surface else tuple(
         s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
@@ -687,8 +715,6 @@ def main(argv=None) -> int:
     if args.ring_up is not None:
         from .transient import ring_up
 
-        if args.ring_up < 0:
-            raise ParameterError("--ring-up", args.ring_up, "must be >= 0 s (0: six time constants)")
         tau = 2.0 / (basis.eta[w] * 2 * np.pi * f_w)
         ring = ring_up(system, f_w, args.voltage, args.ring_up or 6 * tau, loss=loss, basis=basis,
                        surfaces=surfaces[:1])
@@ -701,6 +727,13 @@ def main(argv=None) -> int:
           f"{args.points} points, modal superposition of {len(basis.lam)} modes + residual)")
     if ring is not None:
         print(f"ring-up: steady {ring.steady_amplitude(surfaces[0]) * 1e6:.3f} um after {ring.t[-1] * 1e3:.2f} ms")
+    text = None
+    if args.json:
+        data = {"design": str(args.design or "default"), "working_mode": {
+            "index": w, "f_r_hz": f_w, "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]), "label": modal.labels[w]},
+            "working_point": wp.to_json(), "sweep": res.to_json(),
+            "ring_up": ring.to_json() if ring is not None else None, "ndof": system.ndof}
+        text = json_text(data, nonfinite="null")
     if args.plots:
         from pathlib import Path
 
@@ -712,12 +745,8 @@ def main(argv=None) -> int:
             plots.tip_response(res, f_w, out / "tip_response.png")
         if ring is not None:
             plots.ring_up(ring, wp.tip_amplitude_m, out / "ring_up.png")
-    if args.json:
-        data = {"design": str(args.design or "default"), "working_mode": {
-            "index": w, "f_r_hz": f_w, "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]), "label": modal.labels[w]},
-            "working_point": wp.to_json(), "sweep": res.to_json(),
-            "ring_up": ring.to_json() if ring is not None else None, "ndof": system.ndof}
-        write_json(args.json, data)
+    if text is not None:
+        atomic_write_text(args.json, text)
     return 0
 
 

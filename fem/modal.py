@@ -42,10 +42,13 @@ motion) and writes JSON (``modes``: list of ``{f_r_hz, f_a_hz, k_eff, mac, label
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 import sys
 import time
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Iterable
 
 import numpy as np
@@ -367,7 +370,8 @@ def build_parser(prog="python -m fem.modal"):
     g = p.add_argument_group("modal analysis")
     g.add_argument("--near", type=float, metavar="HZ",
                    help="target frequency in Hz (0: lowest modes; default: the design's target frequency)")
-    g.add_argument("--modes", type=int, default=12, metavar="N", help="number of modes (default 12)")
+    g.add_argument("--modes", type=int, default=None, metavar="N",
+                   help=f"number of modes, 1-{MAX_MODES} (default 12; with --match: modes per iteration, default 4)")
     g.add_argument("--clamp", action="append", default=[], metavar="SURFACE",
                    help="clamp the named surface (repeatable; default: free)")
     g.add_argument("--solver", choices=("auto", "pardiso", "superlu"), default=None,
@@ -386,14 +390,67 @@ def build_parser(prog="python -m fem.modal"):
     g.add_argument("--tol", type=float, default=0.005, metavar="REL",
                    help="relative frequency tolerance of the match (default 0.005 = 0.5 %%)")
     g.add_argument("--out-design", metavar="FILE",
-                   help="write the tuned design as TOML (default <design name>-tuned.toml)")
+                   help="write the tuned design as TOML (default: <design name>-tuned.toml beside --json, "
+                        "else not written)")
     g = p.add_argument_group("output")
     g.add_argument("--json", metavar="OUT", help="write the result as JSON to OUT")
     g.add_argument("--render", metavar="DIR",
                    help="off-screen PNGs of the working mode and its neighbours into DIR")
     g.add_argument("--vtu", metavar="FILE", help="VTU file with every computed mode as point data (ParaView)")
+    g.add_argument("--allow-large", action="store_true",
+                   help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
     p.add_argument("-v", "--verbose", action="count", default=0)
     return p
+
+
+MAX_MODES = 200
+"""Most modes one CLI run computes (shift-invert Lanczos cost grows with their square)."""
+
+
+def _check_options(args) -> dict:
+    """Validate every option before the design is meshed; returns the checked output paths."""
+    from geometry.common import check_integer, check_output_paths, check_range
+    from geometry.validate import FREQUENCY_BAND
+
+    if args.near is not None and args.near != 0:
+        check_range("--near", args.near, *FREQUENCY_BAND, "Hz")
+    if args.modes is not None:
+        check_integer("--modes", args.modes, 1, MAX_MODES)
+    if args.mesh_size is not None:
+        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    if args.target is not None:
+        check_range("--target", args.target, *FREQUENCY_BAND, "Hz")
+    check_range("--tol", args.tol, 0.0, 0.2, lo_open=True)
+    for opt, suffix in (("json", ".json"), ("vtu", ".vtu"), ("out_design", ".toml")):
+        val = getattr(args, opt)
+        if val is not None and not str(val).endswith(suffix):
+            raise ParameterError("--" + opt.replace("_", "-"), val, f"must end in {suffix}")
+    if args.select is not None and str(args.design) == "default":
+        raise ParameterError("--select", args.select, "needs --design FILE")
+    if not args.match:
+        for opt in ("target", "tune", "out_design"):
+            if getattr(args, opt) is not None:
+                raise ParameterError("--" + opt.replace("_", "-"), getattr(args, opt), "applies to --match only")
+        if args.bracket != "0.5,2.0":
+            raise ParameterError("--bracket", args.bracket, "applies to --match only")
+    else:
+        # matching is free-free with its own nodal-plane cut and shift: refuse what it cannot honour
+        if args.clamp:
+            raise ParameterError("--clamp", args.clamp[0], "cannot be used with --match (the match is free-free)")
+        if args.near is not None:
+            raise ParameterError("--near", args.near, "cannot be used with --match; give --target HZ")
+    if args.solver not in (None, "auto"):
+        from .solvers import backend_name
+
+        backend_name(args.solver)                  # pardiso without MKL: refused before meshing
+    tuned = None
+    if args.match and args.out_design is None and args.json is not None:
+        tuned = "beside --json"
+    outputs = check_output_paths(inputs={"--design": None if str(args.design) == "default" else args.design},
+                                 folders=("render",), json=args.json, vtu=args.vtu, out_design=args.out_design,
+                                 render=args.render)
+    outputs["tuned"] = tuned
+    return outputs
 
 
 def _factors(text: str, name: str) -> tuple[float, float]:
@@ -401,6 +458,8 @@ def _factors(text: str, name: str) -> tuple[float, float]:
         lo, hi = (float(v) for v in text.split(","))
     except ValueError:
         raise ParameterError(name, text, "must be two numbers LO,HI") from None
+    if not (0.05 <= lo < 1 < hi <= 20):
+        raise ParameterError(name, text, "must be two factors with 0.05 <= LO < 1 < HI <= 20")
     return lo, hi
 
 
@@ -420,7 +479,8 @@ def _outputs(args, mesh, res, working: int) -> None:
 
 def main(argv=None) -> int:
     import geometry
-    from geometry.common import atomic_write_text, setup_logging, write_json
+    from geometry.common import atomic_write_text, check_output_paths, json_text, setup_logging
+    from geometry.guard import check_budget
 
     from .assembly import assemble
 
@@ -428,25 +488,24 @@ def main(argv=None) -> int:
     setup_logging(args.verbose - 1)
     if args.verbose < 2:
         logging.getLogger("skfem").setLevel(logging.WARNING)
-    if args.near is not None:
-        check_nonnegative("--near", args.near, "Hz")
-    if args.modes < 1:
-        raise ParameterError("--modes", args.modes, "must be >= 1")
-    if args.mesh_size is not None:
-        check_positive("--mesh-size", args.mesh_size, "m")
-    for opt, suffix in (("json", ".json"), ("vtu", ".vtu"), ("out_design", ".toml")):
-        val = getattr(args, opt)
-        if val and not str(val).endswith(suffix):
-            raise ParameterError("--" + opt.replace("_", "-"), val, f"must end in {suffix}")
+    outputs = _check_options(args)
+    bracket = _factors(args.bracket, "--bracket") if args.match else None
     design = geometry.default_design() if str(args.design) == "default" else geometry.load_design(args.design,
                                                                                                   args.select)
+    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large)
     if args.match:
         from .matching import MatchSettings, match
 
+        extra = {"n_modes": args.modes} if args.modes is not None else {}
         settings = MatchSettings(
             target_hz=float(args.target or getattr(design, "target_frequency", 20e3)), tolerance=args.tol,
             tune=tuple(args.tune.split(",")) if args.tune else getattr(design, "default_tuned", ()),
-            bracket=_factors(args.bracket, "--bracket"), mesh_size=args.mesh_size, order=args.order)
+            bracket=bracket, mesh_size=args.mesh_size, order=args.order, **extra)
+        out_design = args.out_design
+        if out_design is None and outputs["tuned"]:
+            out_design = str(Path(args.json).parent / f"{design.name}-tuned.toml")
+            check_output_paths(inputs={"--design": None if str(args.design) == "default" else args.design,
+                                       "--json": args.json}, out_design=out_design)
         print(f"matching {', '.join(settings.tune)} to {settings.target_hz:.1f} Hz", flush=True)
 
         def show(rec):
@@ -454,7 +513,8 @@ def main(argv=None) -> int:
                   f"{rec['value_m'] * 1e3:9.4f} mm -> {rec['f_hz']:10.2f} Hz  ({rec['seconds']:5.1f} s)",
                   flush=True)
 
-        res_m = match(design, settings, progress=show)
+        with _solver(args.solver):
+            res_m = match(design, settings, progress=show)
         res = res_m.modal
         print(format_table(res))
         print(f"matched {res_m.matched_hz:.2f} Hz (target {res_m.target_hz:.1f} Hz, "
@@ -464,31 +524,58 @@ def main(argv=None) -> int:
         if res_m.teeth:
             print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
                   f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
-        out_design = args.out_design or f"{res_m.design.name}-tuned.toml"
-        atomic_write_text(out_design, res_m.design.to_toml())
-        print(f"tuned design: {out_design}")
+        # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
+        text = json_text(res_m.to_json(), nonfinite="null") if args.json else None
+        if out_design:
+            atomic_write_text(out_design, res_m.design.to_toml())
+            print(f"tuned design: {out_design}")
+        else:
+            print("tuned design not written (give --out-design FILE or --json)")
         _outputs(args, res_m.mesh, res, res_m.working_index)
-        if args.json:
-            write_json(args.json, res_m.to_json())
+        if text is not None:
+            atomic_write_text(args.json, text)
         return 0 if res_m.converged else 1
     near = float(args.near if args.near is not None else getattr(design, "target_frequency", 20e3))
     mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order)
     for name in args.clamp:
         mesh.facets(name)
     system = assemble(mesh, order=args.order)
-    res = modal_analysis(system, near, args.modes, clamp=args.clamp,
+    n_modes = 12 if args.modes is None else args.modes
+    if n_modes > system.ndof // 4:
+        raise ParameterError("--modes", n_modes, f"must be <= {system.ndof // 4} for this mesh ({system.ndof} DOFs)")
+    res = modal_analysis(system, near, n_modes, clamp=args.clamp,
                          backend=None if args.solver in (None, "auto") else args.solver)
     print(format_table(res))
-    if args.render or args.vtu:
-        from .matching import working_mode
-
-        _outputs(args, mesh, res, working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0)) if near > 0 else 0)
+    data = None
     if args.json:
         data = res.to_json()
         data["design"] = str(args.design)
         data["mesh_size"] = args.mesh_size
-        write_json(args.json, data)
+        data = json_text(data, nonfinite="null")
+    if args.render or args.vtu:
+        from .matching import working_mode
+
+        _outputs(args, mesh, res, working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0)) if near > 0 else 0)
+    if data is not None:
+        atomic_write_text(args.json, data)
     return 0
+
+
+@contextlib.contextmanager
+def _solver(name):
+    """The sparse solver for code that picks it from ``RPUD_SOLVER`` (the matching loop)."""
+    if name in (None, "auto"):
+        yield
+        return
+    old = os.environ.get("RPUD_SOLVER")
+    os.environ["RPUD_SOLVER"] = name
+    try:
+        yield
+    finally:
+        if old is None:
+            os.environ.pop("RPUD_SOLVER", None)
+        else:
+            os.environ["RPUD_SOLVER"] = old
 
 
 if __name__ == "__main__":

@@ -349,7 +349,8 @@ def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=f".part{path.suffix}", dir=path.parent)
+    # a short prefix: a 255-byte name must not make its temporary name too long to create
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.stem[:40]}.", suffix=f".part{path.suffix[:20]}", dir=path.parent)
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -546,13 +547,13 @@ def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
     path = Path(path)
     if not path.parent.is_dir():
         raise ParameterError("out", str(path), f"parent folder {str(path.parent)!r} does not exist")
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.part-", dir=path.parent))
+    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name[:40]}.part-", dir=path.parent))
     try:
         yield tmp
         old = None
         with _signals_held():
             if path.exists():
-                old = Path(tempfile.mkdtemp(prefix=f".{path.name}.old-", dir=path.parent))
+                old = Path(tempfile.mkdtemp(prefix=f".{path.name[:40]}.old-", dir=path.parent))
                 os.replace(path, old / path.name)
             os.replace(tmp, path)
         if old is not None:

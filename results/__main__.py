@@ -5,7 +5,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from geometry.common import CliParser, ParameterError, run_cli, setup_logging
+from geometry.common import (CliParser, ParameterError, atomic_folder, check_integer, check_output_paths,
+                             check_range, run_cli, setup_logging)
 
 
 def build_parser() -> CliParser:
@@ -24,32 +25,63 @@ def build_parser() -> CliParser:
                    help="mechanical quality factor of the assembled transducer (default 100); 0 = datasheet values")
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")
     p.add_argument("--no-couple", action="store_true", help="do not load the horn tip with the impacts (A0 unloaded)")
-    p.add_argument("--impact-time", type=float, default=1.0, metavar="S",
-                   help="simulated time per impact run, s (default 1)")
-    p.add_argument("--ensemble", type=int, default=8, metavar="N", help="impact runs per free mass (default 8)")
+    p.add_argument("--rel-tol", type=float, default=0.03, metavar="R",
+                   help="impact statistics: add ensemble members until every 95%% CI half-width is within R "
+                        "of its mean (default 0.03)")
+    p.add_argument("--max-members", type=int, default=4096, metavar="N",
+                   help="impact statistics: cap of the members per free mass (default 4096)")
+    p.add_argument("--seed", type=int, default=20260, metavar="N", help="seed of the ensemble members (default 20260)")
     p.add_argument("--no-render", action="store_true", help="skip the mode-shape PNGs and the VTU")
+    p.add_argument("--allow-large", action="store_true",
+                   help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
     p.add_argument("-q", "--quiet", action="store_true", help="no stage progress")
     return p
 
 
+def check_options(args) -> None:
+    """Every numeric option finite and inside its stated range (before anything runs)."""
+    check_range("--voltage", args.voltage, 0.0, 1e4, "V", lo_open=True)
+    if args.q_mech != 0:
+        check_range("--q-mech", args.q_mech, 1.0, 1e6, "(0 = datasheet values)")
+    if args.mesh_size is not None:
+        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    check_range("--rel-tol", args.rel_tol, 0.0, 1.0, lo_open=True)
+    check_integer("--max-members", args.max_members, 1, 1_000_000)
+    check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
+
+
 def main(argv=None) -> int:
     import geometry
+    from geometry.guard import check_budget
 
     from .pipeline import PipelineSettings, run_pipeline
 
     args = build_parser().parse_args(argv)
     setup_logging(-1)
-    if args.q_mech is not None and args.q_mech < 0:
-        raise ParameterError("--q-mech", args.q_mech, "must be > 0 (0 = datasheet values)")
+    check_options(args)
     settings = PipelineSettings(voltage=args.voltage, q_mech=None if args.q_mech == 0 else args.q_mech,
                                 mesh_size=args.mesh_size, match=not args.no_match,
-                                couple_impacts=not args.no_couple, impact_t_end=args.impact_time,
-                                ensemble=args.ensemble, render=not args.no_render)
-    design = geometry.load_design(args.design) if args.design else geometry.default_design()
-    out = Path(args.out) if args.out else Path("results") / ("default" if not args.design else design.name)
+                                couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
+                                impact_max_members=args.max_members, seed=args.seed, render=not args.no_render)
+    design = geometry.load_design(args.design) if args.design is not None else geometry.default_design()
+    if args.out is not None:
+        out = Path(args.out)
+    else:
+        # the default location is ours to create; a user's --out must have an existing parent
+        out = Path("results") / ("default" if args.design is None else design.name)
+        out.parent.mkdir(exist_ok=True)
+    check_output_paths(inputs={"--design": args.design}, folders=("out",), out=out)
+    if args.design is not None and out.exists() and Path(args.design).resolve().is_relative_to(out.resolve()):
+        raise ParameterError("--out", str(out), "holds the input --design; it would be replaced by the results")
+    check_budget(design, args.mesh_size, allow_large=args.allow_large)
     # progress on stdout: stderr carries only the one-line error of a failed run (and tqdm bars)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
-    run_pipeline(design, settings, out, progress=say)
+    # built beside the target and swapped in whole: an interrupted or failed run leaves the
+    # previous results untouched and no temporary folder behind
+    with atomic_folder(out) as tmp:
+        run_pipeline(design, settings, tmp, progress=say)
+    if not args.quiet:
+        print(f"results: {out}", flush=True)
     return 0
 
 
