@@ -84,11 +84,11 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.optimize import brentq
 
 from .params import ImpactParams
 
-__all__ = ["simulate", "ImpactResult", "SimulationError", "CONTACT_TOL", "amplitude_spectrum"]
+__all__ = ["simulate", "window_stats", "ImpactResult", "SimulationError", "CONTACT_TOL",
+           "amplitude_spectrum", "N_STATS"]
 
 log = logging.getLogger(__name__)
 
@@ -97,6 +97,9 @@ CONTACT_TOL = 1e-15
 #: shortest interval bisected in the event search (s)
 _H_MIN = 1e-12
 _XTOL = 2e-16
+_RTOL = 8.9e-16
+#: smallest resolved flight apex after an impact (m): 100 CONTACT_TOL
+_APEX_MIN = 1e-13
 
 FREE, ON_HORN, ON_TOOL = 0, 1, 2
 HORN, TOOL = "horn", "tool"
@@ -110,54 +113,103 @@ class SimulationError(RuntimeError):
 
 
 class _Osc:
-    """Damped oscillator ``v(s) = delta + Re(C exp(lambda s))`` with ``lambda = -al + i be``."""
+    """Free motion of a damped oscillator ``m y'' + c y' + k y = 0``, position ``delta + y(s)``.
 
-    __slots__ = ("delta", "al", "be", "cr", "ci", "dr", "di", "er", "ei", "fr", "fi", "amp", "wn")
+    Every derivative ``z = y^(n)`` solves the same equation, with initial values
+    ``y^(n)(0), y^(n+1)(0)`` from the recursion ``y'' = -2 al y' - wn^2 y``
+    (``al = c / 2m``, ``wn^2 = k / m``). Closed forms, with ``P = z(0)``:
+
+    * underdamped (al < wn, ``be = sqrt(wn^2 - al^2)``):
+      ``z = exp(-al s) (P cos(be s) + Q sin(be s))``, ``Q = (z'(0) + al P) / be``;
+    * critically (al = wn) and over-damped (``gm = sqrt(al^2 - wn^2)``, slow root
+      ``l1 = -al + gm``): ``z = exp(l1 s) (P + Q phi(s))``, ``Q = z'(0) - l1 P``,
+      ``phi = (1 - exp(-2 gm s)) / (2 gm)`` (``= s`` at critical damping): the sum of the two
+      real exponentials written without their cancellation near critical damping.
+
+    ``b0``, ``b2``, ``b4`` bound ``|y|``, ``|y''|``, ``|y''''|`` over all s >= 0 (m, m/s^2,
+    m/s^4); the event search relies on them.
+    """
+
+    __slots__ = ("delta", "kind", "al", "be", "gm", "l1", "P", "Q", "b0", "b2", "b4")
 
     def __init__(self, mass: float, k: float, c: float, delta: float, x0: float, xd0: float):
-        wn = math.sqrt(k / mass)
+        wn2 = k / mass
+        wn = math.sqrt(wn2)
         al = c / (2.0 * mass)
-        be = math.sqrt(wn * wn - al * al)
-        self.delta, self.al, self.be, self.wn = delta, al, be, wn
-        x = x0 - delta
-        cr, ci = x, -(xd0 + al * x) / be
-        lam = complex(-al, be)
-        C = complex(cr, ci)
-        D, E, F = C * lam, C * lam * lam, C * lam ** 3
-        self.cr, self.ci = cr, ci
-        self.dr, self.di = D.real, D.imag
-        self.er, self.ei = E.real, E.imag
-        self.fr, self.fi = F.real, F.imag
-        self.amp = abs(C)
+        y = [x0 - delta, xd0]
+        for _ in range(4):
+            y.append(-2.0 * al * y[-1] - wn2 * y[-2])
+        self.delta, self.al = delta, al
+        P, Q, bnd = [0.0] * 5, [0.0] * 5, [0.0] * 5
+        if al < wn:
+            self.kind = 0
+            be = math.sqrt((wn - al) * (wn + al))
+            self.be, self.gm, self.l1 = be, 0.0, 0.0
+            # exp(-al s)|sin(be s)| <= min(1, be s exp(-al s)) <= min(1, be / (e al)): finite
+            # near critical damping, where |Q| alone grows like 1 / be
+            ks = min(1.0, be / (math.e * al)) if al > 0.0 else 1.0
+            for n in range(5):
+                P[n] = y[n]
+                Q[n] = (y[n + 1] + al * y[n]) / be
+                bnd[n] = min(math.sqrt(P[n] * P[n] + Q[n] * Q[n]), abs(P[n]) + abs(Q[n]) * ks)
+        else:
+            self.kind = 1
+            gm = math.sqrt((al - wn) * (al + wn))
+            l1 = -wn2 / (al + gm)          # = -al + gm, without the cancellation
+            self.be, self.gm, self.l1 = 0.0, gm, l1
+            # exp(l1 s) phi(s) <= min(s exp(l1 s), 1 / (2 gm)) <= min(1 / (e |l1|), 1 / (2 gm))
+            kp = 1.0 / (math.e * -l1)
+            if gm > 0.0:
+                kp = min(kp, 0.5 / gm)
+            for n in range(5):
+                P[n] = y[n]
+                Q[n] = y[n + 1] - l1 * y[n]
+                b = abs(P[n]) + abs(Q[n]) * kp
+                if gm > 0.0:
+                    # two-exponential form (P + Q/2gm) e^{l1 s} - (Q/2gm) e^{(l1 - 2gm) s}
+                    r = Q[n] * (0.5 / gm)
+                    b = min(b, abs(P[n] + r) + abs(r))
+                bnd[n] = b
+        self.P, self.Q = P, Q
+        self.b0, self.b2, self.b4 = bnd[0], bnd[2], bnd[4]
 
     # scalar ---------------------------------------------------------------
+    def _basis(self, s: float) -> tuple[float, float, float]:
+        if self.kind == 0:
+            return math.exp(-self.al * s), math.cos(self.be * s), math.sin(self.be * s)
+        ph = -math.expm1(-2.0 * self.gm * s) / (2.0 * self.gm) if self.gm > 0.0 else s
+        return math.exp(self.l1 * s), 1.0, ph
+
     def pos(self, s: float) -> float:
-        ex = math.exp(-self.al * s)
-        cs, sn = math.cos(self.be * s), math.sin(self.be * s)
-        return self.delta + ex * (self.cr * cs - self.ci * sn)
+        ex, cs, sn = self._basis(s)
+        return self.delta + ex * (self.P[0] * cs + self.Q[0] * sn)
 
     def pv(self, s: float) -> tuple[float, float]:
-        ex = math.exp(-self.al * s)
-        cs, sn = math.cos(self.be * s), math.sin(self.be * s)
-        return (self.delta + ex * (self.cr * cs - self.ci * sn), ex * (self.dr * cs - self.di * sn))
+        ex, cs, sn = self._basis(s)
+        P, Q = self.P, self.Q
+        return self.delta + ex * (P[0] * cs + Q[0] * sn), ex * (P[1] * cs + Q[1] * sn)
 
     def acc_jerk(self, s: float) -> tuple[float, float]:
-        ex = math.exp(-self.al * s)
-        cs, sn = math.cos(self.be * s), math.sin(self.be * s)
-        return ex * (self.er * cs - self.ei * sn), ex * (self.fr * cs - self.fi * sn)
+        ex, cs, sn = self._basis(s)
+        P, Q = self.P, self.Q
+        return ex * (P[2] * cs + Q[2] * sn), ex * (P[3] * cs + Q[3] * sn)
 
     # vector ---------------------------------------------------------------
+    def _basis_vec(self, s: np.ndarray):
+        if self.kind == 0:
+            return np.exp(-self.al * s), np.cos(self.be * s), np.sin(self.be * s)
+        ph = -np.expm1(-2.0 * self.gm * s) / (2.0 * self.gm) if self.gm > 0.0 else s
+        return np.exp(self.l1 * s), 1.0, ph
+
     def pv_vec(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        ex = np.exp(-self.al * s)
-        bs = self.be * s
-        cs, sn = np.cos(bs), np.sin(bs)
-        return self.delta + ex * (self.cr * cs - self.ci * sn), ex * (self.dr * cs - self.di * sn)
+        ex, cs, sn = self._basis_vec(s)
+        P, Q = self.P, self.Q
+        return self.delta + ex * (P[0] * cs + Q[0] * sn), ex * (P[1] * cs + Q[1] * sn)
 
     def acc_jerk_vec(self, s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        ex = np.exp(-self.al * s)
-        bs = self.be * s
-        cs, sn = np.cos(bs), np.sin(bs)
-        return ex * (self.er * cs - self.ei * sn), ex * (self.fr * cs - self.fi * sn)
+        ex, cs, sn = self._basis_vec(s)
+        P, Q = self.P, self.Q
+        return ex * (P[2] * cs + Q[2] * sn), ex * (P[3] * cs + Q[3] * sn)
 
 
 def _safe(fa, fpa, fb, fpb, B, h, tol):
@@ -166,6 +218,45 @@ def _safe(fa, fpa, fb, fpb, B, h, tol):
     return ((np.minimum(fa, fb) - 0.125 * c2 > -tol)
             | ((fa > -tol) & (fa + fpa * h - 0.5 * c2 > -tol))
             | ((fb > -tol) & (fb - fpb * h - 0.5 * c2 > -tol)))
+
+
+def _brent(f, xa: float, xb: float, fa: float, fb: float) -> float:
+    """Root of f in [xa, xb] with f(xa) f(xb) < 0: Brent's method (inverse quadratic /
+    secant steps safeguarded by bisection), to ``_XTOL + _RTOL |x|`` (s). The compiled
+    kernel repeats these exact operations, so both engines return the same bits."""
+    xpre, xcur, fpre, fcur = xa, xb, fa, fb
+    xblk = fblk = spre = scur = 0.0
+    for _ in range(200):
+        if fpre != 0.0 and fcur != 0.0 and (fpre < 0.0) != (fcur < 0.0):
+            xblk, fblk = xpre, fpre
+            spre = scur = xcur - xpre
+        if abs(fblk) < abs(fcur):
+            xpre, xcur, xblk = xcur, xblk, xcur
+            fpre, fcur, fblk = fcur, fblk, fcur
+        delta = 0.5 * (_XTOL + _RTOL * abs(xcur))
+        sbis = 0.5 * (xblk - xcur)
+        if fcur == 0.0 or abs(sbis) < delta:
+            return xcur
+        if abs(spre) > delta and abs(fcur) < abs(fpre):
+            if xpre == xblk:
+                stry = -fcur * (xcur - xpre) / (fcur - fpre)
+            else:
+                dpre = (fpre - fcur) / (xpre - xcur)
+                dblk = (fblk - fcur) / (xblk - xcur)
+                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
+                spre, scur = scur, stry
+            else:
+                spre = scur = sbis
+        else:
+            spre = scur = sbis
+        xpre, fpre = xcur, fcur
+        if abs(scur) > delta:
+            xcur += scur
+        else:
+            xcur += delta if sbis > 0.0 else -delta
+        fcur = f(xcur)[0]
+    return xcur
 
 
 def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
@@ -177,7 +268,7 @@ def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
             # the root of f itself (not f + tol): no systematic shift of the contact position
             if fa <= 0.0:
                 return a
-            return brentq(lambda t: sca(t)[0], a, b, xtol=_XTOL, rtol=8.9e-16)
+            return _brent(sca, a, b, fa, fb)
     else:
         c2 = B * h * h
         if (min(fa, fb) - 0.125 * c2 > -tol or fa + fpa * h - 0.5 * c2 > -tol
@@ -191,28 +282,51 @@ def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
     return _refine(sca, m, b, fm, fpm, fb, fpb, B, tol)
 
 
+def _sticks(rel: float, push: float, v_stick: float) -> bool:
+    """Sticking rule after an impact.
+
+    Parameters
+    ----------
+    rel : float
+        Relative separation speed just after the impact, m/s.
+    push : float
+        Relative acceleration that drives the bodies together, m/s^2 (> 0: compressive).
+    v_stick : float
+        Sticking threshold of the relative speed, m/s.
+    """
+    if push <= 0.0:
+        return False
+    # A flight whose apex rel^2 / (2 push) stays below _APEX_MIN cannot be resolved against
+    # CONTACT_TOL: its re-impact is found late, with an approach speed ~sqrt(2 push tol) that
+    # can exceed the departure speed, and the chattering never ends (a Zeno loop of
+    # ~1e-10 s flights). It is the tail of a chattering sequence: stick now.
+    return rel < v_stick or rel * rel < 2.0 * push * _APEX_MIN
+
+
 def _parabola_reach(p0: float, p1: float, acc: float) -> float:
     """Smallest s >= 0 with p0 + p1 s + acc s^2/2 <= 0 (inf if never); p0 > 0 expected."""
     if p0 <= 0.0:
         return 0.0
-    roots = []
+    r = math.inf
     if acc == 0.0:
         if p1 < 0.0:
-            roots.append(-p0 / p1)
+            r = -p0 / p1
     else:
         disc = p1 * p1 - 2.0 * acc * p0
         if disc >= 0.0:
             sq = math.sqrt(disc)
             # numerically stable pair of roots of (acc/2) s^2 + p1 s + p0
             q = -(p1 + math.copysign(sq, p1))
-            cand = [q / acc] if q != 0.0 else []
             if q != 0.0:
-                cand.append(2.0 * p0 / q)
-            roots = [r for r in cand if r >= 0.0]
-    if not roots:
-        return math.inf
+                r1, r2 = q / acc, 2.0 * p0 / q
+                if r1 >= 0.0:
+                    r = r1
+                if r2 >= 0.0 and r2 < r:
+                    r = r2
+    if r == math.inf:
+        return r
     # a little early on purpose: the grid search starts before the zone is reached
-    return max(0.0, min(roots) * (1.0 - 1e-9) - 1e-12)
+    return max(0.0, r * (1.0 - 1e-9) - 1e-12)
 
 
 def _parabola_leave(p0: float, p1: float, acc: float) -> float:
@@ -254,15 +368,22 @@ def _tool_horn_gap(osc, t0: float, L0: float, A0: float, om: float):
     return g_vec, g_sca
 
 
-def _grid_step(B: float, t_end: float) -> float:
-    # Chord bound B h^2/8 = 0.1 µm: far from contact every interval is cleared at once.
+def _grid_step(B: float, t_end: float, fscale: float = 1e-7) -> float:
+    """Grid step whose chord bound B h^2/8 is ``fscale`` (unit of f): far from a root every
+    interval is cleared at once. Gaps use 0.1 µm; the release function (an acceleration)
+    uses a fraction of its own size, else the bound |v''''| of a stiff tool forces ns steps."""
     if B <= 0.0:
         return t_end
-    return min(math.sqrt(8.0 * 1e-7 / B), 1e-3)
+    return min(math.sqrt(8.0 * fscale / B), 1e-3)
 
 
 def _first_event(fns: list[_Fn], t_hi: float) -> tuple[float | None, str | None]:
-    """Earliest root over several contact functions in their [start, t_hi]."""
+    """Earliest root over several contact functions in their [start, t_hi].
+
+    The vectorised values only screen the grid; every interval that is not cleared is
+    re-evaluated with the scalar function (the compiled kernel uses scalars throughout, and
+    numpy's vector exp/cos may differ from libm in the last bit).
+    """
     best_t, best_name = None, None
     for fn in fns:
         lo = fn.start
@@ -270,32 +391,39 @@ def _first_event(fns: list[_Fn], t_hi: float) -> tuple[float | None, str | None]
         if lo >= hi:
             continue
         h = fn.h
+        sca = fn.sca
         # chunks grow geometrically: short right after an event, long in mid-flight
         n = 32
         a = lo
+        found = None
         while a < hi:
             b = min(a + n * h, hi)
             k = max(1, int(math.ceil((b - a) / h)))
-            tg = np.linspace(a, b, k + 1)
+            hh = (b - a) / k
+            tg = a + np.arange(k + 1) * hh
+            tg[k] = b
             f, fp = fn.vec(tg)
-            if f[0] <= -CONTACT_TOL:
-                if fp[0] < 0.0:
-                    best_t, best_name = a, fn.name
-                    break
-            ok = _safe(f[:-1], fp[:-1], f[1:], fp[1:], fn.B, (b - a) / k, CONTACT_TOL)
-            found = None
+            f0, fp0 = sca(a)
+            if f0 <= -CONTACT_TOL and fp0 < 0.0:
+                found = a
+                break
+            ok = _safe(f[:-1], fp[:-1], f[1:], fp[1:], fn.B, hh, CONTACT_TOL)
             if not ok.all():
                 for i in np.flatnonzero(~ok):
-                    r = _refine(fn.sca, tg[i], tg[i + 1], f[i], fp[i], f[i + 1], fp[i + 1],
-                                fn.B, CONTACT_TOL)
+                    fa, fpa = sca(tg[i])
+                    fb, fpb = sca(tg[i + 1])
+                    if _safe(fa, fpa, fb, fpb, fn.B, hh, CONTACT_TOL):
+                        continue
+                    r = _refine(sca, tg[i], tg[i + 1], fa, fpa, fb, fpb, fn.B, CONTACT_TOL)
                     if r is not None:
                         found = r
                         break
             if found is not None:
-                best_t, best_name = found, fn.name
                 break
             a = b
             n = min(n * 2, 4096)
+        if found is not None:
+            best_t, best_name = found, fn.name
     return best_t, best_name
 
 
@@ -341,7 +469,8 @@ class ImpactResult:
     energy of free mass + tool after the event, J: kinetic + tool spring - m_w a w),
     ``horn_work`` (cumulative work done by the horn up to and including the event, J).
 
-    ``stick`` lists (t_start, t_end, body) of sticking phases. ``t_grid`` (s), ``u``, ``w``
+    ``stick`` lists (t_start, t_end, body) of sticking phases. ``n_events`` counts impacts and
+    releases (the solver's events). ``t_grid`` (s), ``u``, ``w``
     and ``tool_face`` (m) are the horn tip, free mass and tool face positions on a uniform grid.
     """
 
@@ -357,6 +486,7 @@ class ImpactResult:
     horn_work: np.ndarray
     energy0: float
     stick: list = field(default_factory=list)
+    n_events: int = 0
     t_grid: np.ndarray | None = None
     u: np.ndarray | None = None
     w: np.ndarray | None = None
@@ -429,13 +559,16 @@ class ImpactResult:
 
 
 class _Sim:
+    """The readable reference implementation; :mod:`impact.kernel` compiles the same steps."""
+
     def __init__(self, p: ImpactParams):
         self.p = p
         self.om = p.omega
+        self.om2 = self.om * self.om
         self.A0 = p.A0
         self.a = p.a_free
         self.L0 = p.gap
-        self.Bh = abs(self.a) + p.A0 * self.om ** 2
+        self.Bh = abs(self.a) + p.A0 * self.om2
         self.M = p.m_tool + p.m_free
 
     # horn ------------------------------------------------------------------
@@ -444,13 +577,13 @@ class _Sim:
         return self.A0 * math.cos(ph), -self.A0 * self.om * math.sin(ph)
 
     def horn_acc(self, t):
-        return -self.A0 * self.om ** 2 * math.cos(self.om * t)
+        return -self.A0 * self.om2 * math.cos(self.om * t)
 
     def _next_cross(self, t0: float, up: bool) -> float:
         """Next t > t0 where f = u'' - a crosses zero upward (up) or downward."""
         if self.A0 == 0.0:
             return math.inf
-        cstar = -self.a / (self.A0 * self.om ** 2)
+        cstar = -self.a / (self.A0 * self.om2)
         if abs(cstar) >= 1.0:
             return math.inf
         th = math.acos(cstar) if up else 2.0 * math.pi - math.acos(cstar)
@@ -467,7 +600,9 @@ class _Sim:
         return 0.5 * p.m_free * wd * wd - p.m_free * self.a * w + 0.5 * p.m_tool * vd * vd + 0.5 * p.k0 * v * v
 
     # main loop -------------------------------------------------------------
-    def run(self, series: bool) -> ImpactResult:
+    def run(self) -> tuple[ImpactResult, tuple]:
+        """Simulate; return the result (no time series) and the segment starts
+        ``(t0, mode, w0, wd0, v0, vd0)`` that :func:`_series` samples."""
         p = self.p
         A0, om, a, L0 = self.A0, self.om, self.a, self.L0
         t = 0.0
@@ -481,7 +616,7 @@ class _Sim:
         E0 = self.energy(w, wd, v, vd)
         work = 0.0
         ev = {k: [] for k in ("t", "contact", "x", "wb", "wa", "vb", "va", "E", "W")}
-        segs = []  # (t0, mode, w0, wd0, osc)
+        segs = []  # (t0, mode, w0, wd0, v0, vd0)
         stick = []
         stick_start = None
         stick_E = 0.0
@@ -492,9 +627,9 @@ class _Sim:
                 osc = _Osc(self.M, p.k0, p.c, p.m_free * a / p.k0, v, vd)
             else:
                 osc = _Osc(p.m_tool, p.k0, p.c, 0.0, v, vd)
-            segs.append((t, mode, w, wd, osc))
+            segs.append((t, mode, w, wd, v, vd))
             t0, w0, wd0 = t, w, wd
-            Bv = osc.amp * osc.wn ** 2   # bound on |v''|
+            Bv = osc.b2   # bound on |v''|
             fns = []
             if mode == FREE:
                 def h_vec(tg, t0=t0, w0=w0, wd0=wd0):
@@ -520,24 +655,24 @@ class _Sim:
                     return L0 + vv - (w0 + s * (wd0 + 0.5 * a * s)), vvd - (wd0 + a * s)
 
                 Bt = Bv + abs(a)
-                # g_h >= w - A0 and g_t >= L0 - |C| - w: no contact before the parabola w(s)
+                # g_h >= w - A0 and g_t >= L0 - |v| - w: no contact before the parabola w(s)
                 # comes within 1 nm of these bounds (found analytically)
                 zone_h = t0 + _parabola_reach(w0 - A0 - 1e-9, wd0, a)
-                zone_t = t0 + _parabola_reach(L0 - osc.amp - 1e-9 - w0, -wd0, -a)
+                zone_t = t0 + _parabola_reach(L0 - osc.b0 - 1e-9 - w0, -wd0, -a)
                 if zone_h < math.inf:
                     fns.append(_Fn(HORN, h_vec, h_sca, self.Bh, max(t0, skip_h, zone_h),
                                    _grid_step(self.Bh, t_end),
                                    t0 + _parabola_leave(w0 - A0 - 1e-9, wd0, a)))
                 if zone_t < math.inf:
                     fns.append(_Fn(TOOL, t_vec, t_sca, Bt, max(t0, skip_t, zone_t), _grid_step(Bt, t_end),
-                                   t0 + _parabola_leave(L0 - osc.amp - 1e-9 - w0, -wd0, -a)))
+                                   t0 + _parabola_leave(L0 - osc.b0 - 1e-9 - w0, -wd0, -a)))
                 t_rel = math.inf
             elif mode == ON_HORN:
                 g_vec, g_sca = _tool_horn_gap(osc, t0, L0, A0, om)
 
-                B = Bv + A0 * om ** 2
-                # |v| <= |C| and |u| <= A0: a tool face this far away cannot reach the horn
-                if L0 - osc.amp - A0 <= 0.0:
+                B = Bv + A0 * self.om2
+                # |v| <= b0 and |u| <= A0: a tool face this far away cannot reach the horn
+                if L0 - osc.b0 - A0 <= 0.0:
                     fns.append(_Fn("pinch", g_vec, g_sca, B, max(t0, skip_t), _grid_step(B, t_end)))
                 t_rel = self._next_cross(t0, up=False)
             else:  # ON_TOOL: contact force a - v'' >= 0 ends the stick; horn gap pinches
@@ -551,14 +686,16 @@ class _Sim:
 
                 g_vec, g_sca = _tool_horn_gap(osc, t0, L0, A0, om)
 
-                Br = osc.amp * osc.wn ** 4
-                B = Bv + A0 * om ** 2
-                # the release function is a force per mass: its tolerance is an acceleration
-                # bounds |v - delta| <= |C|, |v''| <= |C| wn^2 rule out pinch / release at once
-                if L0 + osc.delta - osc.amp - A0 <= 0.0:
+                Br = osc.b4
+                B = Bv + A0 * self.om2
+                # bounds |v - delta| <= b0, |v''| <= b2 rule out pinch / release at once
+                if L0 + osc.delta - osc.b0 - A0 <= 0.0:
                     fns.append(_Fn("pinch", g_vec, g_sca, B, t0, _grid_step(B, t_end)))
-                if osc.amp * osc.wn ** 2 >= a:
-                    fns.append(_Fn("release", r_vec, r_sca, Br, t0, _grid_step(Br, t_end)))
+                if osc.b2 >= a:
+                    # the release function is a force per mass: its grid and tolerance are
+                    # accelerations
+                    fns.append(_Fn("release", r_vec, r_sca, Br, t0,
+                                   _grid_step(Br, t_end, 1e-3 * (abs(a) + osc.b2))))
                 t_rel = math.inf
 
             te, name = _first_event(fns, min(t_end, t_rel))
@@ -567,9 +704,7 @@ class _Sim:
             if te is None:
                 break
             if name == "pinch":
-                raise SimulationError(
-                    f"free mass pinched between horn and tool at t = {te:.9g} s: the tool swings "
-                    f"back to the horn; increase gap or k0")
+                raise SimulationError(_pinch_message(te))
             n_ev += 1
             if n_ev > p.max_events:
                 raise SimulationError(f"more than max_events = {p.max_events} events by t = {te:.9g} s")
@@ -585,9 +720,7 @@ class _Sim:
                 w, wd = L0 + v, vd
             t = te
             if L0 + v <= 2.0 * A0:
-                raise SimulationError(
-                    f"the tool face swings back into the horn's stroke at t = {te:.9g} s "
-                    f"(tool face at {L0 + v:.3g} m): the free mass is pinched; increase gap or k0")
+                raise SimulationError(_pinch_message(te))
             if name == "release":
                 if mode == ON_HORN:
                     # the horn did the work that moved the stuck mass
@@ -608,9 +741,13 @@ class _Sim:
                 else:
                     mu = p.m_horn / (p.m_horn + p.m_free)
                     wa = wd - mu * (1.0 + p.e2) * rel_in
+                    if wa < uhd:
+                        # eq. 21 leaves the mass still approaching the horn: close the rest of
+                        # the approach plastically instead of interpenetrating
+                        wa = uhd
                 work += p.m_free * (wa - wd) * uhd
                 wb = wd
-                if wa - uhd < p.v_stick and self.horn_acc(te) > a:
+                if _sticks(wa - uhd, self.horn_acc(te) - a, p.v_stick):
                     wa = uhd
                     mode = ON_HORN
                     stick_start = te
@@ -632,12 +769,12 @@ class _Sim:
                 va = vd + p.m_free / M * (1.0 + p.e1) * rel
                 wa = wd - p.m_tool / M * (1.0 + p.e1) * rel
                 acc_tool = -(p.c * va + p.k0 * v) / p.m_tool
-                if va - wa < p.v_stick and a > acc_tool:
+                if _sticks(va - wa, a - acc_tool, p.v_stick):
                     va = wa = (p.m_tool * vd + p.m_free * wd) / M
                     mode = ON_TOOL
                     stick_start = te
                 else:
-                    skip_t = te + 2.0 * (va - wa) / (abs(a) + _Osc(p.m_tool, p.k0, p.c, 0.0, v, va).amp * math.sqrt(p.k0 / p.m_tool) ** 2)
+                    skip_t = te + 2.0 * (va - wa) / (abs(a) + _Osc(p.m_tool, p.k0, p.c, 0.0, v, va).b2)
                     skip_h = te
                 w, wd, vd = x, wa, va
             ev["t"].append(te)
@@ -652,41 +789,124 @@ class _Sim:
         if stick_start is not None and mode != FREE:
             stick.append((stick_start, p.t_end, "horn" if mode == ON_HORN else "tool"))
         res = ImpactResult(
-            params=p, t=np.array(ev["t"]), contact=np.array(ev["contact"], dtype="<U4"),
-            x=np.array(ev["x"]), w_before=np.array(ev["wb"]), w_after=np.array(ev["wa"]),
-            v_before=np.array(ev["vb"]), v_after=np.array(ev["va"]), energy=np.array(ev["E"]),
-            horn_work=np.array(ev["W"]), energy0=E0, stick=stick)
-        if series:
-            self._series(res, segs)
-        return res
-
-    def _series(self, res: ImpactResult, segs) -> None:
-        p = self.p
-        n = int(math.floor(p.t_end / p.sample_dt + 1e-9)) + 1
-        tg = np.arange(n) * p.sample_dt
-        u = self.A0 * np.cos(self.om * tg)
-        w = np.empty(n)
-        face = np.empty(n)
-        starts = np.array([sg[0] for sg in segs])
-        idx = np.searchsorted(tg, starts, side="left")
-        idx = np.append(idx, n)
-        for j, (t0, mode, w0, wd0, osc) in enumerate(segs):
-            i0, i1 = idx[j], idx[j + 1]
-            if i1 <= i0:
-                continue
-            s = tg[i0:i1] - t0
-            vv, _ = osc.pv_vec(s)
-            face[i0:i1] = self.L0 + vv
-            if mode == FREE:
-                w[i0:i1] = w0 + s * (wd0 + 0.5 * self.a * s)
-            elif mode == ON_HORN:
-                w[i0:i1] = u[i0:i1]
-            else:
-                w[i0:i1] = self.L0 + vv
-        res.t_grid, res.u, res.w, res.tool_face = tg, u, w, face
+            params=p, t=np.array(ev["t"], dtype=float), contact=np.array(ev["contact"], dtype="<U4"),
+            x=np.array(ev["x"], dtype=float), w_before=np.array(ev["wb"], dtype=float),
+            w_after=np.array(ev["wa"], dtype=float), v_before=np.array(ev["vb"], dtype=float),
+            v_after=np.array(ev["va"], dtype=float), energy=np.array(ev["E"], dtype=float),
+            horn_work=np.array(ev["W"], dtype=float), energy0=E0, stick=stick, n_events=n_ev)
+        seg = tuple(np.array([sg[j] for sg in segs], dtype=np.int8 if j == 1 else float) for j in range(6))
+        return res, seg
 
 
-def simulate(params: ImpactParams | None = None, *, series: bool = True) -> ImpactResult:
+def _pinch_message(te: float) -> str:
+    return (f"free mass pinched between horn and tool at t = {te:.9g} s: the tool face swings "
+            f"back into the horn's stroke; increase gap or k0")
+
+
+def _series(res: ImpactResult, seg) -> None:
+    """Sample horn, free mass and tool face on the uniform grid ``sample_dt`` from the
+    segment starts ``(t0, mode, w0, wd0, v0, vd0)`` (analytic motion within each segment)."""
+    p = res.params
+    a, L0, A0, om = p.a_free, p.gap, p.A0, p.omega
+    M = p.m_tool + p.m_free
+    n = int(math.floor(p.t_end / p.sample_dt + 1e-9)) + 1
+    tg = np.arange(n) * p.sample_dt
+    u = A0 * np.cos(om * tg)
+    w = np.empty(n)
+    face = np.empty(n)
+    seg_t0, seg_mode, seg_w0, seg_wd0, seg_v0, seg_vd0 = seg
+    idx = np.searchsorted(tg, seg_t0, side="left")
+    idx = np.append(idx, n)
+    for j in range(seg_t0.size):
+        i0, i1 = idx[j], idx[j + 1]
+        if i1 <= i0:
+            continue
+        t0, mode = float(seg_t0[j]), int(seg_mode[j])
+        if mode == ON_TOOL:
+            osc = _Osc(M, p.k0, p.c, p.m_free * a / p.k0, float(seg_v0[j]), float(seg_vd0[j]))
+        else:
+            osc = _Osc(p.m_tool, p.k0, p.c, 0.0, float(seg_v0[j]), float(seg_vd0[j]))
+        s = tg[i0:i1] - t0
+        vv, _ = osc.pv_vec(s)
+        face[i0:i1] = L0 + vv
+        if mode == FREE:
+            w[i0:i1] = seg_w0[j] + s * (seg_wd0[j] + 0.5 * a * s)
+        elif mode == ON_HORN:
+            w[i0:i1] = u[i0:i1]
+        else:
+            w[i0:i1] = L0 + vv
+    res.t_grid, res.u, res.w, res.tool_face = tg, u, w, face
+
+
+def _run_kernel(p: ImpactParams) -> tuple[ImpactResult, tuple]:
+    from . import kernel   # numba is imported (and the kernel compiled) on first use only
+
+    out = kernel.run_events(kernel.pack(p), p.t_end, p.max_events)
+    (t, kind, x, wb, wa, vb, va, en, work, st0, st1, sbody,
+     s_t0, s_mode, s_w0, s_wd0, s_v0, s_vd0, E0, status, t_status, n_ev) = out
+    if status == kernel.STATUS_PINCHED:
+        raise SimulationError(_pinch_message(t_status))
+    if status == kernel.STATUS_MAX_EVENTS:
+        raise SimulationError(f"more than max_events = {p.max_events} events by t = {t_status:.9g} s")
+    contact = np.where(kind == kernel.KIND_TOOL, TOOL, HORN).astype("<U4")
+    stick = [(float(a), float(b), "tool" if body == kernel.BODY_TOOL else "horn")
+             for a, b, body in zip(st0, st1, sbody)]
+    res = ImpactResult(params=p, t=t, contact=contact, x=x, w_before=wb, w_after=wa,
+                       v_before=vb, v_after=va, energy=en, horn_work=work, energy0=float(E0),
+                       stick=stick, n_events=int(n_ev))
+    return res, (s_t0, s_mode, s_w0, s_wd0, s_v0, s_vd0)
+
+
+#: columns of :func:`window_stats` and :func:`impact.kernel.ensemble_stats`
+S_N_TOOL, S_N_HORN, S_KE_AFTER, S_KE_GAIN, S_HORN_WORK, S_T_ON_HORN, S_T_ON_TOOL, S_STATUS, \
+    S_N_EVENTS = range(9)
+N_STATS = 9
+
+
+def window_stats(result: ImpactResult, t_from: float, t_end: float) -> np.ndarray:
+    """Statistics of one run over the window ``[t_from, t_end]`` (pure Python).
+
+    Parameters
+    ----------
+    result : ImpactResult
+        A finished simulation.
+    t_from, t_end : float
+        Window, s.
+
+    Returns
+    -------
+    ndarray, shape (N_STATS,)
+        Columns ``S_N_TOOL``, ``S_N_HORN`` (impacts with t_from <= t <= t_end), ``S_KE_AFTER``
+        (sum of 0.5 m_tool v_after^2 over those tool impacts, J), ``S_KE_GAIN`` (sum of
+        0.5 m_tool (v_after^2 - v_before^2), J), ``S_HORN_WORK`` (cumulative horn work at the
+        last impact <= t_end minus that at the last impact < t_from, J), ``S_T_ON_HORN``,
+        ``S_T_ON_TOOL`` (sticking time clipped to the window, s), ``S_STATUS`` (0: a finished
+        run) and ``S_N_EVENTS`` (impacts and releases of the whole run).
+    """
+    r = result
+    m_tool = r.params.m_tool
+    out = np.zeros(N_STATS)
+    inw = (r.t >= t_from) & (r.t <= t_end)
+    tool = inw & r.is_tool
+    out[S_N_TOOL] = np.count_nonzero(tool)
+    out[S_N_HORN] = np.count_nonzero(inw & ~r.is_tool)
+    out[S_KE_AFTER] = float(np.sum(0.5 * m_tool * r.v_after[tool] ** 2))
+    out[S_KE_GAIN] = float(np.sum(0.5 * m_tool * (r.v_after[tool] ** 2 - r.v_before[tool] ** 2)))
+    i_end = np.searchsorted(r.t, t_end, side="right") - 1
+    i_from = np.searchsorted(r.t, t_from, side="left") - 1
+    w_end = r.horn_work[i_end] if i_end >= 0 else 0.0
+    w_from = r.horn_work[i_from] if i_from >= 0 else 0.0
+    out[S_HORN_WORK] = w_end - w_from
+    for s0, s1, body in r.stick:
+        d = max(0.0, min(s1, t_end) - max(s0, t_from))
+        out[S_T_ON_HORN if body == "horn" else S_T_ON_TOOL] += d
+    out[S_STATUS] = 0.0
+    out[S_N_EVENTS] = r.n_events
+    return out
+
+
+def simulate(params: ImpactParams | None = None, *, series: bool = True,
+             engine: str = "kernel") -> ImpactResult:
     """Run the event-driven impact model.
 
     Parameters
@@ -696,14 +916,31 @@ def simulate(params: ImpactParams | None = None, *, series: bool = True) -> Impa
         ``A0`` (m) and ``freq`` (Hz) from the FE model via ``params.with_(A0=..., freq=...)``.
     series : bool
         Also sample horn, free mass and tool face positions on the uniform grid ``sample_dt``.
+    engine : {"kernel", "python"}
+        "kernel": the compiled :mod:`impact.kernel` (numba; compiled on first use and cached
+        on disk). "python": the reference implementation in this module. Both run the same
+        algorithm and return the same events.
 
     Returns
     -------
     ImpactResult
+
+    Raises
+    ------
+    SimulationError
+        Pinched free mass (the message names the parameters to change) or more than
+        ``params.max_events`` events.
     """
     p = params if params is not None else ImpactParams()
-    res = _Sim(p).run(series)
-    log.info("simulated %.4g s: %d tool impacts (%.1f Hz), %d horn impacts, mean tool KE %.3g J",
-             p.t_end, res.tool_impacts, res.tool_impact_rate_hz, res.horn_impacts,
+    if engine == "kernel":
+        res, seg = _run_kernel(p)
+    elif engine == "python":
+        res, seg = _Sim(p).run()
+    else:
+        raise ValueError(f"engine = {engine!r}: must be 'kernel' or 'python'")
+    if series:
+        _series(res, seg)
+    log.info("simulated %.4g s (%s): %d tool impacts (%.1f Hz), %d horn impacts, mean tool KE %.3g J",
+             p.t_end, engine, res.tool_impacts, res.tool_impact_rate_hz, res.horn_impacts,
              res.mean_tool_ke_after_impact_j)
     return res

@@ -14,7 +14,8 @@ from impact.reference import simulate_ivp
 
 def ball(e, v0=1.0, t_end=1.0):
     """Fixed table: A0 = 0 horn, gravity toward it (g < 0), tool out of reach."""
-    return ImpactParams(A0=0.0, e2=e, g=-9.81, v0=v0, gap=100.0, t_end=t_end, k0=1e3, c=0.0)
+    return ImpactParams(A0=0.0, e2=e, g=-9.81, v0=v0, gap=1.0, t_end=t_end, k0=1e3, c=0.0,
+                        sample_dt=1e-4)
 
 
 def test_bouncing_ball_flight_times_heights_energy():
@@ -44,7 +45,7 @@ def test_bouncing_ball_chattering_terminates_by_sticking():
 
 
 def test_bouncing_ball_elastic_conserves_energy_1000_impacts():
-    r = simulate(ball(1.0, v0=0.5, t_end=1000 * 2 * 0.5 / 9.81 + 0.01), series=False)
+    r = simulate(ball(1.0, v0=0.4, t_end=1000 * 2 * 0.4 / 9.81 + 0.01), series=False)
     assert r.horn_impacts >= 1000
     # mechanical energy after every impact equals the initial one to 1e-12 relative
     np.testing.assert_allclose(r.energy[:1000], r.energy0, rtol=1e-12, atol=0)
@@ -97,7 +98,7 @@ def test_properties(m_free, A0, e1, e2, gap, v0, g):
 
 @pytest.mark.parametrize("field,value", [("m_free", -0.001), ("m_tool", 0.0), ("e1", 1.2), ("e2", -0.1),
                                          ("A0", -1e-6), ("freq", 0.0), ("t_end", 0.0), ("gap", 0.0),
-                                         ("k0", -1.0), ("c", 1e6), ("v0", -1.0)])
+                                         ("k0", -1.0), ("c", 2e6), ("v0", -1.0)])
 def test_bad_input_names_the_field(field, value):
     with pytest.raises(ParameterError, match=rf"^{field} = "):
         ImpactParams(**{field: value})
