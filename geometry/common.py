@@ -584,7 +584,7 @@ class CliParser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose usage errors are one line on stderr and exit code 2."""
 
     def error(self, message: str) -> typing.NoReturn:  # noqa: D401 - argparse API
-        sys.stderr.write(f"{self.prog}: error: {message}\n")
+        sys.stderr.write(_one_line(f"{self.prog}: error: {message}") + "\n")
         raise SystemExit(2)
 
 
