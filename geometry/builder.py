@@ -16,6 +16,7 @@ from __future__ import annotations
 import logging
 import math
 import os
+import signal
 import threading
 import time
 from dataclasses import dataclass, field
@@ -385,8 +386,21 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         raise ParameterError("design", getattr(design, "name", design),
                              "an abandoned Gmsh run is still going in this process; start a new one")
     box: dict[str, Any] = {}
+    import gmsh
+
+    # Gmsh's initialisation installs its own native signal handlers (SIGTERM would kill the
+    # process outright): initialise here, in the main thread, and re-install Python's
+    gmsh.initialize(readConfigFiles=False, interruptible=False)
+    if threading.current_thread() is threading.main_thread():
+        for sig in (signal.SIGINT, signal.SIGTERM):
+            handler = signal.getsignal(sig)
+            if handler is not None:
+                signal.signal(sig, handler)
 
     def work():
+        # signals go to the waiting main thread only: delivered inside Gmsh's native code they
+        # corrupt its state
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
                                    msh_path)
@@ -454,9 +468,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
-    # not interruptible: Gmsh would set SIGINT to SIG_DFL (death by the signal); the waiting main
-    # thread handles signals instead
-    gmsh.initialize(readConfigFiles=False, interruptible=False)
+    # initialised by build() in the main thread (not interruptible: Gmsh would set SIGINT to
+    # SIG_DFL, death by the signal; the waiting main thread handles signals instead)
     try:
         gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
         gmsh.option.setNumber("General.Verbosity", 5 if verbose else 1)
