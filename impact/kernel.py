@@ -98,11 +98,14 @@ def _osc_make(o, mass, k, c, delta, x0, xd0):
     wn2 = k / mass
     wn = math.sqrt(wn2)
     al = c / (2.0 * mass)
-    y = np.empty(6)
-    y[0] = x0 - delta
-    y[1] = xd0
-    for n in range(2, 6):
-        y[n] = -2.0 * al * y[n - 1] - wn2 * y[n - 2]
+    # derivatives 0..5 at s = 0 from the equation of motion (no heap array: hot path)
+    y0 = x0 - delta
+    y1 = xd0
+    y2 = -2.0 * al * y1 - wn2 * y0
+    y3 = -2.0 * al * y2 - wn2 * y1
+    y4 = -2.0 * al * y3 - wn2 * y2
+    y5 = -2.0 * al * y4 - wn2 * y3
+    y = (y0, y1, y2, y3, y4, y5)
     o[_O_DELTA] = delta
     o[_O_AL] = al
     if al < wn:

@@ -703,6 +703,7 @@ class _Sim:
                 te, name = t_rel, "release"
             if te is None:
                 break
+            te = float(te)
             if name == "pinch":
                 raise SimulationError(_pinch_message(te))
             n_ev += 1

@@ -18,9 +18,13 @@ def ball(e, v0=1.0, t_end=1.0):
                         sample_dt=1e-4)
 
 
-def test_bouncing_ball_flight_times_heights_energy():
+ENGINES = pytest.mark.parametrize("engine", ["kernel", "python"])
+
+
+@ENGINES
+def test_bouncing_ball_flight_times_heights_energy(engine):
     e = 0.8
-    r = simulate(ball(e, t_end=1.0), series=False)
+    r = simulate(ball(e, t_end=1.0), series=False, engine=engine)
     assert r.horn_impacts >= 8 and r.tool_impacts == 0
     t = np.concatenate([[0.0], r.t])
     flights = np.diff(t)[:8]
@@ -34,9 +38,10 @@ def test_bouncing_ball_flight_times_heights_energy():
     np.testing.assert_allclose((ke_b - ke_a) / ke_b, 1 - e ** 2, rtol=1e-9)
 
 
-def test_bouncing_ball_chattering_terminates_by_sticking():
+@ENGINES
+def test_bouncing_ball_chattering_terminates_by_sticking(engine):
     e = 0.5
-    r = simulate(ball(e, t_end=2.0), series=False)
+    r = simulate(ball(e, t_end=2.0), series=False, engine=engine)
     # relative speed falls by e per impact until below v_stick = 1e-6 m/s: ~log(1e-6)/log(0.5)
     assert r.horn_impacts <= math.ceil(math.log(1e-6) / math.log(e)) + 2
     assert len(r.stick) == 1 and r.stick[0][2] == "horn" and r.stick[0][1] == 2.0
@@ -44,16 +49,18 @@ def test_bouncing_ball_chattering_terminates_by_sticking():
     assert r.stick[0][0] == pytest.approx(2 * 1.0 / (9.81 * (1 - e)), rel=1e-5)
 
 
-def test_bouncing_ball_elastic_conserves_energy_1000_impacts():
-    r = simulate(ball(1.0, v0=0.4, t_end=1000 * 2 * 0.4 / 9.81 + 0.01), series=False)
+@ENGINES
+def test_bouncing_ball_elastic_conserves_energy_1000_impacts(engine):
+    r = simulate(ball(1.0, v0=0.4, t_end=1000 * 2 * 0.4 / 9.81 + 0.01), series=False, engine=engine)
     assert r.horn_impacts >= 1000
     # mechanical energy after every impact equals the initial one to 1e-12 relative
     np.testing.assert_allclose(r.energy[:1000], r.energy0, rtol=1e-12, atol=0)
 
 
-def test_two_body_tool_impact_momentum_and_restitution():
+@ENGINES
+def test_two_body_tool_impact_momentum_and_restitution(engine):
     p = ImpactParams()
-    r = simulate(p, series=False)
+    r = simulate(p, series=False, engine=engine)
     it = r.is_tool
     assert it.sum() > 10
     mom_b = p.m_free * r.w_before[it] + p.m_tool * r.v_before[it]
@@ -69,9 +76,10 @@ def test_two_body_tool_impact_momentum_and_restitution():
 
 
 @pytest.mark.parametrize("changes", [{}, {"g": 0.0, "v0": 2.0}, {"horn_law": "article", "m_free": 0.004}])
-def test_cross_check_against_solve_ivp(changes):
+@ENGINES
+def test_cross_check_against_solve_ivp(changes, engine):
     p = ImpactParams(**changes)
-    r = simulate(p, series=False)
+    r = simulate(p, series=False, engine=engine)
     n = 5   # chaotic: differences grow ~10-30x per impact, compare the first few only
     ref = simulate_ivp(p, max_events=n)
     assert list(r.contact[:n]) == ref["contact"]
@@ -102,6 +110,32 @@ def test_properties(m_free, A0, e1, e2, gap, v0, g):
 def test_bad_input_names_the_field(field, value):
     with pytest.raises(ParameterError, match=rf"^{field} = "):
         ImpactParams(**{field: value})
+
+
+@pytest.mark.parametrize("field,value,allowed", [
+    ("m_free", 11.0, r"\(0, 10\] kg"), ("A0", 2e-3, r"\[0, 0.001\] m"), ("freq", 2e6, r"\[1, 1e\+06\] Hz"),
+    ("m_horn", 101.0, r"\(0, 100\] kg"), ("m_tool", math.inf, r"\(0, 100\] kg"),
+    ("k0", 1e11, r"\(0, 1e\+10\] N/m"), ("c", 2e6, r"\[0, 1e\+06\] N s/m"), ("c", -1.0, "N s/m"),
+    ("gap", 2.0, r"\(0, 1\] m"), ("gap", 20e-6, r"2 A0"), ("g", -2e4, "m/s\\^2"), ("g", math.nan, "m/s"),
+    ("v0", 101.0, r"\[0, 100\] m/s"), ("t_end", 101.0, r"\(0, 100\] s"),
+    ("spring_force", 2e4, r"\[0, 10000\] N"), ("v_stick", 2.0, r"\(0, 1\] m/s"),
+    ("sample_dt", 1e-10, r"\[1e-09, 0.01\] s"), ("max_events", 0, r"\[1, 1e8\]"),
+    ("max_events", 2.5, "integer"), ("max_events", 10 ** 9, r"\[1, 1e8\]"), ("e1", math.nan, r"\[0, 1\]")])
+def test_bad_input_out_of_physical_range(field, value, allowed):
+    with pytest.raises(ParameterError, match=rf"^{field} = .*{allowed}"):
+        ImpactParams(**{field: value})
+
+
+def test_bad_input_combinations():
+    # more than 2e7 output samples
+    with pytest.raises(ParameterError, match=r"^sample_dt = .*2e7"):
+        ImpactParams(t_end=100.0, sample_dt=1e-6)
+    # the resting free mass would push a soft tool into the horn's stroke
+    with pytest.raises(ParameterError, match=r"^gap = .*increase gap or k0"):
+        ImpactParams(k0=10.0, m_free=1.0, gap=0.5)
+    # critically and over-damped tools are accepted
+    p = ImpactParams()
+    assert ImpactParams(c=4 * 2 * math.sqrt(p.k0 * p.m_tool)).tool_zeta == pytest.approx(4.0)
 
 
 def test_toml_round_trip_and_config(tmp_path):
