@@ -9,7 +9,8 @@ Pitfalls handled (see the project's references): free flight is a polynomial, so
 estimate is ~0 and steps would grow past the horn period; ``max_step`` is limited to a fraction
 of the horn period. Events are located on the dense output and only *decreasing* gaps count,
 so restarting at a contact (gap ~0, increasing) never re-triggers the same event.
-No sticking rule: runs are limited to spans without chattering.
+No sticking rule: runs are limited to spans without chattering. Any damping ratio of the tool
+(under-, critically or over-damped) is integrated alike.
 """
 
 from __future__ import annotations
@@ -83,6 +84,9 @@ def simulate_ivp(p: ImpactParams, t_end: float | None = None, max_events: int | 
                 wa = ud - p.e2 * (wd - ud)
             else:
                 wa = wd - p.m_horn / (p.m_horn + mw) * (1.0 + p.e2) * (wd - ud)
+                # eq. 21 may leave the mass approaching the horn (e2 < m_w / m_u): the model
+                # closes that approach plastically rather than interpenetrate
+                wa = max(wa, ud)
             va = vd
             name = "horn"
         else:
