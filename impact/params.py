@@ -24,6 +24,14 @@ HORN_LAWS = ("kinematic", "article")
 class ImpactParams:
     """Every input of one impact simulation (SI units).
 
+    Every field must be finite and inside a physical range (checked on construction; the
+    error names the field, the value and the range with its unit): m_free in (0, 10] kg,
+    A0 in [0, 1e-3] m, freq in [1, 1e6] Hz, e1 and e2 in [0, 1], m_horn and m_tool in
+    (0, 100] kg, k0 in (0, 1e10] N/m, c in [0, 1e6] N s/m, gap in (2 A0, 1] m and beyond the
+    tool's static deflection under the resting free mass, |g| <= 1e4 m/s^2, v0 in [0, 100] m/s,
+    t_end in (0, 100] s, spring_force in [0, 1e4] N, v_stick in (0, 1] m/s, sample_dt in
+    [1e-9, 1e-2] s with at most 2e7 samples, max_events an integer in [1, 1e8].
+
     Parameters
     ----------
     m_free : float
