@@ -6,10 +6,12 @@ STAMP  := $(VENV)/.installed-stamp
 
 .PHONY: run test bench install clean
 
-$(STAMP): pyproject.toml
+$(STAMP): pyproject.toml impact/kernel.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
+	# compile the impact kernel now (numba caches it beside the source): runs start at once
+	$(PY) -c "from impact.kernel import warmup; warmup()"
 	touch $(STAMP)
 
 install: $(STAMP)

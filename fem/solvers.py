@@ -17,6 +17,11 @@ Backends
 * ``"superlu"``: ``scipy.sparse.linalg.splu`` with the COLAMD column ordering (scipy's
   default, a fill-reducing ordering); complex matrices are factorised as they are.
 
+Reproducibility: MKL's threaded kernels may round differently from run to run (the order of
+parallel sums changes), and the impact stage downstream is chaotic. Unless the user set it,
+``MKL_CBWR=AUTO,STRICT`` (MKL conditional numerical reproducibility) is put into the environment
+before MKL loads, so the same command on the same machine gives bit-identical factors.
+
 Selection: ``backend`` argument, else the environment variable ``RPUD_SOLVER``
 (``pardiso``/``superlu``), else PARDISO if pypardiso imports and finds MKL. Which one ran is
 logged at INFO level.
@@ -38,6 +43,9 @@ from geometry.common import ParameterError, check_choice
 __all__ = ["factorize", "backend_name", "Factor", "pardiso_available", "blas_threads"]
 
 log = logging.getLogger(__name__)
+
+# read by MKL when it initialises (first PARDISO call): bit-reproducible threaded results
+os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 _PARDISO_OK: bool | None = None
 

@@ -1,7 +1,7 @@
+"""``python -m impact``: signal handling first, then the heavy imports of :mod:`impact.cli`."""
+
 import sys
 
-from geometry.common import run_cli
+from geometry.launch import launch
 
-from .cli import main
-
-sys.exit(run_cli(main, None, prog="python -m impact"))
+sys.exit(launch("impact.cli", prog="python -m impact"))

@@ -374,6 +374,22 @@ def _parabola_leave(p0: float, p1: float, acc: float) -> float:
     return max(0.0, r2) * (1.0 + 1e-9) + 1e-12
 
 
+def _parabola_excursion(p0: float, p1: float, acc: float) -> tuple[float, float]:
+    """For p0 <= 0 < p1 and acc < 0: (r1, r2), a little narrow, on which p0 + p1 s + acc s^2/2
+    stays > 0 (the flight is out of a contact's band and back); (inf, inf) otherwise."""
+    if p0 > 0.0 or p1 <= 0.0 or acc >= 0.0:
+        return math.inf, math.inf
+    disc = p1 * p1 - 2.0 * acc * p0
+    if disc <= 0.0:
+        return math.inf, math.inf
+    q = p1 + math.sqrt(disc)
+    r1 = (-2.0 * p0 / q) * (1.0 + 1e-9) + 1e-12
+    r2 = (q / -acc) * (1.0 - 1e-9) - 1e-12
+    if r2 <= r1:
+        return math.inf, math.inf
+    return r1, r2
+
+
 class _Fn:
     """A contact function: vectorised and scalar (value, derivative), |f''| bound, search start."""
 
@@ -692,13 +708,19 @@ class _Sim:
                 # comes within 1 nm of these bounds (found analytically)
                 zone_h = t0 + _parabola_reach(w0 - A0 - 1e-9, wd0, a)
                 zone_t = t0 + _parabola_reach(L0 - osc.b0 - 1e-9 - w0, -wd0, -a)
-                if zone_h < math.inf:
-                    fns.append(_Fn(HORN, h_vec, h_sca, self.Bh, max(t0, skip_h, zone_h),
-                                   _grid_step(self.Bh, t_end),
-                                   t0 + _parabola_leave(w0 - A0 - 1e-9, wd0, a)))
-                if zone_t < math.inf:
-                    fns.append(_Fn(TOOL, t_vec, t_sca, Bt, max(t0, skip_t, zone_t), _grid_step(Bt, t_end),
-                                   t0 + _parabola_leave(L0 - osc.b0 - 1e-9 - w0, -wd0, -a)))
+                # a flight that leaves a contact's band and comes back cannot touch in between
+                for name, vec, sca, B, zone, skip, lead, vel, acc in (
+                        (HORN, h_vec, h_sca, self.Bh, zone_h, skip_h, w0 - A0 - 1e-9, wd0, a),
+                        (TOOL, t_vec, t_sca, Bt, zone_t, skip_t, L0 - osc.b0 - 1e-9 - w0, -wd0, -a)):
+                    if zone == math.inf:
+                        continue
+                    start, end = max(t0, skip, zone), t0 + _parabola_leave(lead, vel, acc)
+                    x1, x2 = _parabola_excursion(lead, vel, acc)
+                    if x2 < math.inf:
+                        fns.append(_Fn(name, vec, sca, B, start, _grid_step(B, t_end), min(end, t0 + x1)))
+                        fns.append(_Fn(name, vec, sca, B, max(start, t0 + x2), _grid_step(B, t_end), end))
+                    else:
+                        fns.append(_Fn(name, vec, sca, B, start, _grid_step(B, t_end), end))
                 t_rel = math.inf
             elif mode == ON_HORN:
                 g_vec, g_sca = _tool_horn_gap(osc, t0, L0, A0, om)

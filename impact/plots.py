@@ -56,9 +56,9 @@ def plot_spectrum(result, path, f_max: float = 2000.0) -> Path:
 
 
 def plot_ke_vs_mass(sweep_result, path, histories: dict | None = None) -> Path:
-    """Fig. 8 analogue: mean tool KE after impact (mJ) vs free mass (g) with the linear fit;
-    optionally, left panel: tool KE after each impact vs time for each mass
-    (``histories``: mass kg -> ImpactResult)."""
+    """Fig. 8 analogue: mean tool KE after impact (mJ) vs free mass (g), error bars the 95 %
+    confidence intervals, with the linear fit; optionally, left panel: tool KE after each impact
+    vs time for one sample trajectory per mass (``histories``: mass kg -> ImpactResult)."""
     plt = _plt()
     ncol = 2 if histories else 1
     fig, axes = plt.subplots(1, ncol, figsize=(6 * ncol, 4.5), dpi=120, squeeze=False)
@@ -67,21 +67,37 @@ def plot_ke_vs_mass(sweep_result, path, histories: dict | None = None) -> Path:
         for m, r in sorted(histories.items()):
             it = r.is_tool
             ax.plot(r.t[it] * 1e3, r.tool_ke_after * 1e3, ".", ms=3, label=f"{m * 1e3:g} g")
+        ax.set_title("one sample trajectory per mass (chaotic)", fontsize=9)
         ax.set_xlabel("time (ms)")
         ax.set_ylabel("tool kinetic energy after impact (mJ)")
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
     ax = axes[0, -1]
-    s = sweep_result
-    m = s.m_free * 1e3
-    ax.errorbar(m, s.mean_ke * 1e3, yerr=np.nan_to_num(s.sem_ke) * 1e3, fmt="o", capsize=3,
-                label=f"model ({s.ensemble} x {s.base.t_end:g} s per mass)")
-    if np.isfinite(s.slope):
-        xx = np.linspace(m.min(), m.max(), 10)
-        ax.plot(xx, (s.slope * xx * 1e-3 + s.intercept) * 1e3, "--",
-                label=f"fit: {s.slope:.3g} J/kg, R² = {s.r2:.3f}")
+    ke_errorbars(ax, sweep_result, "o", "model")
     ax.set_xlabel("free mass (g)")
     ax.set_ylabel("mean tool kinetic energy after impact (mJ)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return save_figure(fig, path)
+
+
+def ke_errorbars(ax, sweep_result, fmt: str = "o", label: str = "model", zero: bool = False):
+    """Mean tool KE after impact (mJ) vs free mass (g) with 95 % CI error bars and the fitted line.
+
+    ``zero`` adds the point (0 g, 0 mJ): no free mass, no impact. Returns the Axes.
+    """
+    s = sweep_result
+    ke, hw = s.column("mean_tool_ke_after_j")
+    m = s.m_free * 1e3
+    if zero:
+        m, ke, hw = np.r_[0.0, m], np.r_[0.0, ke], np.r_[0.0, hw]
+    n = [r.members for r in s.rows]
+    line = ax.errorbar(m, ke * 1e3, yerr=np.nan_to_num(hw) * 1e3, fmt=fmt, capsize=3, ms=5,
+                       label=f"{label} ({s.scenario.name}, {min(n)}-{max(n)} members per mass, 95 % CI)")
+    f = s.fit
+    if np.isfinite(f.slope):
+        xx = np.linspace(0.0 if zero else m.min(), m.max(), 10)
+        ci = f" ± {f.slope_ci95:.2g}" if np.isfinite(f.slope_ci95) else ""
+        ax.plot(xx, (f.slope * xx * 1e-3 + f.intercept) * 1e3, ls=":", color=line[0].get_color(),
+                label=f"line fit: {f.slope:.3g}{ci} J/kg, R² = {f.r2:.3f}")
+    return ax

@@ -3,10 +3,17 @@
 from __future__ import annotations
 
 import sys
+
+if __name__ == "__main__":
+    # signal handling first: the imports below take a second and must end cleanly on SIGINT/SIGTERM
+    from geometry.launch import launch
+
+    sys.exit(launch("results.__main__", prog="results"))
+
 from pathlib import Path
 
 from geometry.common import (CliParser, ParameterError, atomic_folder, check_integer, check_output_paths,
-                             check_range, run_cli, setup_logging)
+                             check_range, setup_logging)
 
 
 def build_parser() -> CliParser:
@@ -83,7 +90,3 @@ def main(argv=None) -> int:
     if not args.quiet:
         print(f"results: {out}", flush=True)
     return 0
-
-
-if __name__ == "__main__":
-    sys.exit(run_cli(main, prog="results"))

@@ -14,31 +14,36 @@ from geometry.common import save_figure as _save
 
 
 def impact_history(result, path) -> Path:
-    """Horn, free mass and tool displacements over the run (article Fig. 6 with the FE A0)."""
+    """Horn, free mass and tool displacements of one sample run (article Fig. 6 with the FE A0)."""
     from impact.plots import plot_history
 
     return plot_history(result, path, result.params.t_end,
                         title=f"A0 = {result.params.A0 * 1e6:.1f} um (FE), f = {result.params.freq / 1e3:.3f} kHz, "
-                              f"free mass {result.params.m_free * 1e3:g} g")
+                              f"free mass {result.params.m_free * 1e3:g} g, spring {result.params.spring_force:g} N: "
+                              f"one sample of a chaotic motion")
 
 
-def kinetic_energy(sw_fe, sw_article, coupled, m_values, path) -> Path:
-    """Mean tool kinetic energy after impact vs free mass: FE amplitude vs the article's 15 um."""
+SWEEP_LABELS = {
+    "device_fe": ("device: spring, steady; A0 from the FE model (impact-loaded)", "o-"),
+    "article_fe": ("article scenario: first 50 ms; FE A0", "s--"),
+    "article_15um": ("article scenario: first 50 ms; A0 = 15 um (article's assumption)", "^:"),
+}
+
+
+def kinetic_energy(sweeps: dict, with_zero: bool, path) -> Path:
+    """Mean tool kinetic energy after impact vs free mass, each sweep with 95 % CI error bars."""
+    from impact.plots import ke_errorbars
+
     plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4.5), dpi=120)
-    zero = [0.0] if 0.0 in m_values else []
-    for sw, label, fmt in ((sw_fe, "A0 from the FE model (impact-loaded)", "o-"),
-                           (sw_article, "A0 = 15 um (article's assumption)", "s--")):
-        m = np.concatenate([zero, sw.m_free]) * 1e3
-        ke = np.concatenate([zero, sw.mean_ke]) * 1e3
-        err = np.concatenate([zero, np.nan_to_num(sw.sem_ke)]) * 1e3
-        ax.errorbar(m, ke, yerr=err, fmt=fmt, capsize=3, ms=5,
-                    label=f"{label}: {sw.slope:.3g} J/kg, R² {sw.r2:.3f}")
+    fig, ax = plt.subplots(figsize=(8, 5), dpi=120)
+    for key, sw in sweeps.items():
+        label, fmt = SWEEP_LABELS.get(key, (key, "o-"))
+        ke_errorbars(ax, sw, fmt, label, zero=with_zero)
     ax.set_xlabel("free mass (g)")
     ax.set_ylabel("mean tool kinetic energy after impact (mJ)")
     ax.set_title("Drill-tool kinetic energy vs free-mass weight (article Fig. 8 / 13)")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=7)
     return _save(fig, path)
 
 

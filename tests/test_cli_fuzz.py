@@ -290,15 +290,12 @@ def test_results_cli_refuses_cleanly(argv):
 
 IMPACT_FLOATS = ["nan", "inf", "-inf", "1e308", "1e-320", "-1", "abc", ""]
 _IMPACT_FIELDS = ["--m-free", "--A0", "--freq", "--e1", "--e2", "--m-horn", "--m-tool", "--k0", "--c",
-                  "--gap", "--t-end", "--spring-force"]
-IMPACT_OPTS = {**{o: IMPACT_FLOATS for o in _IMPACT_FIELDS}, "--horn-law": ["x"],
-               "--config": ["", "missing.toml", "adir", "afile"]}
-
-_IMPACT_XFAIL = pytest.mark.xfail(strict=False, reason="impact CLI validation belongs to the impact owner "
-                                                      "(impact/ is being rewritten); failing inputs listed there")
+                  "--gap", "--g", "--v0", "--t-end", "--t-from", "--spring-force", "--rel-tol"]
+IMPACT_OPTS = {**{o: IMPACT_FLOATS for o in _IMPACT_FIELDS}, "--horn-law": ["x"], "--scenario": ["lab"],
+               "--members": BAD_INT[:2] + BAD_INT[3:], "--max-members": BAD_INT, "--threads": BAD_INT,
+               "--seed": ["-1", "x", "1.5"], "--config": ["", "missing.toml", "adir", "afile"]}
 
 
-@_IMPACT_XFAIL
 @settings(max_examples=EXAMPLES["impact"], **_SETTINGS)
 @given(st.one_of(_options(IMPACT_OPTS), _bad_outputs(["--json", "--plots"], {"--json": ".json"})))
 def test_impact_cli_refuses_cleanly(argv):
@@ -307,11 +304,9 @@ def test_impact_cli_refuses_cleanly(argv):
     run_clean(main, argv + ["--t-end", "0.001"] if "--t-end" not in argv else argv)
 
 
-@_IMPACT_XFAIL
 @settings(max_examples=EXAMPLES["impact sweep"], **_SETTINGS)
 @given(st.one_of(
-    _options({**{o: IMPACT_FLOATS for o in _IMPACT_FIELDS if o not in ("--m-free",)},
-              "--workers": BAD_INT, "--ensemble": BAD_INT}).map(lambda a: ["--m-free", "0.004"] + a),
+    _options({o: v for o, v in IMPACT_OPTS.items() if o != "--m-free"}).map(lambda a: ["--m-free", "0.004"] + a),
     st.sampled_from([["--m-free", v] for v in ("nan", "1e308", "-0.001", "", "a,b", "0.004,inf")]),
     _bad_outputs(["--json", "--csv", "--plots"], {"--json": ".json", "--csv": ".csv"}).map(
         lambda a: ["--m-free", "0.004", "--t-end", "0.001"] + a)))
@@ -321,10 +316,10 @@ def test_impact_sweep_cli_refuses_cleanly(argv):
     run_clean(main, ["sweep", "--no-progress"] + argv)
 
 
-@_IMPACT_XFAIL
 @settings(max_examples=EXAMPLES["impact article"], **_SETTINGS)
 @given(st.sampled_from([["--out", "afile"], ["--out", "nodir/x"], ["--out", LONG], ["--out", ""],
-                        ["--out", "o", "--workers", "0"], ["--out", "o", "--workers", "x"],
+                        ["--out", "o", "--threads", "0"], ["--out", "o", "--threads", "x"],
+                        ["--out", "o", "--seed", "-1"],
                         ["--out", "o", "--config", "missing.toml"], ["--out", "o", "--config", "afile"],
                         ["--out", "o", "--config", "adir"], ["--out", "o", "--config", ""]]))
 def test_impact_article_cli_refuses_cleanly(argv):
@@ -351,7 +346,6 @@ def hostile_config(draw):
     return tomli_w.dumps({draw(st.sampled_from(fields)): draw(st.sampled_from(["x", [1.0], {"a": 1}, True]))}).encode()
 
 
-@_IMPACT_XFAIL
 @settings(max_examples=EXAMPLES["impact config"], **_SETTINGS)
 @given(hostile_config(), st.sampled_from([[], ["sweep", "--m-free", "0.004", "--no-progress"],
                                           ["article", "--out", "o"]]))

@@ -115,7 +115,7 @@ def test_pinch_and_max_events_messages(engine):
 
 
 def test_ensemble_stats_equal_window_stats():
-    base = ImpactParams(t_end=0.02)
+    base = ImpactParams(t_end=0.02, gap=2.0e-3)   # the gap these cases were chosen with
     members = [base, base.with_(v0=2.0, m_free=0.004), base.with_(A0=8e-6, horn_law="article", e2=0.05),
                # chattering into a stick on the horn; a plastic tool impact that sticks
                base.with_(spring_force=5.0, v0=2.0, e2=0.3),
@@ -194,7 +194,7 @@ def test_oscillator_closed_form_and_bounds(zeta):
 @pytest.mark.parametrize("engine", ["kernel", "python"])
 @pytest.mark.parametrize("zeta", [1.0, 1.5, 4.0])
 def test_overdamped_tool_against_solve_ivp(engine, zeta):
-    p0 = ImpactParams()
+    p0 = ImpactParams(gap=2.0e-3)   # chaos amplifies solve_ivp's error per impact: the gap these were checked with
     p = p0.with_(c=zeta * 2 * math.sqrt(p0.k0 * p0.m_tool), t_end=0.02)
     r = simulate(p, series=False, engine=engine)
     n = 6

@@ -11,14 +11,15 @@ from geometry.common import ParameterError
 from results.pipeline import PipelineSettings, run_pipeline
 
 
+DESIGN = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006})
+SETTINGS = PipelineSettings(mesh_size=0.008, m_free_values=(0.0, 0.002, 0.008), impact_rel_tol=0.05,
+                            impact_max_members=512, n_points=60)
+
+
 @pytest.fixture(scope="module")
 def run(tmp_path_factory):
     out = tmp_path_factory.mktemp("run")
-    design = geometry.default_design().replace(
-        {"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006})
-    settings = PipelineSettings(mesh_size=0.008, m_free_values=(0.0, 0.002, 0.008), impact_t_end=0.3,
-                                ensemble=2, n_points=60)
-    summary = run_pipeline(design, settings, out)
+    summary = run_pipeline(DESIGN, SETTINGS, out)
     return out, summary
 
 
@@ -48,16 +49,39 @@ def test_pipeline_numbers_are_consistent(run):
     assert h["ring_up_steady_m"] == pytest.approx(h["tip_amplitude_m"], rel=2e-2)
     # A0 is the FE amplitude, reduced (never raised) by the impact load
     assert a0["used_m"] <= a0["unloaded_m"] * 1.0001
-    assert a0["unloaded_m"] == pytest.approx(h["tip_amplitude_m"], rel=1e-9)
+    # handed to the impacts rounded to 4 significant digits (reproducibility): within 5e-4
+    assert a0["unloaded_m"] == pytest.approx(h["tip_amplitude_m"], rel=5e-4)
+    assert a0["unloaded_m"] == float(f"{a0['unloaded_m']:.3e}")
     assert a0["frequency_hz"] == pytest.approx(wm["f_r_hz"])
 
 
 def test_kinetic_energy_grows_with_free_mass(run):
+    """Statistically: the 95 % intervals at 2 g and 8 g are disjoint, in every sweep."""
     _, s = run
     table = {r["m_free_kg"]: r for r in s["kinetic_energy_table"]}
-    assert table[0.0]["mean_tool_ke_j"] == 0.0
-    assert table[0.008]["mean_tool_ke_j"] > 1.5 * table[0.002]["mean_tool_ke_j"] > 0
-    assert table[0.008]["mean_tool_ke_article_j"] > table[0.002]["mean_tool_ke_article_j"]
+    assert "device_fe" not in table[0.0]                     # no free mass: no statistics to report
+    for key in ("device_fe", "article_fe", "article_15um"):
+        lo8 = table[0.008][key]["mean_tool_ke_after_j"]["ci95"][0]
+        hi2 = table[0.002][key]["mean_tool_ke_after_j"]["ci95"][1]
+        assert lo8 > hi2 > 0, key
+        assert table[0.008][key]["converged"]
+
+
+def test_rerun_gives_identical_json(run, tmp_path):
+    """Same command, same machine: every number identical (timings aside)."""
+    out, first = run
+    second = run_pipeline(DESIGN, SETTINGS, tmp_path / "again")
+    a = _without_timings(json.loads((out / "summary.json").read_text()))
+    b = _without_timings(json.loads((tmp_path / "again" / "summary.json").read_text()))
+    assert a == b and second["A0"]["used_m"] == first["A0"]["used_m"]
+
+
+def _without_timings(d):
+    if isinstance(d, dict):
+        return {k: _without_timings(v) for k, v in d.items() if k != "timings"}
+    if isinstance(d, list):
+        return [_without_timings(v) for v in d]
+    return d
 
 
 def test_bad_settings_and_cli_input(tmp_path):
