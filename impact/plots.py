@@ -96,7 +96,7 @@ def ke_errorbars(ax, sweep_result, fmt: str = "o", label: str = "model", zero: b
                        label=f"{label} ({s.scenario.name}, {min(n)}-{max(n)} members per mass, 95 % CI)")
     f = s.fit
     if np.isfinite(f.slope):
-        xx = np.linspace(0.0 if zero else m.min(), m.max(), 10)
+        xx = np.linspace(s.m_free.min() * 1e3, s.m_free.max() * 1e3, 10)   # the fitted range only
         ci = f" ± {f.slope_ci95:.2g}" if np.isfinite(f.slope_ci95) else ""
         ax.plot(xx, (f.slope * xx * 1e-3 + f.intercept) * 1e3, ls=":", color=line[0].get_color(),
                 label=f"line fit: {f.slope:.3g}{ci} J/kg, R² = {f.r2:.3f}")

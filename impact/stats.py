@@ -138,6 +138,9 @@ class Estimate:
             out["reason"] = self.reason
         return out
 
+    def __str__(self) -> str:
+        return format(self, "")
+
     def __format__(self, spec: str) -> str:
         """'mean ± half-width'; with an empty spec the half-width gets 2 significant digits and
         the mean the same decimals (e.g. ``2328 ± 6.9``)."""

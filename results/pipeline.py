@@ -339,8 +339,8 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
     }
     timings["impacts_s"] = time.perf_counter() - t0
     top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in sweeps.items()}
-    say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']:.3g}, "
-        f"article scenario {top['article_fe']:.3g} (FE A0), {top['article_15um']:.3g} (A0 = 15 um)")
+    say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']}, "
+        f"article scenario {top['article_fe']} (FE A0), {top['article_15um']} (A0 = 15 um)")
 
     # 6. renders
     t0 = stage("renders", 6)
@@ -408,5 +408,5 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
     }
     write_json(out / "summary.json", summary)
     write_report(summary, out / "report.md")
-    say(f"done in {timings['total_s']:.1f} s: {out / 'report.md'}")
+    say(f"done in {timings['total_s']:.1f} s")
     return summary

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 
@@ -15,11 +16,13 @@ def _f(v, scale=1.0, fmt=".3g", unit=""):
 
 
 def _ci(est: dict, scale: float = 1.0) -> str:
-    """'mean ± half-width' of an Estimate.to_dict(), 3 significant digits."""
+    """'mean ± half-width' of an ``Estimate.to_dict()``: the half-width to 2 significant digits."""
+    from impact.stats import Estimate
+
     if est["mean"] is None:
         return "n/a"
     hw = est["ci95_half_width"]
-    return f"{est['mean'] * scale:.3g}" + (f" ± {hw * scale:.2g}" if hw is not None else "")
+    return format(Estimate(est["mean"] * scale, math.nan if hw is None else hw * scale, est["members"]))
 
 
 def write_report(s: dict, path) -> Path:
