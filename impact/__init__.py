@@ -1,1 +1,37 @@
-"""rpud.impact: the free-mass collision model of the RPUD percussive system."""
+"""rpud.impact: the free-mass collision model of the RPUD percussive system (article section 3).
+
+Public API (loaded on first use, so ``import impact`` stays light)::
+
+    from impact import ImpactParams, simulate, ensemble_statistics, sweep
+
+    p = ImpactParams(m_free=0.008)                 # Table 1 + calibrated defaults, SI units
+    r = simulate(p)                                # one trajectory: one sample of a chaotic motion
+    st = ensemble_statistics(p, "device")          # means with 95 % confidence intervals
+    sw = sweep(p, [0.002, 0.004, 0.008], scenario="article")   # tool KE against free mass
+
+See :mod:`impact.model` (the model and its corrections to the article), :mod:`impact.stats`
+(ensembles, confidence intervals, scenarios) and :mod:`impact.sweep`.
+"""
+
+from importlib import import_module
+
+__all__ = ["ImpactParams", "simulate", "ImpactResult", "SimulationError", "ensemble_statistics",
+           "EnsembleStats", "Estimate", "Scenario", "SCENARIOS", "StatsSettings", "sweep", "SweepResult",
+           "reproduce"]
+
+_WHERE = {"ImpactParams": "params", "simulate": "model", "ImpactResult": "model", "SimulationError": "model",
+          "ensemble_statistics": "stats", "EnsembleStats": "stats", "Estimate": "stats", "Scenario": "stats",
+          "SCENARIOS": "stats", "StatsSettings": "stats", "sweep": "sweep", "SweepResult": "sweep",
+          "reproduce": "article"}
+
+
+def __getattr__(name):
+    if name in _WHERE:
+        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'impact' has no attribute {name!r}")
+
+
+def __dir__():
+    return sorted(list(globals()) + __all__)

@@ -251,7 +251,8 @@ def _sweep(argv):
         print(f"linear fit: absent ({f.reason})")
     else:
         ci = f" ± {f.slope_ci95:.3g}" if math.isfinite(f.slope_ci95) else ""
-        print(f"linear fit: slope {f.slope:.4g}{ci} J/kg (= mJ/g), intercept {f.intercept * 1e3:.4g} mJ, R^2 {f.r2:.4f}")
+        r2 = f", R^2 {f.r2:.4f}" if math.isfinite(f.r2) else f" ({f.reason})"
+        print(f"linear fit: slope {f.slope:.4g}{ci} J/kg (= mJ/g), intercept {f.intercept * 1e3:.4g} mJ{r2}")
     if ns.csv:
         atomic_write_text(ns.csv, sw.csv())
     if ns.json:

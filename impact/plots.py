@@ -98,6 +98,7 @@ def ke_errorbars(ax, sweep_result, fmt: str = "o", label: str = "model", zero: b
     if np.isfinite(f.slope):
         xx = np.linspace(s.m_free.min() * 1e3, s.m_free.max() * 1e3, 10)   # the fitted range only
         ci = f" ± {f.slope_ci95:.2g}" if np.isfinite(f.slope_ci95) else ""
+        r2 = f", R² = {f.r2:.3f}" if np.isfinite(f.r2) else ""
         ax.plot(xx, (f.slope * xx * 1e-3 + f.intercept) * 1e3, ls=":", color=line[0].get_color(),
-                label=f"line fit: {f.slope:.3g}{ci} J/kg, R² = {f.r2:.3f}")
+                label=f"line fit: {f.slope:.3g}{ci} J/kg{r2}")
     return ax

@@ -30,7 +30,8 @@ class LineFit:
     """Least-squares line ``y = slope x + intercept``.
 
     ``slope_ci95`` is the half-width of the slope's 95 % interval from the scatter of the points
-    about the line (Student t, n - 2 degrees of freedom); NaN with fewer than three points.
+    about the line (Student t, n - 2 degrees of freedom); it and ``r2`` are NaN with fewer than
+    three points.
     ``reason`` says why a fit is absent.
     """
 
@@ -65,11 +66,12 @@ def linear_fit(x, y) -> LineFit:
     if np.ptp(x) == 0:
         return LineFit(math.nan, math.nan, math.nan, math.nan, n, "all points at the same abscissa")
     res = linregress(x, y)
+    if n == 2:   # the line passes through both points: R^2 = 1 says nothing
+        return LineFit(float(res.slope), float(res.intercept), math.nan, math.nan, n,
+                       "two points: no R^2 and no interval on the slope")
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     r2 = float(res.rvalue ** 2) if ss_tot > 0 else math.nan
-    ci = float(t.ppf(0.975, n - 2) * res.stderr) if n > 2 else math.nan
-    return LineFit(float(res.slope), float(res.intercept), r2, ci, n,
-                   "" if n > 2 else "two points: no interval on the slope")
+    return LineFit(float(res.slope), float(res.intercept), r2, float(t.ppf(0.975, n - 2) * res.stderr), n)
 
 
 @dataclass

@@ -78,7 +78,8 @@ def write_report(s: dict, path) -> Path:
             lines.append(f"- line fit of tool KE against mass ({text}): absent ({fit.get('reason', '')})")
         else:
             ci = f" ± {fit['slope_ci95_half_width']:.2g}" if fit["slope_ci95_half_width"] is not None else ""
-            lines.append(f"- line fit of tool KE against mass ({text}): {fit['slope']:.3g}{ci} J/kg, R² {fit['r2']:.3f}")
+            r2 = f", R² {fit['r2']:.3f}" if fit["r2"] is not None else f" ({fit.get('reason', '')})"
+            lines.append(f"- line fit of tool KE against mass ({text}): {fit['slope']:.3g}{ci} J/kg{r2}")
         if not imp[key]["converged"]:
             lines.append("  (not every mass reached the CI target: see `summary.json`)")
     lines += ["", "The same command on the same machine repeats these numbers exactly: seeded ensembles, "

@@ -14,7 +14,7 @@ from geometry.common import ParameterError
 from impact.model import simulate
 from impact.params import ImpactParams
 from impact.stats import (
-    SCENARIOS, Scenario, StatsSettings, ensemble_members, ensemble_statistics, mean_ci, ratio_ci,
+    Scenario, StatsSettings, ensemble_members, ensemble_statistics, mean_ci, ratio_ci,
 )
 from impact.sweep import linear_fit, sweep
 
