@@ -37,8 +37,9 @@ Outputs
 Electrode charge ``Q = -(K + j L)[hot] x / s`` (fem.assembly convention), current
 ``I = j w Q``, admittance ``Y = I / V``, input power ``P = Re(V conj(I)) / 2``; complex
 area-weighted mean displacements on named surfaces: ``axial`` (along z), ``tangential``
-(about the z axis) and ``radial``, in m (node-wise cylindrical projection of the P2 field,
-integrated with the surface's P2 weights).
+(about the z axis) and ``radial``, in m (``fem.modeshape.surface_rows``: the field projected on
+the cylindrical unit vectors at the surface's quadrature points, the same means as
+``fem.modeshape.surface_motion``).
 """
 
 from __future__ import annotations
@@ -54,6 +55,7 @@ import scipy.sparse as sp
 from geometry.common import ParameterError, check_positive, check_range
 
 from .assembly import PiezoSystem
+from .modeshape import COMPONENTS, surface_rows
 from .solvers import factorize
 
 __all__ = ["LossModel", "loss_matrix", "SurfaceFunctional", "surface_functional",
@@ -61,8 +63,6 @@ __all__ = ["LossModel", "loss_matrix", "SurfaceFunctional", "surface_functional"
            "working_point", "WorkingPoint"]
 
 log = logging.getLogger(__name__)
-
-COMPONENTS = ("axial", "tangential", "radial")
 
 
 @dataclass(frozen=True)
@@ -139,36 +139,11 @@ class SurfaceFunctional:
 
 
 def surface_functional(system: PiezoSystem, name: str) -> SurfaceFunctional:
-    """Area-weighted mean displacement on the facet set ``name`` as a linear functional."""
-    from skfem import ElementTetP2, FacetBasis, LinearForm, asm
-
-    if name not in system.mesh.facet_sets:
-        raise ParameterError("surface", name, "unknown; known: " + ", ".join(sorted(system.mesh.facet_sets)))
-    facets = system.skmesh.boundaries[name]
-    if system.order != 2:
-        raise ParameterError("order", system.order, "surface outputs need P2 fields (order=2)")
-    fb = FacetBasis(system.skmesh, ElementTetP2(), facets=facets)
-    weights = asm(LinearForm(lambda v, w: v), fb)          # int N_i dA, (n_nodes,)
-    area = float(weights.sum())
-    nodes = np.flatnonzero(weights)
-    w = weights[nodes] / area
-    xy = system.nodes[nodes, :2]
-    r = np.hypot(xy[:, 0], xy[:, 1])
-    on_axis = r <= 1e-9 * max(float(np.abs(system.nodes[:, :2]).max()), 1e-300)
-    rs = np.where(on_axis, 1.0, r)
-    cos, sin = np.where(on_axis, 0.0, xy[:, 0] / rs), np.where(on_axis, 0.0, xy[:, 1] / rs)
-    rows, cols, vals = [], [], []
-    # axial: u_z; tangential: -sin u_x + cos u_y; radial: cos u_x + sin u_y
-    for comp, coeffs in enumerate([((2, np.ones_like(w)),),
-                                   ((0, -sin), (1, cos)),
-                                   ((0, cos), (1, sin))]):
-        for c, coef in coeffs:
-            rows.append(np.full(len(nodes), comp))
-            cols.append(3 * nodes + c)
-            vals.append(w * coef)
-    R = sp.csr_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(3, system.ndof))
-    return SurfaceFunctional(name, area, R)
+    """Area-weighted mean displacement on the facet set ``name`` as a linear functional:
+    :func:`fem.modeshape.surface_rows` (about the z axis) on the u DOFs, zero on the potential."""
+    rows, area = surface_rows(system, name)
+    rows = rows.tocoo()
+    return SurfaceFunctional(name, area, sp.csr_matrix((rows.data, (rows.row, rows.col)), shape=(3, system.ndof)))
 
 
 def _charge_row(system: PiezoSystem, L: sp.csr_matrix) -> np.ndarray:

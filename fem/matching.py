@@ -56,7 +56,8 @@ from geometry.common import ParameterError, check_integer, check_positive, check
 from geometry.mesh import TaggedMesh
 
 from .assembly import PiezoSystem, assemble
-from .modal import _eig, motion_shares
+from .modal import _eig
+from .modeshape import energy_shares, mac, surface_motion
 from .solvers import factorize
 
 __all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half", "nodal_plane"]
@@ -170,21 +171,18 @@ def working_mode(system: PiezoSystem, f_hz: np.ndarray, vectors: np.ndarray, nea
 
     With ``previous`` (the working mode's displacement on the same mesh topology) the mode of
     largest mass-weighted MAC is taken; otherwise the mode with the largest axial kinetic-energy
-    share among those within 40 % of ``near_hz`` (rigid modes excluded).
+    share among those within 40 % of ``near_hz`` (rigid modes excluded). Both come from
+    :mod:`fem.modeshape` on the system's mass matrix, so the pick agrees with the modal labels.
     """
     shapes = system.displacement(vectors)
     ok = (np.abs(f_hz) > 0.01 * near_hz) & (np.abs(f_hz - near_hz) < 0.4 * near_hz)
     if not ok.any():
         raise ParameterError("target_hz", near_hz, "no elastic mode within 40 % of the target")
     if previous is not None:
-        Mu = system.M[: system.n_u, : system.n_u]
-        p = previous.ravel()
-        num = np.array([(p @ (Mu @ s.ravel())) ** 2 for s in shapes])
-        den = np.array([(p @ (Mu @ p)) * (s.ravel() @ (Mu @ s.ravel())) for s in shapes])
-        mac = np.where(ok, num / den, -1.0)
-        return int(np.argmax(mac))
-    axial = motion_shares(system, shapes)[:, 0]
-    return int(np.argmax(np.where(ok, axial, -1.0)))
+        score = mac(previous, shapes, mesh=system)[0]
+    else:
+        score = energy_shares(system, shapes).axial
+    return int(np.argmax(np.where(ok, score, -1.0)))
 
 
 def nodal_plane(design) -> float:
@@ -423,7 +421,6 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
 
     # ---- final: one true assembly of the tuned geometry, paired resonance/anti-resonance
     from .modal import modal_analysis
-    from .modeshape import surface_motion
 
     t0 = time.perf_counter()
     system = assemble(mesh, order=settings.order)
@@ -431,9 +428,8 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
     # follow the working mode into the final modal result by MAC
     w = working_mode(system, modal.f_r_hz, modal.vectors, target, prev["shape"])
     shape = modal.shapes[w]
-    teeth = surface_motion(mesh, shape, "teeth_tops") if "teeth_tops" in mesh.facet_sets else {}
-    tip = surface_motion(mesh, shape, "horn_tip") if "horn_tip" in mesh.facet_sets else {}
-    flange = surface_motion(mesh, shape, "flange") if "flange" in mesh.facet_sets else {}
+    teeth, tip, flange = ({} if name not in mesh.facet_sets else surface_motion(system, shape, name)
+                          for name in ("teeth_tops", "horn_tip", "flange"))
     node_ratio = (flange.get("axial_mean", np.nan) / tip["axial_mean"]) if tip and flange else float("nan")
     timings["final_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start

@@ -14,7 +14,8 @@ backend=None, tol=0.0, open_circuit=True) -> ModalResult``
 * Short circuit (``V_hot`` removed: resonance ``f_r``) and open circuit (``V_hot`` free with
   zero net charge: anti-resonance ``f_a``) share ONE factorisation: the open-circuit matrix is
   the short-circuit one bordered by the hot row/column, solved by a scalar Schur complement.
-* Modes are paired by the mass-weighted MAC of their displacement parts (Hungarian assignment),
+* Modes are paired by the mass-weighted MAC of their displacement parts (``fem.modeshape.mac``
+  on the system's mass; Hungarian assignment),
   not by index (a pair needs MAC >= ``mac_min``, default 0.5, else ``f_a`` is NaN; the
   open-circuit window is widened until every mode has a partner); ``k_eff = sqrt(1 - (f_r / f_a)^2)`` (0 where ``f_a <= f_r`` to round-off).
 * ``sigma`` defaults to ``(2 pi near_hz)^2``; ``near_hz <= 0`` means the bottom of the spectrum
@@ -27,8 +28,9 @@ backend=None, tol=0.0, open_circuit=True) -> ModalResult``
 ``ModalResult``: ``f_r_hz``, ``f_a_hz``, ``k_eff``, ``mac`` (pairing MAC), ``shapes``
 (``(n, n_nodes, 3)`` short-circuit displacement at the P2 nodes, mass-normalised:
 ``Phi^T M Phi = I``), ``vectors`` / ``vectors_open`` (full ``x`` per mode, ``(ndof, n)``),
-``shares`` (``(n, 3)`` kinetic-energy share axial / torsional / lateral about the z axis),
-``labels`` (computed on first access), ``rigid_hz``, ``ndof``, ``backend``, ``timings`` (assembly_s, factorisation_s,
+``mode_shares`` (``fem.modeshape.energy_shares`` of the shapes on the system's own mass
+matrix), ``shares`` (``(n, 3)`` of them: axial / torsional / lateral about the z axis),
+``labels`` (``fem.modeshape.classify`` of ``mode_shares``), ``rigid_hz``, ``ndof``, ``backend``, ``timings`` (assembly_s, factorisation_s,
 eigen_s, total_s), ``to_json()``.
 
 CLI
@@ -57,9 +59,10 @@ import scipy.sparse.linalg as spla
 from geometry.common import ParameterError, check_nonnegative, check_positive
 
 from .assembly import PiezoSystem
+from .modeshape import ModeShares, classify, energy_shares, mac
 from .solvers import blas_threads, factorize
 
-__all__ = ["modal_analysis", "ModalResult", "motion_shares", "main"]
+__all__ = ["modal_analysis", "ModalResult", "main"]
 
 log = logging.getLogger(__name__)
 
@@ -84,20 +87,12 @@ class ModalResult:
     clamp: tuple[str, ...]
     timings: dict = field(default_factory=dict)
     system: PiezoSystem | None = field(default=None, repr=False)
-    _labels: list[str] | None = field(default=None, repr=False)
+    mode_shares: ModeShares | None = field(default=None, repr=False)
 
     @property
     def labels(self) -> list[str]:
-        """Dominant motion per mode, computed on first use: ``fem.modeshape.classify`` of its
-        energy shares (from :attr:`shares` alone when the result carries no system)."""
-        if self._labels is None:
-            if self.n_modes == 0:
-                self._labels = []
-            elif self.system is not None:
-                self._labels = list(_labels(self.system, self.shapes, self.shares))
-            else:
-                self._labels = _simple_labels(self.shares)
-        return self._labels
+        """Dominant motion per mode: ``fem.modeshape.classify`` of :attr:`mode_shares`."""
+        return classify(self.mode_shares) if self.n_modes else []
 
     @property
     def n_modes(self) -> int:
@@ -124,54 +119,6 @@ class ModalResult:
 def _freq(lam):
     lam = np.asarray(lam, dtype=float)
     return np.sign(lam) * np.sqrt(np.abs(lam)) / (2 * np.pi)
-
-
-def motion_shares(system: PiezoSystem, shapes: np.ndarray, axis_point=(0.0, 0.0)) -> np.ndarray:
-    """(n, 3) kinetic-energy shares axial / torsional / lateral (radial + bending) about the
-    z axis through ``axis_point``, node-wise cylindrical split weighted by the mass matrix.
-    A simple indicator; ``fem.modeshape`` does the full identification."""
-    shapes = np.asarray(shapes)
-    if shapes.ndim == 2:
-        shapes = shapes[None]
-    Mu = system.M[: system.n_u, : system.n_u]
-    xy = system.nodes[:, :2] - np.asarray(axis_point)[None, :2]
-    r = np.linalg.norm(xy, axis=1)
-    ok = r > 1e-9 * max(r.max(), 1e-300)
-    er = np.zeros_like(xy)
-    er[ok] = xy[ok] / r[ok, None]
-    et = np.stack([-er[:, 1], er[:, 0]], axis=1)
-    out = np.zeros((len(shapes), 3))
-    for i, u in enumerate(shapes):
-        u = np.real(u) if not np.iscomplexobj(u) else u
-        ax = np.zeros_like(u)
-        ax[:, 2] = u[:, 2]
-        ut = np.sum(u[:, :2] * et, axis=1)
-        tg = np.zeros_like(u)
-        tg[:, :2] = ut[:, None] * et
-        lat = u - ax - tg
-        e = [float(np.real(np.vdot(f.ravel(), Mu @ f.ravel()))) for f in (ax, tg, lat)]
-        tot = sum(e)
-        out[i] = np.array(e) / tot if tot > 0 else 0.0
-    return out
-
-
-def _simple_labels(shares: np.ndarray) -> list[str]:
-    labels = []
-    for a, t, l in shares:
-        if a >= 0.15 and t >= 0.15:
-            labels.append("longitudinal-torsional")
-        elif l > max(a, t):
-            labels.append("lateral")
-        else:
-            labels.append("longitudinal" if a >= t else "torsional")
-    return labels
-
-
-def _labels(system, shapes, shares):
-    """Full identification (``fem.modeshape``): errors there are bugs and must surface."""
-    from .modeshape import classify, energy_shares
-
-    return classify(energy_shares(system.mesh, shapes))
 
 
 def _rigid_basis(system, free):
@@ -263,9 +210,10 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     n_found = len(f_r)
     full_s = np.zeros((system.ndof, n_found))
     full_s[free_s] = Vs
+    shapes = system.displacement(full_s) if n_found else np.zeros((0, system.n_nodes, 3))
 
     f_a = np.full(n_found, np.nan)
-    mac = np.full(n_found, np.nan)
+    pair_mac = np.full(n_found, np.nan)
     full_o = None
     t3 = t2
     if open_circuit and system.hot_dof is not None and n_found:
@@ -285,9 +233,6 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
 
         from scipy.optimize import linear_sum_assignment
 
-        Mu = system.M[: system.n_u, : system.n_u]
-        us = full_s[: system.n_u]
-        ns_ = np.einsum("ij,ij->j", us, Mu @ us)
         # anti-resonances lie above their resonances (by up to ~1/sqrt(1-k^2)): widen the
         # open-circuit window until every short-circuit mode has a partner (MAC >= mac_min)
         k_open = n_req + 2
@@ -297,10 +242,7 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
             _, f_o, Vo = keep_nonrigid(lam_o, vec_o, limit=False)
             full_o_all = np.zeros((system.ndof, Vo.shape[1]))
             full_o_all[free_o] = Vo
-            uo = full_o_all[: system.n_u]
-            cross = us.T @ (Mu @ uo)
-            no_ = np.einsum("ij,ij->j", uo, Mu @ uo)
-            MAC = cross ** 2 / np.outer(ns_, no_)
+            MAC = mac(shapes, system.displacement(full_o_all), mesh=system)
             rows, cols = linear_sum_assignment(-MAC)
             if len(rows) == n_found and MAC[rows, cols].min() >= mac_min:
                 break
@@ -310,18 +252,19 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
         t3 = time.perf_counter()
         full_o = np.full((system.ndof, n_found), np.nan)
         for r_, c_ in zip(rows, cols):
-            mac[r_] = MAC[r_, c_]
+            pair_mac[r_] = MAC[r_, c_]
             if MAC[r_, c_] >= mac_min:
                 f_a[r_] = f_o[c_]
                 full_o[:, r_] = full_o_all[:, c_]
     elif system.hot_dof is None:
         f_a = f_r.copy()
-        mac = np.ones(n_found)
+        pair_mac = np.ones(n_found)
     with np.errstate(invalid="ignore"):
         ratio = np.where(np.isfinite(f_a), f_r / f_a, np.nan)
         k_eff = np.sqrt(np.clip(1 - ratio ** 2, 0.0, None))
-    shapes = system.displacement(full_s) if n_found else np.zeros((0, system.n_nodes, 3))
-    shares = motion_shares(system, shapes) if n_found else np.zeros((0, 3))
+    # the shares and labels of fem.modeshape, on the matrix the shapes are normalised with
+    mode_shares = energy_shares(system, shapes) if n_found else None
+    shares = mode_shares.overall.table() if n_found else np.zeros((0, 3))
     t4 = time.perf_counter()
     timings = {"assembly_s": float(system.timings.get("assembly_s", np.nan)),
                "factorisation_s": F.seconds, "eigen_s": (t2 - t1) + (t3 - t2),
@@ -329,10 +272,11 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     timings["total_s"] = timings["assembly_s"] + timings["modal_s"]
     log.info("modal: %d modes near %.1f Hz, %d DOFs, %s, factor %.2f s, eigen %.2f s",
              n_found, near_hz, system.ndof, F.backend, F.seconds, timings["eigen_s"])
-    return ModalResult(f_r_hz=f_r, f_a_hz=f_a, k_eff=k_eff, mac=mac, shapes=shapes, vectors=full_s,
+    return ModalResult(f_r_hz=f_r, f_a_hz=f_a, k_eff=k_eff, mac=pair_mac, shapes=shapes, vectors=full_s,
                        vectors_open=full_o, shares=shares, rigid_hz=rigid_f,
                        ndof=system.ndof, backend=F.backend, sigma=float(sigma),
-                       near_hz=float(near_hz), clamp=clamp, timings=timings, system=system)
+                       near_hz=float(near_hz), clamp=clamp, timings=timings, system=system,
+                       mode_shares=mode_shares)
 
 
 # --------------------------------------------------------------------------- CLI

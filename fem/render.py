@@ -20,7 +20,7 @@ import numpy as np
 from geometry.common import ParameterError, atomic_output
 from geometry.mesh import TaggedMesh
 
-from .modeshape import _context, check_shapes
+from .modeshape import _context, axis_frame, check_shapes
 
 __all__ = ["render_mode", "render_modes", "write_modes_vtu", "mode_names", "around", "DEFAULT_WINDOW"]
 
@@ -80,12 +80,7 @@ def _check_window(window_size) -> tuple[int, int]:
 def _camera(axis_dir) -> tuple[np.ndarray, np.ndarray]:
     """View direction (from the focal point to the camera) and view-up for an oblique view with
     the drill axis horizontal on screen."""
-    d = np.asarray(axis_dir, dtype=float)
-    d /= np.linalg.norm(d)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(d[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = helper - (helper @ d) * d
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(d, e1)
+    e1, e2, d = axis_frame(axis_dir)
     view = 0.75 * e1 + 0.55 * e2 + 0.45 * d       # oblique, a little along the axis
     view /= np.linalg.norm(view)
     up = np.cross(d, view)                         # perpendicular to the axis and the view
@@ -131,7 +126,7 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
     s = _surface(mesh)
     us = u[s.ids]
     mag = np.linalg.norm(us, axis=1)
-    peak = float(np.linalg.norm(u[: len(_context(mesh).sk.p.T)], axis=1).max())
+    peak = float(np.linalg.norm(u[: _context(mesh).n_vertices], axis=1).max())
     if scale is None:
         scale = _SCALE_FRACTION * s.extent / peak if peak > 0 else 0.0
     elif not (np.isfinite(scale) and scale >= 0):

@@ -1,4 +1,5 @@
-"""Mode identification (fem.modeshape): energy shares, labels, effective mass, MAC, surface motion.
+"""The mode-shape toolkit (fem.modeshape): energy shares, labels, effective mass, MAC, surface motion,
+and one mass matrix (the assembled one) whoever asks.
 
 Synthetic fields on a square steel bar (axis z through the section centre) have exact answers;
 real modes come from an independent scikit-fem linear-elasticity eigen-solve (as in skfem ex21).
@@ -6,6 +7,7 @@ real modes come from an independent scikit-fem linear-elasticity eigen-solve (as
 
 import numpy as np
 import pytest
+import scipy.sparse as sp
 from skfem import Basis, BilinearForm, ElementTetP2, ElementVector, MeshTet, asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
@@ -13,7 +15,7 @@ from geometry.common import ParameterError
 from geometry.materials import get_material
 from geometry.mesh import Region, TaggedMesh
 from fem.modeshape import (classify, cylindrical_components, effective_mass_axial, energy_shares, equivalent_mass,
-                           mac, match_modes, p2_nodes, surface_motion, total_mass)
+                           mac, mass_matrix, match_modes, p2_nodes, surface_motion, surface_rows, total_mass)
 
 A, L = 0.01, 0.12          # square side and length, m
 STEEL = get_material("steel_45")
@@ -276,3 +278,97 @@ def test_unstructured_nodes_use_axial_bins(tm):
     np.testing.assert_allclose(s.torsional, [0, 1, 0], atol=1e-3)
     np.testing.assert_allclose(s.bending, [0, 0, 1], atol=5e-3)
     assert classify(s) == ["longitudinal", "torsional", "bending"]
+
+
+# --------------------------------------------------------------------------- one mass matrix, one formula
+
+
+@pytest.fixture(scope="module")
+def sandwich_modes():
+    """A curved (10-node) Langevin sandwich with three parts and electrodes, modes near 25 kHz
+    (the working longitudinal mode at 24.6 kHz among bending and torsional neighbours)."""
+    from fem.assembly import assemble
+    from fem.modal import modal_analysis
+    from test_fem_util import sandwich
+
+    system = assemble(sandwich())
+    return system, modal_analysis(system, 25e3, 6)
+
+
+def _table(s):
+    return np.column_stack([s.axial, s.torsional, s.bending, s.radial])
+
+
+def test_the_mass_is_the_assembled_one(sandwich_modes):
+    from skfem import Basis, Functional
+
+    system, res = sandwich_modes
+    tm, n_u = system.mesh, system.n_u
+    M = mass_matrix(system)
+    # the system's own matrix: its displacement block is M (x) I_3, entry for entry
+    assert abs(sp.kron(M, sp.eye(3)) - system.M[:n_u, :n_u]).max() == 0
+    # a mesh alone gets the same matrix (the assembly's densities and curved-cell quadrature;
+    # the former scalar P2 matrix of this module was 0.35 % off on curved cells), and the
+    # parts sum to it
+    scale = abs(M).max()
+    assert abs(mass_matrix(tm) - M).max() < 1e-12 * scale
+    assert abs(sum(mass_matrix(tm, part=p) for p in tm.parts) - M).max() < 1e-12 * scale
+    # rho V of a rigid translation: through the assembled 3n x 3n matrix, and volume by volume
+    t = np.zeros(system.ndof)
+    t[2:n_u:3] = 1.0
+    sk = tm.to_skfem()
+    volume = Functional(lambda w: 1.0 + 0.0 * w.x[0])
+    rho_v = sum(r.density * volume.assemble(Basis(sk, system.basis.elem, intorder=5,
+                                                  elements=np.flatnonzero(tm.cell_region == i)))
+                for i, r in enumerate(system.regions))
+    assert t @ (system.M @ t) == pytest.approx(rho_v, rel=1e-12)
+    assert total_mass(system) == pytest.approx(rho_v, rel=1e-12)
+    assert total_mass(tm) == pytest.approx(rho_v, rel=1e-12)
+    # Phi^T M Phi = I holds in the shares: the modal shapes carry unit energy
+    np.testing.assert_allclose(res.mode_shares.energy, 1.0, rtol=0, atol=1e-12)
+
+
+def test_shares_are_the_same_whoever_asks(sandwich_modes, monkeypatch):
+    import fem.matching
+
+    system, res = sandwich_modes
+    direct = energy_shares(system, res.shapes)
+    # matching's working-mode pick: the shares it looks at
+    seen = []
+    ask = fem.matching.energy_shares
+    monkeypatch.setattr(fem.matching, "energy_shares", lambda *a, **k: seen.append(ask(*a, **k)) or seen[-1])
+    w = fem.matching.working_mode(system, res.f_r_hz, res.vectors, 25e3)
+    assert len(seen) == 1
+    for other in (res.mode_shares, seen[0], energy_shares(system.mesh, res.shapes)):
+        np.testing.assert_allclose(_table(other), _table(direct), rtol=0, atol=1e-12)
+        np.testing.assert_allclose(other.rigid, direct.rigid, rtol=0, atol=1e-12)
+        for p in system.mesh.parts:
+            np.testing.assert_allclose(_table(other.parts[p]), _table(direct.parts[p]), rtol=0, atol=1e-12)
+            np.testing.assert_allclose(other.part_energy[p], direct.part_energy[p], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(res.shares, direct.overall.table(), rtol=0, atol=1e-12)
+    assert res.labels == classify(direct)
+    assert res.labels[w] == "longitudinal" and w == int(np.argmax(direct.axial))
+    # the shares sum to 1, overall and in every part
+    np.testing.assert_allclose(_table(direct).sum(axis=1), 1.0, rtol=0, atol=1e-12)
+    for p in system.mesh.parts:
+        np.testing.assert_allclose(_table(direct.parts[p]).sum(axis=1), 1.0, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(sum(direct.part_energy.values()), 1.0, rtol=0, atol=1e-12)
+    # the open-circuit pairing MAC is this module's mac on the same matrix
+    paired = system.displacement(np.nan_to_num(res.vectors_open))
+    np.testing.assert_allclose(np.diag(mac(res.shapes, paired, mesh=system)), res.mac, rtol=0, atol=1e-12)
+
+
+def test_surface_means_are_one_linear_map(sandwich_modes):
+    """surface_motion's signed means, surface_rows and the harmonic surface functional agree."""
+    from fem.harmonic import surface_functional
+
+    system, res = sandwich_modes
+    i = res.labels.index("longitudinal")
+    rows, area = surface_rows(system, "tip")
+    func = surface_functional(system, "tip")
+    out = surface_motion(system, res.shapes[i], "tip")
+    vals = rows @ res.shapes[i].ravel()
+    assert func.area == area == out["area"]
+    for k, c in enumerate(("axial", "tangential", "radial")):
+        assert out[f"{c}_mean"] == vals[k] == func(res.vectors[:, i])[c]
+    assert out["axial"] == pytest.approx(abs(vals[0]), rel=1e-9)   # a piston: one sign on the tip
