@@ -44,6 +44,14 @@ the cylindrical unit vectors at the surface's quadrature points, the same means 
 
 from __future__ import annotations
 
+if __name__ == "__main__":
+    # python -m fem.harmonic: signal handling before the heavy imports below (numpy, scipy, skfem)
+    import sys
+
+    from geometry.launch import launch
+
+    sys.exit(launch("fem.harmonic", prog="fem.harmonic"))
+
 import logging
 import time
 from dataclasses import dataclass, field
@@ -619,7 +627,7 @@ def _check_options(args) -> None:
     from geometry.common import check_integer, check_output_paths
     from geometry.validate import FREQUENCY_BAND
 
-    check_range("--voltage", args.voltage, 0.0, 1e4, "V", lo_open=True)
+    check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
     if args.freq is not None:
         check_range("--freq", args.freq, *FREQUENCY_BAND, "Hz")
     check_integer("--points", args.points, 3, MAX_POINTS)
@@ -723,11 +731,3 @@ def main(argv=None) -> int:
     if text is not None:
         atomic_write_text(args.json, text)
     return 0
-
-
-if __name__ == "__main__":
-    import sys
-
-    from geometry.common import run_cli
-
-    sys.exit(run_cli(main, prog="fem.harmonic"))

@@ -1,18 +1,37 @@
 """rpud.geometry: design data, the material library and Gmsh meshing of the drill.
 
-Importing this package does not import gmsh; the mesher is loaded on first use
-(:func:`build_mesh`, :func:`build`).
+Importing this package imports nothing else: the names below load their modules on first use
+(PEP 562), so ``python -m geometry`` and every other entry point can install their signal
+handlers (:mod:`geometry.launch`) before numpy, scipy or gmsh are imported. gmsh itself loads
+only when a mesh is built (:func:`build_mesh`, :func:`build`).
 """
 
-from .common import ParameterError
-from .design import (CouplerDesign, DesignBase, ElectrodeSpec, FlangeDesign, HornDesign, RPUDDesign, Segment,
-                     StackDesign, StackRings, default_design, design_from_mapping, load_design)
-from .mesh import Electrode, Region, TaggedMesh
+import importlib
 
 __all__ = ["ParameterError", "TaggedMesh", "Region", "Electrode",
            "RPUDDesign", "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign",
            "StackDesign", "Segment", "ElectrodeSpec", "DesignBase",
            "default_design", "load_design", "design_from_mapping", "build_mesh", "build"]
+
+_LAZY = {"ParameterError": "common",
+         **{name: "design" for name in ("CouplerDesign", "DesignBase", "ElectrodeSpec", "FlangeDesign",
+                                        "HornDesign", "RPUDDesign", "Segment", "StackDesign", "StackRings",
+                                        "default_design", "design_from_mapping", "load_design")},
+         **{name: "mesh" for name in ("Electrode", "Region", "TaggedMesh")}}
+
+
+def __getattr__(name):
+    module = _LAZY.get(name)
+    if module is None:
+        # not one of ours: lets ``from geometry import builder`` fall back to the submodule import
+        raise AttributeError(f"module 'geometry' has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{module}", __name__), name)
+    globals()[name] = value
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(__all__))
 
 
 def build_mesh(design, mesh_size=None, order=2, elements_per_wavelength=None, **kw):

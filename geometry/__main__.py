@@ -9,11 +9,18 @@ Examples::
 
 from __future__ import annotations
 
-import logging
 import sys
+
+if __name__ == "__main__":
+    # signal handling first: the imports below take a second and must end cleanly on SIGINT/SIGTERM
+    from geometry.launch import launch
+
+    sys.exit(launch("geometry.__main__", prog="python -m geometry"))
+
+import logging
 from pathlib import Path
 
-from .common import CliParser, ParameterError, check_output_paths, check_range, run_cli, setup_logging, write_json
+from .common import CliParser, ParameterError, check_output_paths, check_range, setup_logging, write_json
 
 log = logging.getLogger("geometry")
 
@@ -44,14 +51,16 @@ def _parser() -> CliParser:
                    "(geometry.guard.MAX_ELEMENTS estimated tetrahedra)")
     p.add_argument("--gmsh-timeout", type=float, metavar="S", help="wall-clock limit of Gmsh, s (default "
                    "geometry.builder.GMSH_TIME_LIMIT = 600, or RPUD_GMSH_TIMEOUT)")
-    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv: Gmsh too)")
-    p.add_argument("-q", "--quiet", action="store_true", help="warnings only")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="log progress on stderr (-vv: debug "
+                   "and Gmsh's own output too)")
+    p.add_argument("-q", "--quiet", action="store_true", help="warnings only (the default; kept for scripts)")
     return p
 
 
 def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
-    setup_logging(-1 if args.quiet else args.verbose)
+    # warnings only by default, as every rpud CLI: stderr carries the one line of a failed run
+    setup_logging(-1 if args.quiet else args.verbose - 1)
     from .design import default_design, load_design
 
     for key, suffix in _SUFFIX.items():
@@ -97,7 +106,7 @@ def check_options(args) -> None:
     if args.epw is not None:
         check_range("--epw", args.epw, 1.0, 200.0)
     if args.gmsh_timeout is not None:
-        check_range("--gmsh-timeout", args.gmsh_timeout, 0.0, 86400.0, "s", lo_open=True)
+        check_range("--gmsh-timeout", args.gmsh_timeout, 0.1, 86400.0, "s")  # builder.GMSH_TIME_RANGE
 
 
 def format_table(report: dict) -> str:
@@ -113,7 +122,3 @@ def format_table(report: dict) -> str:
     if report.get("f1_1d_hz"):
         lines.append(f"1-D first longitudinal mode (short circuit): {report['f1_1d_hz']:.0f} Hz")
     return "\n".join(lines)
-
-
-if __name__ == "__main__":
-    sys.exit(run_cli(main, prog="python -m geometry"))

@@ -31,7 +31,7 @@ from .materials import get_material
 from .mesh import Electrode, Region, TaggedMesh
 
 __all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "ALGORITHMS",
-           "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT"]
+           "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT", "GMSH_TIME_RANGE"]
 
 log = logging.getLogger(__name__)
 
@@ -57,6 +57,9 @@ above ``MIN_QUALITY`` still curves badly at second order)."""
 GMSH_TIME_LIMIT = 600.0
 """Default wall-clock limit of one Gmsh build, s (the environment variable ``RPUD_GMSH_TIMEOUT``
 overrides it). Meshes inside the resource guard's budget take well under a minute."""
+
+GMSH_TIME_RANGE = (0.1, 86400.0)
+"""Accepted Gmsh time limits, s (below 0.1 s not even Gmsh's start-up fits)."""
 
 _GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 """Gmsh's 10-node tetrahedron lists edge (2,3) before (1,3); meshio/VTK the other way round."""
@@ -371,8 +374,9 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
     handled at once (Gmsh's own native loop would hold them until it returns) and a run that
     exceeds ``time_limit`` seconds (default :data:`GMSH_TIME_LIMIT` or ``RPUD_GMSH_TIMEOUT``)
-    ends with a :class:`ParameterError` instead of hanging. An abandoned Gmsh thread cannot be
-    stopped; the CLI wrapper (:func:`geometry.common.run_cli`) then ends the process.
+    ends with a :class:`ParameterError` instead of hanging. An abandoned Gmsh run cannot be
+    stopped: it is recorded (:func:`geometry.common.abandon_native_run`) and the CLI wrapper
+    (:func:`geometry.common.run_cli`) then ends the process by ``os._exit`` after its line.
     See :func:`_build` for the other parameters and the result.
     """
     if time_limit is None:
@@ -381,21 +385,28 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
             time_limit = float(env) if env else GMSH_TIME_LIMIT
         except ValueError:
             raise ParameterError("RPUD_GMSH_TIMEOUT", env, "must be a number of seconds") from None
-    check_range("gmsh time limit", time_limit, 0.0, 86400.0, "s", lo_open=True)
-    if any(t.is_alive() for t in common._NATIVE_WORKERS):
+    check_range("gmsh time limit", time_limit, *GMSH_TIME_RANGE, "s")
+    if common.native_code_running():
         raise ParameterError("design", getattr(design, "name", design),
                              "an abandoned Gmsh run is still going in this process; start a new one")
     box: dict[str, Any] = {}
+    # Set by the worker after its last native call (gmsh.finalize): the only reliable sign that
+    # Gmsh stopped, since Thread.is_alive() lies after a join interrupted by a signal.
+    done = threading.Event()
     import gmsh
 
     # Gmsh's initialisation installs its own native signal handlers (SIGTERM would kill the
     # process outright): initialise here, in the main thread, and re-install Python's
     gmsh.initialize(readConfigFiles=False, interruptible=False)
-    if threading.current_thread() is threading.main_thread():
-        for sig in (signal.SIGINT, signal.SIGTERM):
-            handler = signal.getsignal(sig)
-            if handler is not None:
-                signal.signal(sig, handler)
+    try:
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                handler = signal.getsignal(sig)
+                if handler is not None:
+                    signal.signal(sig, handler)
+    except BaseException:
+        gmsh.finalize()  # interrupted before the worker took Gmsh over
+        raise
 
     def work():
         # signals go to the waiting main thread only: delivered inside Gmsh's native code they
@@ -412,16 +423,20 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
                                           "size or the design's smallest features")
         except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
             box["error"] = exc
+        finally:
+            done.set()
 
     worker = threading.Thread(target=work, name="gmsh", daemon=True)
-    worker.start()
     try:
-        worker.join(time_limit)
+        worker.start()
+        # an Event, not worker.join(): an interrupted join marks the thread stopped (see above)
+        finished = done.wait(time_limit)
     except BaseException:
-        common._NATIVE_WORKERS.append(worker)
+        # even a signal inside start() may leave the thread starting: treat it as running
+        common.abandon_native_run(done)
         raise
-    if worker.is_alive():
-        common._NATIVE_WORKERS.append(worker)
+    if not finished:
+        common.abandon_native_run(done)
         raise ParameterError("--gmsh-timeout", time_limit,
                              f"Gmsh did not finish {getattr(design, 'name', '?')!r} within the limit: use a "
                              "coarser --mesh-size or allow more time (--gmsh-timeout / RPUD_GMSH_TIMEOUT, s)")

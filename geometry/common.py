@@ -8,6 +8,7 @@ it freely while ``geometry`` stays the upstream end of the data flow.
 from __future__ import annotations
 
 import argparse
+import atexit
 import contextlib
 import dataclasses
 import json
@@ -27,6 +28,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from .launch import Terminated, forget_interrupt, handle, on_sigterm, settle
 
 __all__ = [
     "ParameterError",
@@ -261,9 +264,13 @@ def _convert(value: Any, hint: Any, where: str) -> Any:
         if not _is_number(value):
             raise ParameterError(where, value, "must be a number")
         try:
-            return float(value)
+            number = float(value)
         except OverflowError:  # an integer beyond the float range
             raise ParameterError(where, value, "must be a finite number") from None
+        # TOML spells nan and inf; no file field means either, even one its kind does not use
+        if not math.isfinite(number):
+            raise ParameterError(where, value, "must be a finite number")
+        return number
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
             if isinstance(value, float) and value.is_integer():
@@ -291,15 +298,16 @@ def from_mapping(cls: type, data: Mapping[str, Any], where: str = "") -> Any:
         raise ParameterError(where or cls.__name__, data, f"must be a table of {cls.__name__} fields")
     fields = {f.name: f for f in dataclasses.fields(cls) if f.init}
     hints = _resolve_hints(cls)
+    # unknown keys first: a misspelt required key is reported as the typo, with the right names
+    unknown = sorted(set(data) - set(fields), key=str)
+    if unknown:
+        name = f"{where}.{unknown[0]}" if where else unknown[0]
+        raise ParameterError(name, data[unknown[0]], f"unknown key; allowed: {', '.join(fields)}")
     missing = [k for k, f in fields.items() if k not in data and f.default is dataclasses.MISSING
                and f.default_factory is dataclasses.MISSING]
     if missing:
         name = f"{where}.{missing[0]}" if where else missing[0]
         raise ParameterError(name, None, "required field is missing")
-    unknown = sorted(set(data) - set(fields), key=str)
-    if unknown:
-        name = f"{where}.{unknown[0]}" if where else unknown[0]
-        raise ParameterError(name, data[unknown[0]], f"unknown key; allowed: {', '.join(fields)}")
     kwargs = {}
     for key, value in data.items():
         name = f"{where}.{key}" if where else key
@@ -539,10 +547,11 @@ def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
     """Yield a temporary folder beside ``path``; swap it into place only on success.
 
     The folder is built under a hidden sibling name; on success an existing ``path`` is moved
-    aside, the new folder renamed onto ``path`` and the old one removed (signals are held for
-    the two renames, so an interrupt never leaves neither). On any exception, interrupt or
-    termination the temporary folder is removed and ``path`` is left as it was: a results
-    folder is whole or absent, never a mix of two runs.
+    aside, the new folder renamed onto ``path`` and the old one removed (signals are held
+    meanwhile, so an interrupt never leaves neither or a half-deleted old folder). On any
+    exception, interrupt or termination the temporary folder is removed and ``path`` is left as
+    it was, also when the swap itself fails (the old folder is moved back): a results folder is
+    whole or absent, never a mix of two runs.
     """
     path = Path(path)
     if not path.parent.is_dir():
@@ -550,17 +559,35 @@ def atomic_folder(path: str | os.PathLike) -> Iterator[Path]:
     tmp = Path(tempfile.mkdtemp(prefix=f".{path.name[:40]}.part-", dir=path.parent))
     try:
         yield tmp
-        old = None
-        with _signals_held():
-            if path.exists():
-                old = Path(tempfile.mkdtemp(prefix=f".{path.name[:40]}.old-", dir=path.parent))
-                os.replace(path, old / path.name)
-            os.replace(tmp, path)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    with _signals_held():
+        _swap_in(tmp, path)
+
+
+def _swap_in(new: Path, path: Path) -> None:
+    """Rename folder ``new`` onto ``path``, replacing what is there; on failure ``path`` is kept."""
+    aside = None
+    try:
+        if path.exists() or path.is_symlink():
+            aside = Path(tempfile.mkdtemp(prefix=f".{path.name[:40]}.old-", dir=path.parent))
+            os.replace(path, aside / path.name)
+        try:
+            os.replace(new, path)
+        except BaseException:
+            if aside is not None:
+                os.replace(aside / path.name, path)  # the previous results go back in place
+            raise
+    except BaseException:
+        shutil.rmtree(new, ignore_errors=True)
+        # remove the holder only once it is empty again: if putting the old folder back failed
+        # too, the holder keeps the user's previous results and the error names the file
+        if aside is not None and not (aside / path.name).exists():
+            shutil.rmtree(aside, ignore_errors=True)
+        raise
+    if aside is not None:
+        shutil.rmtree(aside, ignore_errors=True)
 
 
 @contextlib.contextmanager
@@ -588,18 +615,53 @@ class CliParser(argparse.ArgumentParser):
         raise SystemExit(2)
 
 
-class Terminated(BaseException):
-    """Raised in the main thread by SIGTERM while :func:`run_cli` runs (like KeyboardInterrupt)."""
+_NATIVE_RUNS: list[threading.Event] = []
+"""Completion flags of native (Gmsh) runs that an interrupt or a time limit abandoned.
+
+Native code cannot be stopped from Python, so an abandoned run goes on in its thread. While it
+does, the process must end by ``os._exit``: a normal interpreter exit runs the C library's exit
+handlers (static destructors of Gmsh/OpenCASCADE, OpenBLAS shutdown) under the running code,
+which corrupts the heap (seen: SIGSEGV, "corrupted double-linked list"). ``Thread.is_alive``
+cannot tell whether the run goes on: on CPython <= 3.12 a ``join`` interrupted by a signal marks
+the thread stopped although it still runs (bpo-45274's fix), so each run sets its own flag as
+the very last thing it does."""
+
+_exit_hook_installed = False
 
 
-_NATIVE_WORKERS: list[threading.Thread] = []
-"""Threads running native code (Gmsh) that a signal or time limit abandoned: a CLI must end by
-``os._exit`` then, since native code cannot be stopped and interpreter shutdown would wait for it
-or run library destructors under it."""
+def abandon_native_run(done: threading.Event) -> None:
+    """Record a native run (its completion flag) that goes on after its caller gave up on it.
+
+    An entry point's :func:`run_cli` (``final=True``) then ends the process by ``os._exit``
+    after its one line; any other interpreter exit while the run goes on (a library user, a
+    test session) is ended the same way from an ``atexit`` hook, with exit code 1 and one
+    stderr line, rather than crash in the C library's exit handlers.
+    """
+    global _exit_hook_installed
+    _NATIVE_RUNS.append(done)
+    if not _exit_hook_installed:
+        atexit.register(_exit_past_native_runs)
+        _exit_hook_installed = True
 
 
-def _on_sigterm(signum, frame):
-    raise Terminated()
+def native_code_running() -> bool:
+    """True while an abandoned native (Gmsh) run is still going in this process."""
+    return any(not done.is_set() for done in _NATIVE_RUNS)
+
+
+def _flush_std() -> None:
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+
+
+def _exit_past_native_runs() -> None:
+    if native_code_running():
+        with contextlib.suppress(Exception):
+            sys.stderr.write("rpud: an abandoned Gmsh run is still going: the process ends without "
+                             "finalisation (exit code 1)\n")
+        _flush_std()
+        os._exit(1)
 
 
 def _one_line(text: str, limit: int = 600) -> str:
@@ -632,7 +694,7 @@ def library_error(exc: BaseException) -> str | None:
 
 
 def run_cli(main: Callable[[list[str] | None], int | None], argv: list[str] | None = None,
-            prog: str = "rpud") -> int:
+            prog: str = "rpud", *, final: bool = False) -> int:
     """Run a CLI entry point: every failure becomes one stderr line and an exit code.
 
     - bad input (:class:`ParameterError`, unusable paths, known library failures): exit 2;
@@ -641,44 +703,87 @@ def run_cli(main: Callable[[list[str] | None], int | None], argv: list[str] | No
     - any other exception is a bug: one line saying so, exit 1 (``RPUD_DEBUG=1`` re-raises it
       with its traceback).
 
-    If native code (Gmsh) was abandoned by an interrupt or time limit, the process ends here
-    through ``os._exit`` after flushing the streams.
+    Parameters
+    ----------
+    main : callable
+        ``main(argv) -> int | None``.
+    argv : list of str, optional
+        Arguments (default: ``sys.argv[1:]``, as argparse does).
+    prog : str
+        Program name that starts the stderr line.
+    final : bool
+        The process ends after this call (an entry point, see :func:`geometry.launch.launch`):
+        once the outcome is decided, a late signal ends the process at once with the same code
+        instead of restoring the previous handlers (which would add a second line).
+
+    Returns
+    -------
+    int
+        The exit code. With ``final``, if native code (Gmsh) was abandoned by an interrupt or a
+        time limit and still runs, the process ends here instead, through ``os._exit`` after
+        flushing the streams (see :data:`_NATIVE_RUNS`); without it (in-process use, tests) the
+        interpreter exit is guarded instead (:func:`abandon_native_run`).
     """
     in_main = threading.current_thread() is threading.main_thread()
     saved = {}
     if in_main:
-        saved[signal.SIGTERM] = signal.signal(signal.SIGTERM, _on_sigterm)
-        saved[signal.SIGINT] = signal.signal(signal.SIGINT, signal.default_int_handler)
+        saved[signal.SIGTERM] = handle(signal.SIGTERM, on_sigterm)
+        saved[signal.SIGINT] = handle(signal.SIGINT, signal.default_int_handler)
     try:
-        try:
-            code = int(main(argv) or 0)
-        except ParameterError as exc:
-            code = _fail(prog, f"error: {exc}", 2)
-        except KeyboardInterrupt:
-            code = _fail(prog, "interrupted", 130)
-        except Terminated:
-            code = _fail(prog, "terminated", 143)
-        except SystemExit:
-            raise
-        except BaseException as exc:  # noqa: BLE001 - the last line of defence of a CLI
-            line = library_error(exc)
-            if line is not None:
-                logging.getLogger("rpud.cli").debug("library error", exc_info=True)
-                code = _fail(prog, f"error: {line}", 2)
-            elif os.environ.get("RPUD_DEBUG"):
-                raise
-            else:
-                code = _fail(prog, f"internal error: {type(exc).__name__}: {exc} (a bug: please report it; "
-                                   "RPUD_DEBUG=1 shows the traceback)", 1)
-    finally:
-        for sig, handler in saved.items():
-            signal.signal(sig, handler)
-    if any(t.is_alive() for t in _NATIVE_WORKERS):
-        with contextlib.suppress(Exception):
-            sys.stdout.flush()
-            sys.stderr.flush()
-        os._exit(code)
+        code = _run_main(main, argv, prog)
+    except BaseException as exc:
+        # SystemExit (argparse usage/--help), RPUD_DEBUG re-raise, or a signal landing while a
+        # handler below was already reporting
+        if final and native_code_running():
+            _exit_now(exc.code if isinstance(exc, SystemExit) and isinstance(exc.code, int) else 1)
+        _restore(saved)
+        raise
+    if final and native_code_running():
+        _exit_now(code)
+    if in_main and final:
+        settle(code)
+    else:
+        _restore(saved)
     return code
+
+
+def _restore(saved: Mapping[int, Any]) -> None:
+    for sig, handler in saved.items():
+        if handler is not None:  # None: installed outside Python, cannot be re-installed from here
+            signal.signal(sig, handler)
+
+
+def _exit_now(code: int) -> typing.NoReturn:
+    """End the process without interpreter or C-library finalisation (native code still runs)."""
+    if threading.current_thread() is threading.main_thread():
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    _flush_std()
+    os._exit(code)
+
+
+def _run_main(main: Callable[[list[str] | None], int | None], argv: list[str] | None, prog: str) -> int:
+    """``main(argv)``'s exit code, every known failure turned into one stderr line (see run_cli)."""
+    try:
+        return int(main(argv) or 0)
+    except ParameterError as exc:
+        return _fail(prog, f"error: {exc}", 2)
+    except Terminated:  # first: it is a KeyboardInterrupt too
+        forget_interrupt()
+        return _fail(prog, "terminated", 143)
+    except KeyboardInterrupt:
+        forget_interrupt()
+        return _fail(prog, "interrupted", 130)
+    except SystemExit:
+        raise
+    except BaseException as exc:  # noqa: BLE001 - the last line of defence of a CLI
+        line = library_error(exc)
+        if line is not None:
+            logging.getLogger("rpud.cli").debug("library error", exc_info=True)
+            return _fail(prog, f"error: {line}", 2)
+        if os.environ.get("RPUD_DEBUG"):
+            raise
+        return _fail(prog, f"internal error: {type(exc).__name__}: {exc} (a bug: please report it; "
+                           "RPUD_DEBUG=1 shows the traceback)", 1)
 
 
 def _fail(prog: str, text: str, code: int) -> int:

@@ -47,7 +47,7 @@ def build_parser() -> CliParser:
 
 def check_options(args) -> None:
     """Every numeric option finite and inside its stated range (before anything runs)."""
-    check_range("--voltage", args.voltage, 0.0, 1e4, "V", lo_open=True)
+    check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
     if args.q_mech != 0:
         check_range("--q-mech", args.q_mech, 1.0, 1e6, "(0 = datasheet values)")
     if args.mesh_size is not None:

@@ -1,6 +1,7 @@
 """``python -m geometry``: outputs, report contents, bad input = one line + exit 2 + no file."""
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -93,3 +94,14 @@ def test_bad_options_exit_2(tmp_path, capsys):
     assert list(tmp_path.iterdir()) == []
     proc = subprocess.run([sys.executable, "-m", "geometry", "--order", "3"], cwd=ROOT, capture_output=True, text=True)
     assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1
+
+
+def test_gmsh_time_limit_ends_in_one_line(tmp_path):
+    """Gmsh cannot be stopped, so the process ends by os._exit after the line: no crash, no file."""
+    proc = subprocess.run([sys.executable, "-m", "geometry", "--json", "o.json", "--mesh", "o.msh",
+                           "--gmsh-timeout", "0.3"], cwd=tmp_path, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.count("\n") == 1 and "Traceback" not in proc.stderr
+    assert "--gmsh-timeout = 0.3: Gmsh did not finish 'rpud-default' within the limit" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
