@@ -104,7 +104,9 @@ def _run_and_signal(args, sig, cwd, marker=None, delay=2.0, after=0.5, timeout=1
     reader.start()
     try:
         if marker is None:
-            while time.monotonic() - t_start < delay or not _handlers_installed(proc.pid):
+            # (a zombie reports no handlers: stop waiting once the process has ended)
+            while (time.monotonic() - t_start < delay or not _handlers_installed(proc.pid)) \
+                    and proc.poll() is None and time.monotonic() - t_start < timeout:
                 time.sleep(0.001)
         else:
             assert seen.wait(timeout), f"no {marker!r} within {timeout} s"
