@@ -73,7 +73,7 @@ from typing import Iterable, Mapping
 import numpy as np
 import scipy.sparse as sp
 
-from geometry.common import ParameterError, check_choice
+from rpud_common import ParameterError, check_choice
 from geometry.mesh import TaggedMesh
 
 from .fastasm import assemble_matrices

@@ -52,7 +52,7 @@ from typing import Callable
 import numpy as np
 from scipy.optimize import brentq
 
-from geometry.common import ParameterError, check_integer, check_positive, check_range
+from rpud_common import ParameterError, check_integer, check_positive, check_range
 from geometry.mesh import TaggedMesh
 
 from .assembly import PiezoSystem, assemble
@@ -240,7 +240,7 @@ class MatchResult:
     timings: dict
 
     def to_json(self) -> dict:
-        from geometry.common import to_jsonable
+        from rpud_common import to_jsonable
 
         modes = self.modal.to_json()["modes"]
         return to_jsonable({

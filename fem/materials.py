@@ -32,7 +32,7 @@ from typing import Mapping
 
 import numpy as np
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from geometry.materials import EPS0, Material, get_material, load_library
 
 __all__ = ["PiezoConstants", "elastic_matrix", "piezo_matrices", "strain_charge",

@@ -45,32 +45,29 @@ motion) and writes JSON (``modes``: list of ``{f_r_hz, f_a_hz, k_eff, mac, label
 from __future__ import annotations
 
 if __name__ == "__main__":
-    # python -m fem.modal: signal handling before the heavy imports below (numpy, scipy, skfem)
+    # python -m fem.modal: the command line lives in fem.modal_cli (named, not imported:
+    # physics modules do not parse arguments); signal handling comes before any heavy import
     import sys
 
-    from geometry.launch import launch
+    from rpud_common.launch import launch
 
-    sys.exit(launch("fem.modal", prog="fem.modal"))
+    sys.exit(launch("fem.modal_cli", prog="fem.modal"))
 
-import contextlib
 import logging
-import os
-import sys
 import time
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Iterable
 
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from geometry.common import ParameterError, check_nonnegative, check_positive
+from rpud_common import ParameterError, check_nonnegative
 
 from .assembly import PiezoSystem
 from .modeshape import ModeShares, classify, energy_shares, mac
 from .solvers import blas_threads, factorize
 
-__all__ = ["modal_analysis", "ModalResult", "main"]
+__all__ = ["modal_analysis", "ModalResult"]
 
 log = logging.getLogger(__name__)
 
@@ -285,252 +282,3 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
                        ndof=system.ndof, backend=F.backend, sigma=float(sigma),
                        near_hz=float(near_hz), clamp=clamp, timings=timings, system=system,
                        mode_shares=mode_shares)
-
-
-# --------------------------------------------------------------------------- CLI
-
-
-def format_table(res: ModalResult) -> str:
-    lines = [f"{'#':>3} {'f_r kHz':>10} {'f_a kHz':>10} {'k_eff':>7} {'MAC':>5}  "
-             f"{'ax/tor/lat':>14}  motion"]
-    for i in range(res.n_modes):
-        fa = f"{res.f_a_hz[i] / 1e3:10.4f}" if np.isfinite(res.f_a_hz[i]) else f"{'-':>10}"
-        ke = f"{res.k_eff[i]:7.4f}" if np.isfinite(res.k_eff[i]) else f"{'-':>7}"
-        mc = f"{res.mac[i]:5.2f}" if np.isfinite(res.mac[i]) else f"{'-':>5}"
-        sh = "/".join(f"{100 * s:.0f}" for s in res.shares[i])
-        lines.append(f"{i + 1:3d} {res.f_r_hz[i] / 1e3:10.4f} {fa} {ke} {mc}  {sh:>14}  {res.labels[i]}")
-    t = res.timings
-    lines.append(f"{res.ndof} DOFs, {res.backend}; assembly {t['assembly_s']:.2f} s, "
-                 f"factorisation {t['factorisation_s']:.2f} s, eigen {t['eigen_s']:.2f} s"
-                 + (f"; {len(res.rigid_hz)} rigid-body modes skipped" if len(res.rigid_hz) else ""))
-    return "\n".join(lines)
-
-
-def build_parser(prog="python -m fem.modal"):
-    from geometry.common import CliParser
-
-    p = CliParser(prog=prog, description="Resonance (short-circuit) and anti-resonance (open-circuit) "
-                  "modes of a design near a target frequency; with --match, tune the horn and coupler "
-                  "lengths until both resonate together at the target.")
-    g = p.add_argument_group("design")
-    g.add_argument("--design", default="default",
-                   help="design TOML file (geometry package layout), or 'default' for the built-in design "
-                        "(default)")
-    g.add_argument("--select", metavar="NAME", help="design to pick from a file holding several")
-    g.add_argument("--mesh-size", type=float, metavar="M", help="characteristic mesh size in m")
-    g.add_argument("--order", type=int, default=2, choices=(1, 2), help="field order (default 2)")
-    g = p.add_argument_group("modal analysis")
-    g.add_argument("--near", type=float, metavar="HZ",
-                   help="target frequency in Hz (0: lowest modes; default: the design's target frequency)")
-    g.add_argument("--modes", type=int, default=None, metavar="N",
-                   help=f"number of modes, 1-{MAX_MODES} (default 12; with --match: modes per iteration, default 4)")
-    g.add_argument("--clamp", action="append", default=[], metavar="SURFACE",
-                   help="clamp the named surface (repeatable; default: free)")
-    g.add_argument("--solver", choices=("auto", "pardiso", "superlu"), default=None,
-                   help="sparse direct solver (default: pardiso if installed; env RPUD_SOLVER)")
-    g = p.add_argument_group("resonance matching")
-    g.add_argument("--match", action="store_true",
-                   help="tune design lengths until the working longitudinal mode is at the target and the "
-                        "horn and coupler sides resonate together")
-    g.add_argument("--target", type=float, metavar="HZ",
-                   help="matching target frequency in Hz (default: the design's target_frequency)")
-    g.add_argument("--tune", metavar="A[,B]",
-                   help="design lengths to tune: a horn/flange length, then a coupler/stack length "
-                        "(default horn.length,coupler.length)")
-    g.add_argument("--bracket", metavar="LO,HI", default="0.5,2.0",
-                   help="search interval of each tuned length as factors of its start (default 0.5,2.0)")
-    g.add_argument("--tol", type=float, default=None, metavar="REL",
-                   help=f"relative frequency tolerance of the match, in [{MATCH_TOL_RANGE[0]:g}, {MATCH_TOL_RANGE[1]:g}] "
-                        "(default 0.005 = 0.5 %%)")
-    g.add_argument("--out-design", metavar="FILE",
-                   help="write the tuned design as TOML (default: <design name>-tuned.toml beside --json, "
-                        "else not written)")
-    g = p.add_argument_group("output")
-    g.add_argument("--json", metavar="OUT", help="write the result as JSON to OUT")
-    g.add_argument("--render", metavar="DIR",
-                   help="off-screen PNGs of the working mode and its neighbours into DIR")
-    g.add_argument("--vtu", metavar="FILE", help="VTU file with every computed mode as point data (ParaView)")
-    g.add_argument("--allow-large", action="store_true",
-                   help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
-    p.add_argument("-v", "--verbose", action="count", default=0)
-    return p
-
-
-MAX_MODES = 200
-"""Most modes one CLI run computes (shift-invert Lanczos cost grows with their square)."""
-
-MATCH_TOL_RANGE = (1e-6, 0.2)
-"""Accepted relative frequency tolerances of ``--match`` (``--tol``)."""
-
-
-def _check_options(args) -> dict:
-    """Validate every option before the design is meshed; returns the checked output paths."""
-    from geometry.common import check_integer, check_output_paths, check_range
-    from geometry.validate import FREQUENCY_BAND
-
-    if args.near is not None and args.near != 0:
-        check_range("--near", args.near, *FREQUENCY_BAND, "Hz")
-    if args.modes is not None:
-        check_integer("--modes", args.modes, 1, MAX_MODES)
-    if args.mesh_size is not None:
-        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
-    if args.target is not None:
-        check_range("--target", args.target, *FREQUENCY_BAND, "Hz")
-    if args.tol is not None:
-        # below 1e-6 (0.02 Hz at 20 kHz) the FE frequency itself is not that exact: unattainable
-        check_range("--tol", args.tol, *MATCH_TOL_RANGE)
-    for opt, suffix in (("json", ".json"), ("vtu", ".vtu"), ("out_design", ".toml")):
-        val = getattr(args, opt)
-        if val is not None and not str(val).endswith(suffix):
-            raise ParameterError("--" + opt.replace("_", "-"), val, f"must end in {suffix}")
-    if args.select is not None and str(args.design) == "default":
-        raise ParameterError("--select", args.select, "needs --design FILE")
-    if not args.match:
-        for opt in ("target", "tune", "out_design", "tol"):
-            if getattr(args, opt) is not None:
-                raise ParameterError("--" + opt.replace("_", "-"), getattr(args, opt), "applies to --match only")
-        if args.bracket != "0.5,2.0":
-            raise ParameterError("--bracket", args.bracket, "applies to --match only")
-    else:
-        # matching is free-free with its own nodal-plane cut and shift: refuse what it cannot honour
-        if args.clamp:
-            raise ParameterError("--clamp", args.clamp[0], "cannot be used with --match (the match is free-free)")
-        if args.near is not None:
-            raise ParameterError("--near", args.near, "cannot be used with --match; give --target HZ")
-    if args.solver not in (None, "auto"):
-        from .solvers import backend_name
-
-        backend_name(args.solver)                  # pardiso without MKL: refused before meshing
-    tuned = None
-    if args.match and args.out_design is None and args.json is not None:
-        tuned = "beside --json"
-    outputs = check_output_paths(inputs={"--design": None if str(args.design) == "default" else args.design},
-                                 folders=("render",), json=args.json, vtu=args.vtu, out_design=args.out_design,
-                                 render=args.render)
-    outputs["tuned"] = tuned
-    return outputs
-
-
-def _factors(text: str, name: str) -> tuple[float, float]:
-    try:
-        lo, hi = (float(v) for v in text.split(","))
-    except ValueError:
-        raise ParameterError(name, text, "must be two numbers LO,HI") from None
-    if not (0.05 <= lo < 1 < hi <= 20):
-        raise ParameterError(name, text, "must be two factors with 0.05 <= LO < 1 < HI <= 20")
-    return lo, hi
-
-
-def _outputs(args, mesh, res, working: int) -> None:
-    """--render and --vtu: the working mode and two neighbours each side; every mode."""
-    if args.render:
-        from .render import around, render_modes
-
-        paths = render_modes(mesh, res.shapes, args.render, modes=around(working, res.n_modes, 2),
-                             frequencies=res.f_r_hz, labels=res.labels)
-        print(f"renders: {', '.join(str(p) for p in paths)}")
-    if args.vtu:
-        from .render import write_modes_vtu
-
-        print(f"modes: {write_modes_vtu(mesh, res.shapes, args.vtu, frequencies=res.f_r_hz)}")
-
-
-def main(argv=None) -> int:
-    import geometry
-    from geometry.common import atomic_write_text, check_output_paths, json_text, setup_logging
-    from geometry.guard import check_budget
-
-    from .assembly import assemble
-
-    args = build_parser().parse_args(argv)
-    setup_logging(args.verbose - 1)
-    if args.verbose < 2:
-        logging.getLogger("skfem").setLevel(logging.WARNING)
-    outputs = _check_options(args)
-    bracket = _factors(args.bracket, "--bracket") if args.match else None
-    design = geometry.default_design() if str(args.design) == "default" else geometry.load_design(args.design,
-                                                                                                  args.select)
-    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large)
-    if args.match:
-        from .matching import MatchSettings, match
-
-        extra = {"n_modes": args.modes} if args.modes is not None else {}
-        settings = MatchSettings(
-            target_hz=float(args.target or getattr(design, "target_frequency", 20e3)), tolerance=0.005 if args.tol is None else args.tol,
-            tune=tuple(args.tune.split(",")) if args.tune else getattr(design, "default_tuned", ()),
-            bracket=bracket, mesh_size=args.mesh_size, order=args.order, **extra)
-        out_design = args.out_design
-        if out_design is None and outputs["tuned"]:
-            out_design = str(Path(args.json).parent / f"{design.name}-tuned.toml")
-            check_output_paths(inputs={"--design": None if str(args.design) == "default" else args.design,
-                                       "--json": args.json}, out_design=out_design)
-        print(f"matching {', '.join(settings.tune)} to {settings.target_hz:.1f} Hz", flush=True)
-
-        def show(rec):
-            print(f"  [{rec['stage']:5s}] {rec['parameter']} = "
-                  f"{rec['value_m'] * 1e3:9.4f} mm -> {rec['f_hz']:10.2f} Hz  ({rec['seconds']:5.1f} s)",
-                  flush=True)
-
-        with _solver(args.solver):
-            res_m = match(design, settings, progress=show)
-        res = res_m.modal
-        print(format_table(res))
-        print(f"matched {res_m.matched_hz:.2f} Hz (target {res_m.target_hz:.1f} Hz, "
-              f"{'converged' if res_m.converged else 'NOT converged'}) in {len(res_m.iterations)} iterations, "
-              f"{res_m.timings['total_s']:.1f} s; tuned: "
-              + ", ".join(f"{k} = {v * 1e3:.4f} mm (start {res_m.start[k] * 1e3:.4f})" for k, v in res_m.tuned.items()))
-        if res_m.teeth:
-            print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
-                  f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
-        # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
-        text = json_text(res_m.to_json(), nonfinite="null") if args.json else None
-        if out_design:
-            atomic_write_text(out_design, res_m.design.to_toml())
-            print(f"tuned design: {out_design}")
-        else:
-            print("tuned design not written (give --out-design FILE or --json)")
-        _outputs(args, res_m.mesh, res, res_m.working_index)
-        if text is not None:
-            atomic_write_text(args.json, text)
-        return 0 if res_m.converged else 1
-    near = float(args.near if args.near is not None else getattr(design, "target_frequency", 20e3))
-    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order)
-    for name in args.clamp:
-        mesh.facets(name)
-    system = assemble(mesh, order=args.order)
-    n_modes = 12 if args.modes is None else args.modes
-    if n_modes > system.ndof // 4:
-        raise ParameterError("--modes", n_modes, f"must be <= {system.ndof // 4} for this mesh ({system.ndof} DOFs)")
-    res = modal_analysis(system, near, n_modes, clamp=args.clamp,
-                         backend=None if args.solver in (None, "auto") else args.solver)
-    print(format_table(res))
-    data = None
-    if args.json:
-        data = res.to_json()
-        data["design"] = str(args.design)
-        data["mesh_size"] = args.mesh_size
-        data = json_text(data, nonfinite="null")
-    if args.render or args.vtu:
-        from .matching import working_mode
-
-        _outputs(args, mesh, res, working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0)) if near > 0 else 0)
-    if data is not None:
-        atomic_write_text(args.json, data)
-    return 0
-
-
-@contextlib.contextmanager
-def _solver(name):
-    """The sparse solver for code that picks it from ``RPUD_SOLVER`` (the matching loop)."""
-    if name in (None, "auto"):
-        yield
-        return
-    old = os.environ.get("RPUD_SOLVER")
-    os.environ["RPUD_SOLVER"] = name
-    try:
-        yield
-    finally:
-        if old is None:
-            os.environ.pop("RPUD_SOLVER", None)
-        else:
-            os.environ["RPUD_SOLVER"] = old

@@ -72,7 +72,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from geometry.mesh import TaggedMesh
 
 from .assembly import PiezoSystem
@@ -240,7 +240,7 @@ def check_shapes(mesh, shapes, name: str = "shapes", allow_complex: bool = True)
     """Validate and return ``shapes`` as an ``(n_modes, n_nodes, 3)`` array.
 
     A single shape ``(n_nodes, 3)`` becomes ``(1, n_nodes, 3)``. Raises
-    :class:`~geometry.common.ParameterError` for any other shape or non-finite values.
+    :class:`~rpud_common.errors.ParameterError` for any other shape or non-finite values.
     """
     n = len(_context(mesh).nodes)
     try:

@@ -7,15 +7,14 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.common import pyplot as _plt
-from geometry.common import save_figure as _save
+from rpud_common.figures import subplots
+from rpud_common import save_figure as _save
 
 
 
 def admittance(res, f_r: float, f_a: float, path) -> Path:
     """|Y| (log) and phase over the band, with the modal f_r / f_a marked."""
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5.5), dpi=120, sharex=True)
+    fig, (a1, a2) = subplots(2, 1, figsize=(7, 5.5), dpi=120, sharex=True)
     f = res.freqs_hz / 1e3
     a1.semilogy(f, np.abs(res.admittance) * 1e3, lw=1.5)
     a2.plot(f, np.degrees(np.angle(res.admittance)), lw=1.5)
@@ -34,8 +33,7 @@ def admittance(res, f_r: float, f_a: float, path) -> Path:
 
 def tip_response(res, f_w: float, path) -> Path:
     """Horn-tip axial amplitude per volt and phase (and the teeth's tangential/axial ratio)."""
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(2, 1, figsize=(7, 5.5), dpi=120, sharex=True)
+    fig, (a1, a2) = subplots(2, 1, figsize=(7, 5.5), dpi=120, sharex=True)
     f = res.freqs_hz / 1e3
     tip = res.surfaces["horn_tip"]["axial"] / res.voltage
     a1.plot(f, np.abs(tip) * 1e9, lw=1.5, label="horn tip, axial")
@@ -57,8 +55,7 @@ def tip_response(res, f_w: float, path) -> Path:
 
 def ring_up(res, harmonic_amplitude: float, path) -> Path:
     """Tip displacement during ring-up: envelope over the run and the last cycles."""
-    plt = _plt()
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(10, 4), dpi=120)
+    fig, (a1, a2) = subplots(1, 2, figsize=(10, 4), dpi=120)
     surface = next(iter(res.surfaces))
     y = res.surfaces[surface]["axial"]
     step = max(1, len(y) // 20000)

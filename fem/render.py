@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.common import ParameterError, atomic_output
+from rpud_common import ParameterError, atomic_output
 from geometry.mesh import TaggedMesh
 
 from .modeshape import _context, axis_frame, check_shapes

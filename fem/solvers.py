@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from geometry.common import ParameterError, check_choice
+from rpud_common import ParameterError, check_choice
 
 __all__ = ["factorize", "backend_name", "Factor", "pardiso_available", "blas_threads"]
 

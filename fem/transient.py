@@ -42,7 +42,7 @@ from typing import Iterable, Sequence
 import numpy as np
 import scipy.signal as signal
 
-from geometry.common import ParameterError, check_positive
+from rpud_common import ParameterError, check_positive
 
 from .assembly import PiezoSystem
 from .harmonic import COMPONENTS, LossModel, ModalBasis, loss_matrix, modal_basis, surface_functional

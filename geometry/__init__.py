@@ -2,7 +2,7 @@
 
 Importing this package imports nothing else: the names below load their modules on first use
 (PEP 562), so ``python -m geometry`` and every other entry point can install their signal
-handlers (:mod:`geometry.launch`) before numpy, scipy or gmsh are imported. gmsh itself loads
+handlers (:mod:`rpud_common.launch`) before numpy, scipy or gmsh are imported. gmsh itself loads
 only when a mesh is built (:func:`build_mesh`, :func:`build`).
 """
 

@@ -13,14 +13,14 @@ import sys
 
 if __name__ == "__main__":
     # signal handling first: the imports below take a second and must end cleanly on SIGINT/SIGTERM
-    from geometry.launch import launch
+    from rpud_common.launch import launch
 
     sys.exit(launch("geometry.__main__", prog="python -m geometry"))
 
 import logging
 from pathlib import Path
 
-from .common import CliParser, ParameterError, check_output_paths, check_range, setup_logging, write_json
+from rpud_common import CliParser, ParameterError, check_output_paths, check_range, setup_logging, write_json
 
 log = logging.getLogger("geometry")
 

@@ -24,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from . import common
-from .common import ParameterError, check_choice, check_positive, check_range
+from rpud_common import cli as common
+from rpud_common import ParameterError, check_choice, check_positive, check_range
 from .design import DesignBase, RPUDDesign, StackDesign
 from .materials import get_material
 from .mesh import Electrode, Region, TaggedMesh
@@ -375,8 +375,8 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     handled at once (Gmsh's own native loop would hold them until it returns) and a run that
     exceeds ``time_limit`` seconds (default :data:`GMSH_TIME_LIMIT` or ``RPUD_GMSH_TIMEOUT``)
     ends with a :class:`ParameterError` instead of hanging. An abandoned Gmsh run cannot be
-    stopped: it is recorded (:func:`geometry.common.abandon_native_run`) and the CLI wrapper
-    (:func:`geometry.common.run_cli`) then ends the process by ``os._exit`` after its line.
+    stopped: it is recorded (:func:`rpud_common.cli.abandon_native_run`) and the CLI wrapper
+    (:func:`rpud_common.cli.run_cli`) then ends the process by ``os._exit`` after its line.
     See :func:`_build` for the other parameters and the result.
     """
     if time_limit is None:

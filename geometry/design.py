@@ -10,7 +10,7 @@ Two design kinds share one interface (:class:`DesignBase`):
   direction; electrodes are named faces of segments (:class:`ElectrodeSpec`). Textbook cases
   (k33 rod, k31 bar, Langevin sandwich, slender rod) are built with :mod:`geometry.examples`.
 
-Every design validates itself on construction (a :class:`~geometry.common.ParameterError`
+Every design validates itself on construction (a :class:`~rpud_common.errors.ParameterError`
 names the offending field by its dotted path), converts to and from TOML, exposes a dotted-path
 API (``design.get("horn.length")``, ``design.replace({"horn.length": 0.062})``), closed-form
 part volumes and masses, the axial extent of every part and an exact axial morph of mesh
@@ -32,7 +32,7 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from .common import (ParameterError, check_choice, check_range, dump_toml, from_mapping, load_toml,
+from rpud_common import (ParameterError, check_choice, check_range, dump_toml, from_mapping, load_toml,
                      to_mapping, atomic_write_text)
 from .dotted import _child, _radial_signature, _replace_path
 from .materials import get_material

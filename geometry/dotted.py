@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from .common import ParameterError
+from rpud_common import ParameterError
 
 __all__ = ["_child", "_replace_path", "_radial_signature", "_flatten"]
 

@@ -18,7 +18,7 @@ import logging
 import math
 from dataclasses import dataclass
 
-from .common import ParameterError
+from rpud_common import ParameterError
 
 __all__ = ["Estimate", "estimate", "check_budget", "MAX_ELEMENTS", "MAX_DOFS", "TETS_PER_CUBE"]
 

@@ -15,7 +15,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Literal, Mapping
 
-from .common import ParameterError, check_positive, check_range, load_toml
+from rpud_common import ParameterError, check_positive, check_range, load_toml
 
 __all__ = ["Material", "load_library", "get_material", "EPS0"]
 

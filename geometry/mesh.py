@@ -16,7 +16,7 @@ from typing import Literal
 
 import numpy as np
 
-from .common import ParameterError, atomic_output
+from rpud_common import ParameterError, atomic_output
 
 __all__ = ["Region", "Electrode", "TaggedMesh", "match_rows"]
 

@@ -21,7 +21,7 @@ from typing import Literal, Sequence
 import numpy as np
 from scipy.optimize import brentq
 
-from .common import ParameterError, check_positive
+from rpud_common import ParameterError, check_positive
 from .materials import Material, get_material
 
 __all__ = ["Mode1D", "axial_modulus", "longitudinal_modes", "design_modes", "first_longitudinal"]

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .common import atomic_output
+from rpud_common import atomic_output
 from .design import DesignBase, RPUDDesign
 from .mesh import TaggedMesh
 

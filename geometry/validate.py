@@ -13,7 +13,7 @@ import re
 from collections.abc import Iterable, Mapping
 from typing import Any
 
-from .common import ParameterError, check_integer, check_range
+from rpud_common import ParameterError, check_integer, check_range
 
 __all__ = ["MIN_FEATURE", "MAX_LENGTH", "FREQUENCY_BAND", "MAX_COUNT", "check_length", "check_bore",
            "check_count", "check_name", "check_material", "check_frequency", "design_table"]

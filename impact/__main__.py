@@ -2,6 +2,6 @@
 
 import sys
 
-from geometry.launch import launch
+from rpud_common.launch import launch
 
 sys.exit(launch("impact.cli", prog="python -m impact"))

@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from geometry.common import write_json
+from rpud_common import write_json
 
 from .model import simulate
 from .params import ImpactParams

@@ -12,7 +12,7 @@ import math
 import sys
 from pathlib import Path
 
-from geometry.common import (
+from rpud_common import (
     CliParser, ParameterError, atomic_folder, atomic_write_text, check_output_paths, from_mapping, load_toml,
     setup_logging, toml_section, write_json,
 )

@@ -11,7 +11,7 @@ import math
 from dataclasses import dataclass, replace
 from typing import Literal
 
-from geometry.common import (
+from rpud_common import (
     ParameterError, check_choice, check_range, dump_toml, from_mapping, load_toml, to_mapping,
 )
 

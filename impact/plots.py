@@ -11,8 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
-from geometry.common import pyplot as _plt
-from geometry.common import save_figure
+from rpud_common.figures import subplots
+from rpud_common import save_figure
 
 __all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass"]
 
@@ -20,13 +20,12 @@ __all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass"]
 
 def plot_history(result, path, t_max: float | None = None, title: str = "") -> Path:
     """Horn tip, free mass and tool face positions (mm) against time (ms) up to ``t_max`` (s)."""
-    plt = _plt()
     if result.t_grid is None:
         raise ValueError("the result holds no time series (simulate(..., series=True))")
     t_max = result.params.t_end if t_max is None else t_max
     sel = result.t_grid <= t_max * (1 + 1e-12)
     t = result.t_grid[sel] * 1e3
-    fig, ax = plt.subplots(figsize=(9, 4.5), dpi=120)
+    fig, ax = subplots(figsize=(9, 4.5), dpi=120)
     ax.plot(t, result.tool_face[sel] * 1e3, color="tab:green", lw=1.0, label="drill tool face L0 + v(t)")
     ax.plot(t, result.w[sel] * 1e3, color="tab:blue", lw=1.0, label="free mass w(t)")
     ax.plot(t, result.u[sel] * 1e3, color="tab:red", lw=0.5, label="horn tip u(t)")
@@ -43,10 +42,9 @@ def plot_history(result, path, t_max: float | None = None, title: str = "") -> P
 
 def plot_spectrum(result, path, f_max: float = 2000.0) -> Path:
     """Amplitude spectrum of the free-mass displacement (mm) up to ``f_max`` (Hz)."""
-    plt = _plt()
     f, amp = result.spectrum()
     sel = f <= f_max
-    fig, ax = plt.subplots(figsize=(8, 4), dpi=120)
+    fig, ax = subplots(figsize=(8, 4), dpi=120)
     ax.plot(f[sel], amp[sel] * 1e3, lw=0.8)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("amplitude (mm)")
@@ -59,9 +57,8 @@ def plot_ke_vs_mass(sweep_result, path, histories: dict | None = None) -> Path:
     """Fig. 8 analogue: mean tool KE after impact (mJ) vs free mass (g), error bars the 95 %
     confidence intervals, with the linear fit; optionally, left panel: tool KE after each impact
     vs time for one sample trajectory per mass (``histories``: mass kg -> ImpactResult)."""
-    plt = _plt()
     ncol = 2 if histories else 1
-    fig, axes = plt.subplots(1, ncol, figsize=(6 * ncol, 4.5), dpi=120, squeeze=False)
+    fig, axes = subplots(1, ncol, figsize=(6 * ncol, 4.5), dpi=120, squeeze=False)
     if histories:
         ax = axes[0, 0]
         for m, r in sorted(histories.items()):

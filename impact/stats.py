@@ -58,7 +58,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from geometry.common import ParameterError, check_integer, check_range
+from rpud_common import ParameterError, check_integer, check_range
 
 from .params import ImpactParams
 

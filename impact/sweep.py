@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from geometry.common import ParameterError, check_positive
+from rpud_common import ParameterError, check_positive
 
 from .params import ImpactParams
 from .stats import QUANTITIES, EnsembleStats, Scenario, StatsSettings, ensemble_batch, get_scenario

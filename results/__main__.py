@@ -6,13 +6,13 @@ import sys
 
 if __name__ == "__main__":
     # signal handling first: the imports below take a second and must end cleanly on SIGINT/SIGTERM
-    from geometry.launch import launch
+    from rpud_common.launch import launch
 
     sys.exit(launch("results.__main__", prog="results"))
 
 from pathlib import Path
 
-from geometry.common import (CliParser, ParameterError, atomic_folder, check_integer, check_output_paths,
+from rpud_common import (CliParser, ParameterError, atomic_folder, check_integer, check_output_paths,
                              check_range, setup_logging)
 
 

@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from fem.plots import admittance, ring_up, tip_response  # noqa: F401  (re-exported)
-from geometry.common import pyplot as _plt
-from geometry.common import save_figure as _save
+from rpud_common.figures import subplots
+from rpud_common import save_figure as _save
 
 
 def impact_history(result, path) -> Path:
@@ -33,9 +33,7 @@ SWEEP_LABELS = {
 def kinetic_energy(sweeps: dict, with_zero: bool, path) -> Path:
     """Mean tool kinetic energy after impact vs free mass, each sweep with 95 % CI error bars."""
     from impact.plots import ke_errorbars
-
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(8, 5), dpi=120)
+    fig, ax = subplots(figsize=(8, 5), dpi=120)
     for key, sw in sweeps.items():
         label, fmt = SWEEP_LABELS.get(key, (key, "o-"))
         ke_errorbars(ax, sw, fmt, label, zero=with_zero)
@@ -49,8 +47,7 @@ def kinetic_energy(sweeps: dict, with_zero: bool, path) -> Path:
 
 def a0_coupling(coupled, path) -> Path:
     """Horn-tip amplitude with and without the impact load, per free mass."""
-    plt = _plt()
-    fig, ax = plt.subplots(figsize=(7, 4), dpi=120)
+    fig, ax = subplots(figsize=(7, 4), dpi=120)
     m = np.array(sorted(coupled))
     ax.plot(m * 1e3, [coupled[k].A0 * 1e6 for k in m], "o-", label="loaded by the free-mass impacts")
     ax.plot(m * 1e3, [coupled[k].A0_unloaded * 1e6 for k in m], "k--", label="no impact load")

@@ -44,7 +44,7 @@ from typing import Callable
 
 import numpy as np
 
-from geometry.common import ParameterError, check_integer, check_positive, check_range, write_json
+from rpud_common import ParameterError, check_integer, check_positive, check_range, write_json
 
 log = logging.getLogger(__name__)
 

@@ -6,7 +6,7 @@ import math
 from pathlib import Path
 
 
-from geometry.common import atomic_write_text
+from rpud_common import atomic_write_text
 
 
 def _f(v, scale=1.0, fmt=".3g", unit=""):

@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import geometry
-from geometry.common import run_cli
+from rpud_common import run_cli
 
 EXAMPLES = {"geometry": 200, "design_toml": 300, "fem.modal": 200, "fem.harmonic": 200, "results": 150,
             "impact": 30, "impact sweep": 25, "impact article": 15, "impact config": 25}
@@ -153,7 +153,7 @@ def _set(obj, path, value):
 
 def _designs():
     from geometry import examples
-    from geometry.common import to_jsonable
+    from rpud_common import to_jsonable
 
     designs = {"rpud": geometry.default_design(), "stack": examples.langevin_sandwich(), "bar": examples.k31_bar()}
     return {k: to_jsonable(d.to_mapping(), drop_none=True) for k, d in designs.items()}
@@ -230,10 +230,10 @@ def test_design_files_are_refused_cleanly(data, cli):
         from geometry.__main__ import main
         argv = ["--design", "d.toml", "--json", "o.json", "-q"]
     elif cli == "modal":
-        from fem.modal import main
+        from fem.modal_cli import main
         argv = ["--design", "d.toml", "--json", "o.json"]
     elif cli == "harmonic":
-        from fem.harmonic import main
+        from fem.harmonic_cli import main
         argv = ["--design", "d.toml", "--json", "o.json"]
     else:
         from results.__main__ import main
@@ -256,7 +256,7 @@ MODAL_OPTS = {"--mesh-size": BAD_FLOAT, "--near": [v for v in BAD_FLOAT if v not
                  _options(MODAL_OPTS).map(lambda a: ["--match"] + a),
                  _bad_outputs(["--json", "--vtu", "--render"], {"--json": ".json", "--vtu": ".vtu"})))
 def test_modal_cli_refuses_cleanly(argv):
-    from fem.modal import main
+    from fem.modal_cli import main
 
     if argv in (["--match", "--tune", "horn.lenght"],) or argv[:1] == ["--clamp"] and len(argv) == 2:
         argv = argv + ["--modes", "0"]      # these two are refused only after meshing
@@ -273,7 +273,7 @@ HARMONIC_OPTS = {"--voltage": BAD_FLOAT + ["0", "1e5"], "--freq": BAD_FLOAT + ["
 @settings(max_examples=EXAMPLES["fem.harmonic"], **_SETTINGS)
 @given(st.one_of(_options(HARMONIC_OPTS), _bad_outputs(["--json", "--plots"], {"--json": ".json"})))
 def test_harmonic_cli_refuses_cleanly(argv):
-    from fem.harmonic import main
+    from fem.harmonic_cli import main
 
     run_clean(main, argv)
 
@@ -298,8 +298,10 @@ def test_results_cli_refuses_cleanly(argv):
 
 IMPACT_FLOATS = ["nan", "inf", "-inf", "1e308", "1e-320", "-1", "abc", ""]
 _IMPACT_FIELDS = ["--m-free", "--A0", "--freq", "--e1", "--e2", "--m-horn", "--m-tool", "--k0", "--c",
-                  "--gap", "--g", "--v0", "--t-end", "--t-from", "--spring-force", "--rel-tol"]
-IMPACT_OPTS = {**{o: IMPACT_FLOATS for o in _IMPACT_FIELDS}, "--horn-law": ["x"], "--scenario": ["lab"],
+                  "--gap", "--v0", "--t-end", "--t-from", "--spring-force", "--rel-tol"]
+IMPACT_OPTS = {**{o: IMPACT_FLOATS for o in _IMPACT_FIELDS},
+               "--g": [v for v in IMPACT_FLOATS if v != "-1"],       # g < 0: a drill pointing up, valid
+               "--horn-law": ["x"], "--scenario": ["lab"],
                "--members": BAD_INT[:2] + BAD_INT[3:], "--max-members": BAD_INT, "--threads": BAD_INT,
                "--seed": ["-1", "x", "1.5"], "--config": ["", "missing.toml", "adir", "afile"]}
 

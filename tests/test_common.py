@@ -4,7 +4,7 @@ from dataclasses import dataclass, field
 
 import pytest
 
-from geometry.common import (
+from rpud_common import (
     CliParser, ParameterError, atomic_output, check_positive, dump_toml, from_mapping,
     load_toml, run_cli, to_mapping, write_json,
 )

@@ -7,7 +7,7 @@ import pytest
 from fem.assembly import assemble
 from fem.materials import piezo_matrices, strain_charge
 from fem.solvers import backend_name, factorize, pardiso_available
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from geometry.mesh import Electrode
 from test_fem_util import bar, bent_bimorph, rod
 

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from skfem import MeshTet
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from geometry.materials import get_material
 from geometry.mesh import Electrode, Region, TaggedMesh
 from fem.assembly import assemble

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 import geometry
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from fem.assembly import assemble
 from fem.matching import MatchSettings, front_half, match, nodal_plane, working_mode
 from fem.modal import modal_analysis

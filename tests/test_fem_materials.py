@@ -5,7 +5,7 @@ import pytest
 
 from fem.materials import (EPS0, bond_stress, elastic_matrix, piezo_matrices, rotation_to,
                            strain_charge)
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 
 # references.md strain-charge values (datasheets, rounded): s in 1e-12 m^2/N, d in pC/N
 REF = {

@@ -13,8 +13,9 @@ from scipy.optimize import brentq
 
 from fem.assembly import assemble
 from fem.materials import piezo_matrices, strain_charge
-from fem.modal import main, modal_analysis
-from geometry.common import run_cli
+from fem.modal import modal_analysis
+from fem.modal_cli import main
+from rpud_common import run_cli
 from test_fem_util import bar, rod
 
 E, NU, RHO = 209e9, 0.269, 7890.0

@@ -11,7 +11,7 @@ import scipy.sparse as sp
 from skfem import Basis, BilinearForm, ElementTetP2, ElementVector, MeshTet, asm
 from skfem.models.elasticity import lame_parameters, linear_elasticity
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from geometry.materials import get_material
 from geometry.mesh import Region, TaggedMesh
 from fem.modeshape import (classify, cylindrical_components, effective_mass_axial, energy_shares, equivalent_mass,

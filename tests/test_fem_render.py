@@ -4,7 +4,7 @@ import meshio
 import numpy as np
 import pytest
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from fem.modeshape import p2_nodes
 from fem.render import around, mode_names, render_mode, render_modes, write_modes_vtu
 

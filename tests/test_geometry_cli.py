@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from geometry.__main__ import main
-from geometry.common import run_cli
+from rpud_common import run_cli
 from geometry.design import load_design
 
 ROOT = Path(__file__).resolve().parents[1]

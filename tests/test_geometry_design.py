@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from geometry import examples
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from geometry.design import (ElectrodeSpec, RPUDDesign, Segment, StackDesign, default_design, design_from_mapping,
                              load_design)
 from geometry.onedim import axial_modulus, design_modes, first_longitudinal, longitudinal_modes

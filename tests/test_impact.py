@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from impact.model import simulate
 from impact.params import ImpactParams
 from impact.reference import simulate_ivp

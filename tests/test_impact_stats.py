@@ -10,7 +10,7 @@ import sys
 import numpy as np
 import pytest
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from impact.model import simulate
 from impact.params import ImpactParams
 from impact.stats import (

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from skfem import Basis, ElementTetP2, MeshTet, MeshTet2
 
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from geometry.materials import get_material
 from geometry.mesh import Electrode, Region, TaggedMesh
 

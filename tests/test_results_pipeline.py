@@ -7,7 +7,7 @@ import sys
 import pytest
 
 import geometry
-from geometry.common import ParameterError
+from rpud_common import ParameterError
 from results.pipeline import PipelineSettings, run_pipeline
 
 

@@ -18,7 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from geometry.common import atomic_folder, atomic_output, run_cli, write_json
+from rpud_common import atomic_folder, atomic_output, run_cli, write_json
 
 ROOT = Path(__file__).resolve().parents[1]
 

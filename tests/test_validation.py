@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 import geometry
-from geometry import common
-from geometry.common import (MAX_TOML_BYTES, MAX_TOML_DEPTH, NAME_MAX, PATH_MAX, ParameterError, atomic_folder,
+from rpud_common import files as common
+from rpud_common import (MAX_TOML_BYTES, MAX_TOML_DEPTH, NAME_MAX, PATH_MAX, ParameterError, atomic_folder,
                              check_output_paths, from_mapping, json_text, load_toml, toml_section, write_json)
 from geometry.validate import (FREQUENCY_BAND, MAX_COUNT, MAX_LENGTH, MIN_FEATURE, check_bore, check_count,
                                check_frequency, check_length, check_material, check_name, design_table,

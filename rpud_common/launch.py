@@ -3,9 +3,9 @@
 ``python -m geometry`` (and ``fem.modal``, ``fem.harmonic``, ``impact``, ``results``) spends its
 first ~0.2-1 s importing numpy, scipy, gmsh... A SIGINT in that window would print a
 ``KeyboardInterrupt`` traceback and a SIGTERM would kill the process by the signal, so every
-entry point calls :func:`launch` first. This module imports the standard library only (and
-``geometry/__init__`` imports nothing), so the handlers are installed a few milliseconds after
-the interpreter starts; :func:`geometry.common.run_cli` takes over once ``main`` is imported.
+entry point calls :func:`launch` first. This module imports the standard library only, so the
+handlers are installed a few milliseconds after the interpreter starts;
+:func:`rpud_common.cli.run_cli` takes over once ``main`` is imported.
 
 Signals that arrive before the interpreter has run any of our code (its own start-up, ~30 ms)
 cannot be handled by Python code at all.
@@ -13,13 +13,17 @@ cannot be handled by Python code at all.
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import signal
 import sys
+import threading
+from collections.abc import Iterator
 
 __all__ = ["Terminated", "on_sigterm", "handle", "install_handlers", "forget_interrupt", "settle", "launch",
-           "EXIT_INTERRUPTED", "EXIT_TERMINATED"]
+           "EXIT_INTERRUPTED", "EXIT_TERMINATED", "signals_held",
+           "on_sigint", "raise_pending", "clear_pending", "pending_signal"]
 
 EXIT_INTERRUPTED = 130
 """Exit code after SIGINT (128 + 2, the shell's convention)."""
@@ -40,9 +44,42 @@ class Terminated(KeyboardInterrupt):
     """
 
 
+_PENDING: list[int] = []
+"""Signals received and not yet reported. Their exception can be swallowed where CPython ignores
+exceptions (a ``__del__``, a weakref callback run by the garbage collector: matplotlib has many),
+so the record outlives it: :func:`raise_pending` raises it again at the next commit point."""
+
+
 def on_sigterm(signum, frame):
     """SIGTERM handler: unwind the main thread like an interrupt does."""
+    _PENDING.append(signum)
     raise Terminated()
+
+
+def on_sigint(signum, frame):
+    """SIGINT handler: ``KeyboardInterrupt``, recorded like SIGTERM."""
+    _PENDING.append(signum)
+    raise KeyboardInterrupt()
+
+
+def raise_pending() -> None:
+    """Raise again a SIGINT/SIGTERM whose exception was swallowed (see :data:`_PENDING`).
+
+    Called before a result is committed (the rename of an atomic file or folder) and when a
+    command ends, so a signal is never lost to a callback that ignored it.
+    """
+    if _PENDING:
+        raise Terminated() if _PENDING[-1] == signal.SIGTERM else KeyboardInterrupt()
+
+
+def pending_signal() -> int | None:
+    """The last SIGINT/SIGTERM received and not yet reported, or None."""
+    return _PENDING[-1] if _PENDING else None
+
+
+def clear_pending() -> None:
+    """The pending signal has been reported."""
+    _PENDING.clear()
 
 
 def handle(sig: int, handler) -> object:
@@ -57,10 +94,20 @@ def handle(sig: int, handler) -> object:
     return previous
 
 
+def _quiet_unraisable(unraisable) -> None:
+    # the exception of a recorded signal, swallowed by a __del__ or a weakref callback: it is
+    # raised again at the next commit point (raise_pending), so no "Exception ignored" report
+    if isinstance(unraisable.exc_value, KeyboardInterrupt) and _PENDING:
+        return
+    sys.__unraisablehook__(unraisable)
+
+
 def install_handlers() -> None:
-    """SIGINT raises ``KeyboardInterrupt``, SIGTERM raises :class:`Terminated` (main thread only)."""
-    handle(signal.SIGINT, signal.default_int_handler)
+    """SIGINT raises ``KeyboardInterrupt``, SIGTERM raises :class:`Terminated` (main thread only);
+    their exceptions swallowed in callbacks are not reported (they are pending, see above)."""
+    handle(signal.SIGINT, on_sigint)
     handle(signal.SIGTERM, on_sigterm)
+    sys.unraisablehook = _quiet_unraisable
 
 
 def _line(prog: str, word: str) -> None:
@@ -121,7 +168,8 @@ def launch(module: str, prog: str, func: str = "main") -> int:
     try:
         install_handlers()
         target = getattr(importlib.import_module(module), func)
-        from geometry.common import run_cli
+        # by name, like the entry module: rpud_common.cli builds on this module's primitives
+        run_cli = importlib.import_module("rpud_common.cli").run_cli
 
         return run_cli(target, prog=prog, final=True)
     except Terminated:  # first: it is a KeyboardInterrupt too
@@ -130,6 +178,29 @@ def launch(module: str, prog: str, func: str = "main") -> int:
     except KeyboardInterrupt:
         forget_interrupt()
         code, word = EXIT_INTERRUPTED, "interrupted"
+    except BaseException:
+        # C code (an extension module being imported) can turn the signal's exception into
+        # another one, e.g. ImportError: the signal is what happened, report it
+        if pending_signal() is None:
+            raise
+        forget_interrupt()
+        terminated = pending_signal() == signal.SIGTERM
+        code, word = (EXIT_TERMINATED, "terminated") if terminated else (EXIT_INTERRUPTED, "interrupted")
+    clear_pending()
     settle(code)
     _line(prog, word)
     return code
+
+
+@contextlib.contextmanager
+def signals_held() -> Iterator[None]:
+    """Defer SIGINT/SIGTERM for a few system calls that must happen together."""
+    held = {signal.SIGINT, signal.SIGTERM}
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, previous)

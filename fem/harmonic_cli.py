@@ -1,0 +1,161 @@
+"""``python -m fem.harmonic``: the command line of :mod:`fem.harmonic` (options, checks, printing, files).
+
+The physics lives in :mod:`fem.harmonic`; this module only parses, validates, calls and writes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rpud_common import ParameterError, check_range
+
+from .harmonic import LossModel, harmonic_sweep, modal_basis, working_point
+
+def build_parser():
+    from rpud_common import CliParser
+
+    p = CliParser(prog="python -m fem.harmonic",
+                  description="Harmonic response of a design driven by a voltage: horn-tip amplitude per volt, "
+                              "admittance over a band with resonance/anti-resonance, input power, and the "
+                              "ring-up under a sine switched on at t = 0.")
+    p.add_argument("--design", metavar="FILE", help="design TOML (default: the built-in RPUD design)")
+    p.add_argument("--voltage", type=float, default=225.0, metavar="V",
+                   help="drive voltage amplitude, V (default 225)")
+    p.add_argument("--freq", type=float, metavar="HZ",
+                   help="working frequency, Hz (default: the working mode's resonance near the design's "
+                        "target frequency, i.e. the matched frequency of a matched design)")
+    p.add_argument("--band", metavar="LO,HI", help="admittance band, Hz (default: f_r - 3 %% .. f_a + 3 %%)")
+    p.add_argument("--points", type=int, default=200, metavar="N", help="frequencies in the band (default 200)")
+    p.add_argument("--q-mech", type=float, metavar="Q",
+                   help="mechanical quality factor of every part (default: each material's datasheet value)")
+    p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
+    p.add_argument("--surface", action="append", metavar="NAME",
+                   help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
+    p.add_argument("--mesh-size", type=float, metavar="M", help="mesh size, m")
+    p.add_argument("--modes", type=int, default=8, metavar="N", help="modes in the superposition basis (default 8)")
+    p.add_argument("--ring-up", type=float, metavar="S",
+                   help="also integrate the ring-up for S seconds (0: six time constants)")
+    p.add_argument("--json", metavar="OUT", help="write the results as JSON")
+    p.add_argument("--plots", metavar="DIR", help="write admittance / tip response / ring-up PNGs into DIR")
+    p.add_argument("--allow-large", action="store_true",
+                   help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
+    p.add_argument("-v", "--verbose", action="count", default=0)
+    return p
+
+
+MAX_POINTS = 20_000
+"""Most frequencies of one admittance sweep."""
+
+MAX_RING_UP = 1.0
+"""Longest ring-up integrated, s (20 000 drive periods at 20 kHz)."""
+
+
+def _check_options(args) -> None:
+    """Every option finite and inside its stated range, outputs usable, before meshing."""
+    from rpud_common import check_integer, check_output_paths
+    from geometry.validate import FREQUENCY_BAND
+
+    check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
+    if args.freq is not None:
+        check_range("--freq", args.freq, *FREQUENCY_BAND, "Hz")
+    check_integer("--points", args.points, 3, MAX_POINTS)
+    check_integer("--modes", args.modes, 1, 200)
+    if args.q_mech is not None:
+        check_range("--q-mech", args.q_mech, 1.0, 1e6)
+    if args.tan_delta is not None:
+        check_range("--tan-delta", args.tan_delta, 0.0, 1.0)
+    if args.mesh_size is not None:
+        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    if args.ring_up is not None:
+        check_range("--ring-up", args.ring_up, 0.0, MAX_RING_UP, "s (0: six time constants)")
+    if args.json is not None and not args.json.endswith(".json"):
+        raise ParameterError("--json", args.json, "must end in .json")
+    check_output_paths(inputs={"--design": args.design}, folders=("plots",), json=args.json, plots=args.plots)
+
+
+def _parse_band(text: str) -> tuple[float, float]:
+    try:
+        lo, hi = (float(v) for v in text.split(","))
+    except ValueError:
+        raise ParameterError("--band", text, "must be two frequencies in Hz, LO,HI") from None
+    if not (100.0 <= lo < hi <= 1e6):
+        raise ParameterError("--band", text, "must satisfy 100 <= LO < HI <= 1e6 (Hz)")
+    return lo, hi
+
+
+def main(argv=None) -> int:
+    import geometry
+    from rpud_common import atomic_write_text, json_text, setup_logging
+    from geometry.guard import check_budget
+
+    from .assembly import assemble
+    from .matching import working_mode
+    from .modal import modal_analysis
+
+    args = build_parser().parse_args(argv)
+    setup_logging(args.verbose - 1)
+    _check_options(args)
+    band = _parse_band(args.band) if args.band else None
+    if band and args.freq is not None and not band[0] <= args.freq <= band[1]:
+        raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
+    loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
+    design = geometry.load_design(args.design) if args.design is not None else geometry.default_design()
+    check_budget(design, args.mesh_size, allow_large=args.allow_large)
+    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size)
+    surfaces = tuple(args.surface) if args.surface else tuple(
+        s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
+    for s in surfaces:
+        mesh.facets(s)                                  # unknown names: a clear error before solving
+    if not surfaces:
+        raise ParameterError("--surface", None, "the design has no horn_tip; name a surface")
+    system = assemble(mesh)
+    near = float(args.freq or getattr(design, "target_frequency", 20e3))
+    modal = modal_analysis(system, near, args.modes)
+    w = working_mode(system, modal.f_r_hz, modal.vectors, near)
+    f_w = float(args.freq or modal.f_r_hz[w])
+    f_a = float(modal.f_a_hz[w])
+    if band is None:
+        band = (f_w * 0.97, (f_a if np.isfinite(f_a) else f_w) * 1.03)
+    elif not band[0] <= f_w <= band[1]:
+        raise ParameterError("--band", args.band, f"does not contain the working frequency {f_w:.1f} Hz")
+    basis = modal_basis(system, f_w, loss=loss, modes=modal)
+    res = harmonic_sweep(system, np.linspace(band[0], band[1], args.points), args.voltage, loss=loss,
+                         basis=basis, surfaces=surfaces)
+    wp = working_point(system, f_w, args.voltage, loss=loss, surfaces=surfaces, basis=basis)
+    ring = None
+    if args.ring_up is not None:
+        from .transient import ring_up
+
+        tau = 2.0 / (basis.eta[w] * 2 * np.pi * f_w)
+        ring = ring_up(system, f_w, args.voltage, args.ring_up or 6 * tau, loss=loss, basis=basis,
+                       surfaces=surfaces[:1])
+    print(f"working mode {w + 1} ({modal.labels[w]}): f_r {f_w:.1f} Hz, f_a {f_a:.1f} Hz, k_eff {modal.k_eff[w]:.3f}")
+    print(f"{surfaces[0]} axial amplitude: {wp.tip_per_volt_m * 1e9:.2f} nm/V, {wp.tip_amplitude_m * 1e6:.3f} um "
+          f"at {args.voltage:g} V; current {abs(wp.current_a):.3f} A, input power {wp.power_w:.2f} W")
+    if "teeth_tops" in wp.surfaces:
+        print(f"teeth: tangential/axial {wp.teeth_ellipse_ratio:.3f}, phase {wp.teeth_phase_deg:.1f} deg")
+    print(f"admittance: peak {res.f_r_hz:.1f} Hz, dip {res.f_a_hz:.1f} Hz (band {band[0]:.0f}-{band[1]:.0f} Hz, "
+          f"{args.points} points, modal superposition of {len(basis.lam)} modes + residual)")
+    if ring is not None:
+        print(f"ring-up: steady {ring.steady_amplitude(surfaces[0]) * 1e6:.3f} um after {ring.t[-1] * 1e3:.2f} ms")
+    text = None
+    if args.json:
+        data = {"design": str(args.design or "default"), "working_mode": {
+            "index": w, "f_r_hz": f_w, "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]), "label": modal.labels[w]},
+            "working_point": wp.to_json(), "sweep": res.to_json(),
+            "ring_up": ring.to_json() if ring is not None else None, "ndof": system.ndof}
+        text = json_text(data, nonfinite="null")
+    if args.plots:
+        from pathlib import Path
+
+        from . import plots
+
+        out = Path(args.plots)
+        plots.admittance(res, f_w, f_a, out / "admittance.png")
+        if "horn_tip" in res.surfaces:
+            plots.tip_response(res, f_w, out / "tip_response.png")
+        if ring is not None:
+            plots.ring_up(ring, wp.tip_amplitude_m, out / "ring_up.png")
+    if text is not None:
+        atomic_write_text(args.json, text)
+    return 0
