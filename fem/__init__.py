@@ -2,21 +2,20 @@
 
 Modules: ``fem.materials`` (constitutive matrices, poling rotation), ``fem.assembly``
 (``assemble(mesh) -> PiezoSystem``: K, M, K_loss, DOF layout, boundary conditions),
-``fem.solvers`` (``factorize``: PARDISO or SuperLU), ``fem.modal`` (``modal_analysis``,
-CLI ``python -m fem.modal``). Importing ``fem`` imports none of them (no scikit-fem load).
+``fem.solvers`` (``factorize``: PARDISO or SuperLU), ``fem.modal`` (``modal_analysis``),
+``fem.matching`` (``match``), ``fem.harmonic`` (``harmonic_sweep``, ``working_point``),
+``fem.transient`` (``ring_up``), ``fem.modeshape`` (shares, labels, MAC, surface motion),
+``fem.render``; command lines in ``fem.modal_cli`` and ``fem.harmonic_cli``
+(``python -m fem.modal``, ``python -m fem.harmonic``). Importing ``fem`` imports none of them
+(no scikit-fem load): the names below load on first use.
 """
 
-__all__ = ["assemble", "modal_analysis", "factorize"]
+from rpud_common.lazy import exports
 
-
-def __getattr__(name):
-    if name == "assemble":
-        from .assembly import assemble
-        return assemble
-    if name == "modal_analysis":
-        from .modal import modal_analysis
-        return modal_analysis
-    if name == "factorize":
-        from .solvers import factorize
-        return factorize
-    raise AttributeError(name)
+_WHERE = {"assemble": "assembly", "PiezoSystem": "assembly", "factorize": "solvers",
+          "modal_analysis": "modal", "ModalResult": "modal", "match": "matching", "MatchSettings": "matching",
+          "LossModel": "harmonic", "modal_basis": "harmonic", "harmonic_sweep": "harmonic",
+          "working_point": "harmonic", "ring_up": "transient", "energy_shares": "modeshape",
+          "classify": "modeshape", "mac": "modeshape", "surface_motion": "modeshape"}
+__all__ = list(_WHERE)
+__getattr__, __dir__ = exports(__name__, _WHERE)

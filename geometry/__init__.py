@@ -6,32 +6,20 @@ handlers (:mod:`rpud_common.launch`) before numpy, scipy or gmsh are imported. g
 only when a mesh is built (:func:`build_mesh`, :func:`build`).
 """
 
-import importlib
+from rpud_common.lazy import exports
 
 __all__ = ["ParameterError", "TaggedMesh", "Region", "Electrode",
            "RPUDDesign", "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign",
            "StackDesign", "Segment", "ElectrodeSpec", "DesignBase",
            "default_design", "load_design", "design_from_mapping", "build_mesh", "build"]
 
-_LAZY = {"ParameterError": "common",
+_LAZY = {"ParameterError": "rpud_common.errors",
          **{name: "design" for name in ("CouplerDesign", "DesignBase", "ElectrodeSpec", "FlangeDesign",
                                         "HornDesign", "RPUDDesign", "Segment", "StackDesign", "StackRings",
                                         "default_design", "design_from_mapping", "load_design")},
          **{name: "mesh" for name in ("Electrode", "Region", "TaggedMesh")}}
-
-
-def __getattr__(name):
-    module = _LAZY.get(name)
-    if module is None:
-        # not one of ours: lets ``from geometry import builder`` fall back to the submodule import
-        raise AttributeError(f"module 'geometry' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
-
-
-def __dir__():
-    return sorted(set(globals()) | set(__all__))
+# not one of these names: ``from geometry import builder`` falls back to the submodule import
+__getattr__, __dir__ = exports(__name__, _LAZY)
 
 
 def build_mesh(design, mesh_size=None, order=2, elements_per_wavelength=None, **kw):

@@ -13,25 +13,11 @@ See :mod:`impact.model` (the model and its corrections to the article), :mod:`im
 (ensembles, confidence intervals, scenarios) and :mod:`impact.sweep`.
 """
 
-from importlib import import_module
-
-__all__ = ["ImpactParams", "simulate", "ImpactResult", "SimulationError", "ensemble_statistics",
-           "EnsembleStats", "Estimate", "Scenario", "SCENARIOS", "StatsSettings", "sweep", "SweepResult",
-           "reproduce"]
+from rpud_common.lazy import exports
 
 _WHERE = {"ImpactParams": "params", "simulate": "model", "ImpactResult": "model", "SimulationError": "model",
           "ensemble_statistics": "stats", "EnsembleStats": "stats", "Estimate": "stats", "Scenario": "stats",
           "SCENARIOS": "stats", "StatsSettings": "stats", "sweep": "sweep", "SweepResult": "sweep",
           "reproduce": "article"}
-
-
-def __getattr__(name):
-    if name in _WHERE:
-        value = getattr(import_module(f".{_WHERE[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'impact' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(list(globals()) + __all__)
+__all__ = list(_WHERE)
+__getattr__, __dir__ = exports(__name__, _WHERE)

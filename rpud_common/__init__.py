@@ -8,7 +8,7 @@ them, so the data still flows one way (geometry -> fem -> impact -> results) and
 loads no mesh, FE or rendering package.
 """
 
-from importlib import import_module
+from .lazy import exports
 
 _WHERE = {
     "errors": ("ParameterError", "check_positive", "check_nonnegative", "check_finite", "check_integer",
@@ -21,19 +21,8 @@ _WHERE = {
     "cli": ("CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running"),
     "launch": ("Terminated",),
 }
+# loaded on first use: an entry point imports rpud_common.launch (standard library only) before
+# anything else, and that must not pull numpy in through this package
 _MODULE_OF = {name: mod for mod, names in _WHERE.items() for name in names}
 __all__ = list(_MODULE_OF)
-
-
-def __getattr__(name):
-    # loaded on first use: an entry point imports rpud_common.launch (standard library only)
-    # before anything else, and that must not pull numpy in through this package
-    if name in _MODULE_OF:
-        value = getattr(import_module(f".{_MODULE_OF[name]}", __name__), name)
-        globals()[name] = value
-        return value
-    raise AttributeError(f"module 'rpud_common' has no attribute {name!r}")
-
-
-def __dir__():
-    return sorted(list(globals()) + __all__)
+__getattr__, __dir__ = exports(__name__, _MODULE_OF)

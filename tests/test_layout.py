@@ -151,3 +151,14 @@ def test_import_impact_loads_no_mesh_fe_or_rendering_package(code):
              "{'gmsh', 'skfem', 'pyvista', 'vtk', 'meshio', 'geometry', 'fem', 'results', 'matplotlib'}))")
     out = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, cwd=ROOT, check=True)
     assert out.stdout.strip() == "[]"
+
+
+@pytest.mark.parametrize("package", ["rpud_common", "geometry", "fem", "impact"])
+def test_every_public_name_resolves(package):
+    """A lazy package API must not name something its modules no longer define."""
+    import importlib
+
+    mod = importlib.import_module(package)
+    for name in mod.__all__:
+        assert getattr(mod, name) is not None, name
+    assert set(mod.__all__) <= set(dir(mod))
