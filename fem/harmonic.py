@@ -225,6 +225,10 @@ class ModalBasis:
     clamp: tuple[str, ...]
     f_r_hz: np.ndarray
     seconds: float = 0.0
+    L: sp.csr_matrix | None = field(default=None, repr=False)
+    """The loss matrix of ``loss`` on the whole system (for charges and working points)."""
+    factor: object = field(default=None, repr=False)
+    """The factorisation of ``K - sigma M`` behind the residual (another loss model may reuse it)."""
 
     def coordinates(self, freq_hz: np.ndarray, damper: tuple[np.ndarray, float] | None = None) -> np.ndarray:
         """Modal coordinates per volt, (n_freq, n_modes) complex:
@@ -258,12 +262,14 @@ class ModalBasis:
 
 def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp: Iterable[str] = (),
                 loss: LossModel = LossModel(), modes=None, residual_order: int = 2,
-                backend: str | None = None) -> ModalBasis:
+                backend: str | None = None, reuse: "ModalBasis | None" = None) -> ModalBasis:
     """Build the superposition basis: short-circuit modes near ``near_hz`` and the residual.
 
     ``modes`` may be a :class:`fem.modal.ModalResult` already computed for the same system and
     clamp (its vectors are reused); otherwise ``n_modes`` modes are computed. The residual
-    needs one factorisation of ``K - sigma M`` (the modal shift).
+    needs one factorisation of ``K - sigma M`` (the modal shift); ``reuse``, a basis of the same
+    system, modes and clamp under another loss model, lends its factorisation (it does not
+    depend on the losses).
     """
     from .modal import modal_analysis
 
@@ -289,12 +295,19 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
     b1 = -(split.k_hot + 1j * lh) / system.phi_scale
     gamma = Phi.T @ b1
     sigma = _residual_shift(float(modes.sigma), lam)
-    F = factorize((split.K - sigma * split.M).tocsr(), backend=backend)
+    if reuse is not None and reuse.factor is not None and reuse.sigma == sigma and reuse.clamp == clamp:
+        F = reuse.factor
+    else:
+        F = factorize((split.K - sigma * split.M).tocsr(), backend=backend)
 
     def solve_truncated(v):
-        """(K - sigma M)^-1 v with the basis modes deflated (exact: Phi is M-orthonormal)."""
-        y = F(np.column_stack([v.real, v.imag]))
-        return y[:, 0] + 1j * y[:, 1] - Phi @ ((Phi.T @ v) / (lam - sigma))
+        """(K - sigma M)^-1 v with the basis modes deflated (exact: Phi is M-orthonormal);
+        ``v`` one vector (n,) or several columns (n, k), solved in one call."""
+        V = v.reshape(len(v), -1)
+        k = V.shape[1]
+        y = F(np.column_stack([V.real, V.imag]))
+        out = y[:, :k] + 1j * y[:, k:] - Phi @ ((Phi.T @ V) / (lam - sigma)[:, None])
+        return out.reshape(v.shape)
 
     # the truncated modes' response, with their (and the clamped field's) dielectric and
     # mechanical loss to first order; deflating first keeps the expansion valid near resonance
@@ -309,8 +322,7 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
         terms.append(solve_truncated(Mf @ terms[-1] if len(terms) > 1 else Mf @ R0))
     # loss couples the modes with each other and with the truncated space (first order)
     D = Phi.T @ (Lf @ Phi)
-    W = np.column_stack([solve_truncated(Lf @ Phi[:, i]) for i in range(Phi.shape[1])]) \
-        if Phi.shape[1] else np.zeros((len(free), 0))
+    W = solve_truncated((Lf @ Phi).astype(complex)) if Phi.shape[1] else np.zeros((len(free), 0))
     g = gamma - 1j * (Phi.T @ (Lf @ R0))
     seconds = time.perf_counter() - t0
     log.info("harmonic: modal basis of %d modes (%.1f-%.1f kHz) + residual at sigma, %.2f s",
@@ -318,7 +330,8 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
              seconds)
     return ModalBasis(free=free, Phi=Phi, lam=lam, eta=eta, gamma=gamma, R=R, D=D, W=W, g=g, b1=b1,
                       R_terms=np.column_stack(terms), sigma=sigma,
-                      loss=loss, clamp=clamp, f_r_hz=np.asarray(modes.f_r_hz, float), seconds=seconds)
+                      loss=loss, clamp=clamp, f_r_hz=np.asarray(modes.f_r_hz, float), seconds=seconds,
+                      L=L, factor=F)
 
 
 def _residual_shift(sigma: float, lam: np.ndarray) -> float:
@@ -572,7 +585,7 @@ def working_point(system: PiezoSystem, freq_hz: float, voltage: float, *, clamp:
     else:
         x = solve_direct(system, f, voltage, clamp=clamp, loss=loss, backend=backend)
         method = "direct"
-    L = loss_matrix(system, loss if basis is None else basis.loss)
+    L = basis.L if basis is not None and basis.L is not None else loss_matrix(system, loss if basis is None else basis.loss)
     Q = _charge_row(system, L) @ x
     current = 1j * 2 * np.pi * f * Q
     sv = {s.name: s(x) for s in funcs}

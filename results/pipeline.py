@@ -290,7 +290,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
     freqs = np.linspace(lo, hi, settings.n_points)
     sweep_h = harmonic_sweep(system, freqs, settings.voltage, loss=loss, basis=basis, surfaces=surfaces)
     wp = working_point(system, f_w, settings.voltage, loss=loss, surfaces=surfaces, basis=basis)
-    basis_ds = modal_basis(system, f_w, loss=LossModel(), modes=modal)
+    basis_ds = modal_basis(system, f_w, loss=LossModel(), modes=modal, reuse=basis)
     wp_ds = working_point(system, f_w, settings.voltage, loss=LossModel(), surfaces=surfaces, basis=basis_ds)
     eta_w = float(basis.eta[w])
     tau = 2.0 / (eta_w * 2 * np.pi * f_w)            # amplitude time constant of the working mode

@@ -188,3 +188,18 @@ def test_modal_sweep_equals_direct_across_the_whole_band(system, modes):
     ym, yd = np.abs(modal.admittance), np.abs(direct.admittance)
     assert np.all(np.abs(ym - yd) <= rtol * yd)
     np.testing.assert_allclose(modal.amplitude("electrode_4"), direct.amplitude("electrode_4"), rtol=1e-2)
+
+
+def test_basis_reusing_another_basis_factorisation_is_the_same_basis(system, modes):
+    """The residual's factorisation of K - sigma M does not depend on the losses: a basis that
+    borrows it (``reuse=``) equals one built from scratch, and its working point too."""
+    f_r, _ = _longitudinal(modes)
+    b1 = modal_basis(system, f_r, 8, loss=LossModel(300.0, 0.004), modes=modes)
+    fresh = modal_basis(system, f_r, 8, loss=LossModel(), modes=modes)
+    reused = modal_basis(system, f_r, 8, loss=LossModel(), modes=modes, reuse=b1)
+    assert reused.factor is b1.factor and fresh.factor is not b1.factor
+    for name in ("R", "W", "g", "R_terms"):
+        np.testing.assert_allclose(getattr(reused, name), getattr(fresh, name), rtol=1e-10, atol=0)
+    a = working_point(system, f_r * 1.001, 1.0, surfaces=TIP, basis=fresh)
+    b = working_point(system, f_r * 1.001, 1.0, surfaces=TIP, basis=reused)
+    assert b.tip_amplitude_m == pytest.approx(a.tip_amplitude_m, rel=1e-10)
