@@ -309,10 +309,6 @@ class StatsSettings:
         check_range("v0_spread", self.v0_spread, 0.0, 0.5)
         check_range("level", self.level, 0.5, 0.999)
 
-    def fixed(self, n: int) -> "StatsSettings":
-        """Exactly ``n`` members, no adaptation."""
-        return StatsSettings(self.rel_tol, n, n, self.seed, self.v0_spread, self.level)
-
 
 def ensemble_members(params: ImpactParams, n: int, settings: StatsSettings, start: int = 0) -> list[ImpactParams]:
     """Members ``start .. start + n - 1`` of the seeded ensemble around ``params``."""
