@@ -13,7 +13,8 @@ import sys
 from pathlib import Path
 
 from rpud_common import (
-    CliParser, ParameterError, atomic_folder, atomic_write_text, check_output_paths, from_mapping, load_toml,
+    CliParser, ParameterError, atomic_folder, atomic_write_text, check_integer, check_output_paths, from_mapping,
+    load_toml,
     setup_logging, toml_section, write_json,
 )
 
@@ -121,14 +122,12 @@ def _scenario(ns, params: ImpactParams):
 
 
 def _settings(ns):
-    from .stats import StatsSettings
+    from .stats import MAX_MEMBERS, StatsSettings
 
     if ns.members is not None:
-        if ns.members < 1 or ns.members > 1_000_000:
-            raise ParameterError("members", ns.members, "must be an integer in [1, 1000000]")
+        check_integer("members", ns.members, 1, MAX_MEMBERS)
         return StatsSettings(rel_tol=ns.rel_tol, n_start=ns.members, n_max=ns.members, seed=ns.seed)
-    if not 1 <= ns.max_members <= 1_000_000:
-        raise ParameterError("max_members", ns.max_members, "must be an integer in [1, 1000000]")
+    check_integer("max_members", ns.max_members, 1, MAX_MEMBERS)
     return StatsSettings(rel_tol=ns.rel_tol, n_start=min(64, ns.max_members), n_max=ns.max_members, seed=ns.seed)
 
 

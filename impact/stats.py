@@ -78,6 +78,8 @@ QUANTITIES = (
     ("frac_on_tool", "-", "fraction of the time the free mass rests on the tool"),
     ("frac_on_horn", "-", "fraction of the time the free mass rests on the horn"),
 )
+#: most members of one ensemble (memory: N_STATS floats each; time: ~0.1 ms each)
+MAX_MEMBERS = 1_000_000
 #: quantities whose confidence interval drives the member count
 DRIVING = ("tool_impact_rate_hz", "mean_tool_ke_after_j", "mean_ke_gain_j", "tool_power_w")
 
@@ -300,9 +302,7 @@ class StatsSettings:
     def __post_init__(self):
         check_range("rel_tol", self.rel_tol, 0.0, 1.0, lo_open=True)
         check_integer("n_start", self.n_start, 1)
-        check_integer("n_max", self.n_max, 1)
-        if self.n_max > 1_000_000:
-            raise ParameterError("n_max", self.n_max, "must be <= 1000000 members")
+        check_integer("n_max", self.n_max, 1, MAX_MEMBERS)
         if self.n_start > self.n_max:
             raise ParameterError("n_start", self.n_start, f"must be <= n_max = {self.n_max}")
         check_integer("seed", self.seed, 0)

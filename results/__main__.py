@@ -53,7 +53,9 @@ def check_options(args) -> None:
     if args.mesh_size is not None:
         check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
     check_range("--rel-tol", args.rel_tol, 0.0, 1.0, lo_open=True)
-    check_integer("--max-members", args.max_members, 1, 1_000_000)
+    from impact.stats import MAX_MEMBERS
+
+    check_integer("--max-members", args.max_members, 1, MAX_MEMBERS)
     check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
 
 

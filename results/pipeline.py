@@ -44,6 +44,7 @@ from typing import Callable
 
 import numpy as np
 
+from impact.stats import MAX_MEMBERS
 from rpud_common import ParameterError, check_integer, check_positive, check_range, write_json
 
 log = logging.getLogger(__name__)
@@ -103,13 +104,9 @@ class PipelineSettings:
                                  "must be masses in [0, 10] kg, at least one of them > 0")
         check_range("reference_m_free", self.reference_m_free, 0.0, 10.0, "kg", lo_open=True)
         check_range("impact_rel_tol", self.impact_rel_tol, 0.0, 1.0, lo_open=True)
-        check_integer("impact_max_members", self.impact_max_members, 2)
-        if self.impact_max_members > 1_000_000:
-            raise ParameterError("impact_max_members", self.impact_max_members, "must be <= 1000000")
+        check_integer("impact_max_members", self.impact_max_members, 2, MAX_MEMBERS)
         check_integer("seed", self.seed, 0)
-        check_integer("handoff_digits", self.handoff_digits, 2)
-        if self.handoff_digits > 12:
-            raise ParameterError("handoff_digits", self.handoff_digits, "must be <= 12")
+        check_integer("handoff_digits", self.handoff_digits, 2, 12)
 
     def impact_settings(self):
         """The ensemble rule of the impact statistics."""
