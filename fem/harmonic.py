@@ -62,6 +62,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from rpud_common import ParameterError, check_positive, check_range
+from rpud_common.result import Result
 
 from .assembly import PiezoSystem
 from .modeshape import COMPONENTS, surface_rows
@@ -346,8 +347,8 @@ def _residual_shift(sigma: float, lam: np.ndarray) -> float:
 # --------------------------------------------------------------------------- sweep
 
 
-@dataclass(eq=False)
-class HarmonicResult:
+@dataclass(eq=False, repr=False)
+class HarmonicResult(Result):
     """Frequency response at a drive voltage.
 
     Attributes
@@ -388,7 +389,15 @@ class HarmonicResult:
             raise ParameterError("surface", surface, "not computed; computed: " + ", ".join(self.surfaces))
         return np.abs(self.surfaces[surface][component])
 
-    def to_json(self) -> dict:
+    def _headline(self) -> str:
+        f = self.freqs_hz
+        head = (f"{self.method}, {f.size} frequencies {f.min() / 1e3:.3f}-{f.max() / 1e3:.3f} kHz at "
+                f"{self.voltage:g} V: f_r {self.f_r_hz:.1f} Hz, f_a {self.f_a_hz:.1f} Hz")
+        if "horn_tip" in self.surfaces:
+            head += f", peak tip {self.amplitude().max() / self.voltage * 1e6:.3g} um/V"
+        return head
+
+    def _record(self) -> dict:
         return {
             "method": self.method, "voltage_v": self.voltage,
             "loss": {"q_mech": self.loss.q_mech, "tan_delta": self.loss.tan_delta},
@@ -495,8 +504,8 @@ def harmonic_sweep(system: PiezoSystem, freqs_hz: Sequence[float], voltage: floa
 # --------------------------------------------------------------------------- working point
 
 
-@dataclass(eq=False)
-class WorkingPoint:
+@dataclass(eq=False, repr=False)
+class WorkingPoint(Result):
     """Response at one frequency and voltage (direct solution).
 
     ``tip_amplitude_m`` and ``tip_per_volt_m`` are the axial mean amplitude of ``tip_surface``
@@ -540,7 +549,15 @@ class WorkingPoint:
             return float("nan")
         return float(np.degrees(np.angle(s["tangential"] / s["axial"])))
 
-    def to_json(self) -> dict:
+    def _headline(self) -> str:
+        head = (f"{self.freq_hz:.1f} Hz, {self.voltage:g} V: {self.tip_surface} {self.tip_amplitude_m * 1e6:.3g} um "
+                f"({self.tip_per_volt_m * 1e6:.4g} um/V), |Y| {abs(self.admittance) * 1e3:.3g} mS, "
+                f"power {self.power_w:.3g} W")
+        if np.isfinite(self.teeth_ellipse_ratio):
+            head += f", teeth ellipse ratio {self.teeth_ellipse_ratio:.3f}"
+        return head
+
+    def _record(self) -> dict:
         return {
             "freq_hz": self.freq_hz, "voltage_v": self.voltage, "method": self.method,
             "tip_amplitude_m": self.tip_amplitude_m, "tip_per_volt_m": self.tip_per_volt_m,

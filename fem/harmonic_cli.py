@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from rpud_common import ParameterError, check_range
+from rpud_common import ParameterError, check_range, save_figure
 
 from .harmonic import LossModel, harmonic_sweep, modal_basis, working_point
 
@@ -142,8 +142,8 @@ def main(argv=None) -> int:
     if args.json:
         data = {"design": str(args.design or "default"), "working_mode": {
             "index": w, "f_r_hz": f_w, "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]), "label": modal.labels[w]},
-            "working_point": wp.to_json(), "sweep": res.to_json(),
-            "ring_up": ring.to_json() if ring is not None else None, "ndof": system.ndof}
+            "working_point": wp.to_dict(), "sweep": res.to_dict(),
+            "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof}
         text = json_text(data, nonfinite="null")
     if args.plots:
         from pathlib import Path
@@ -151,11 +151,11 @@ def main(argv=None) -> int:
         from . import plots
 
         out = Path(args.plots)
-        plots.admittance(res, f_w, f_a, out / "admittance.png")
+        save_figure(plots.admittance(res, f_w, f_a), out / "admittance.png")
         if "horn_tip" in res.surfaces:
-            plots.tip_response(res, f_w, out / "tip_response.png")
+            save_figure(plots.tip_response(res, f_w), out / "tip_response.png")
         if ring is not None:
-            plots.ring_up(ring, wp.tip_amplitude_m, out / "ring_up.png")
+            save_figure(plots.ring_up(ring, wp.tip_amplitude_m), out / "ring_up.png")
     if text is not None:
         atomic_write_text(args.json, text)
     return 0
