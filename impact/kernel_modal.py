@@ -1,0 +1,608 @@
+"""Compiled event kernel of the coupled model (modal horn; numba).
+
+The algorithm of :class:`impact.coupled._ModalSim`, written with scalars for numba, on the
+primitives of :mod:`impact.kernel` (oscillator closed forms, interval tests, parabola zones,
+sticking rule). The kinematic kernel is untouched: this module adds a second event loop whose
+horn tip is ``u = Uc cos Wt + Us sin Wt + sum_i s_i h_i(t - t0)``, each ``h_i`` the free
+oscillation of mode i over the current segment (an ``impact.kernel`` oscillator record).
+
+Entry points: :func:`run_coupled` (one run, every event and segment) and
+:func:`ensemble_coupled` (window statistics of many members in parallel, the columns of
+:func:`impact.kernel.ensemble_stats` followed by ``C_DRIVE`` (work of the drive on the modes and
+the residual, J), ``C_DAMP`` (modal damping loss, J), ``C_FUND_RE``/``C_FUND_IM``
+(``int u e^{-jWt} dt`` over the window, m s): closed-form integrals per segment).
+"""
+
+from __future__ import annotations
+
+import cmath
+import math
+
+import numpy as np
+from numba import njit, prange
+
+from .horn import (H_A, H_B, H_FC, H_FS, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_RC, X_RS, X_STEADY, X_UC, X_US, X_W,
+                   ModalHorn)
+from .kernel import (_O_B0, _O_B2, _O_B4, _O_DELTA, _O_N, _O_P, _O_Q, _O_AL, _O_BE, CONTACT_TOL, _H_MIN, _RTOL,
+                     _XTOL, BODY_TOOL, FREE, KIND_HORN, KIND_TOOL, N_PARAMS, N_STATS, ON_TOOL, P_C, P_E1, P_E2, P_GAP,
+                     P_K0, P_M_FREE, P_M_TOOL, P_V0, P_V_STICK, P_G, P_SPRING_FORCE, S_HORN_WORK, S_KE_AFTER,
+                     S_KE_GAIN, S_N_EVENTS, S_N_HORN, S_N_TOOL, S_STATUS, S_T_ON_TOOL, STATUS_MAX_EVENTS, STATUS_OK,
+                     STATUS_PINCHED, _E_N, _grid_step, _grow1, _grow2, _osc_eval, _osc_make, _osc_pv,
+                     _parabola_excursion, _parabola_leave, _parabola_reach, _safe, _sticks, pack)
+from .params import ImpactParams
+
+__all__ = ["run_coupled", "ensemble_coupled", "N_CSTATS", "STATUS_HORN_STICK"]
+
+STATUS_HORN_STICK = 3
+C_DRIVE, C_DAMP, C_FUND_RE, C_FUND_IM = N_STATS, N_STATS + 1, N_STATS + 2, N_STATS + 3
+N_CSTATS = N_STATS + 4
+
+_FN_HORN, _FN_TOOL, _FN_PINCH, _FN_RELEASE = 0, 1, 2, 3
+# contact record: t0, w0, wd0, a, L0, W, Uc, Us
+_C_N = 8
+
+
+# ----------------------------------------------------------------------------- horn tip
+
+
+@njit(cache=True)
+def _tip(tt, cp, tab, ho, n, order):
+    """Tip derivatives ``order`` and ``order + 1`` at absolute time tt (order 0 or 2)."""
+    W, Uc, Us = cp[5], cp[6], cp[7]
+    ph = W * tt
+    c = math.cos(ph)
+    s = math.sin(ph)
+    if order == 0:
+        u = Uc * c + Us * s
+        ud = W * (-Uc * s + Us * c)
+    else:
+        u = -W * W * (Uc * c + Us * s)
+        ud = -W * W * W * (-Uc * s + Us * c)
+    sl = tt - cp[0]
+    for i in range(n):
+        y, yd = _osc_eval(ho[i], sl, order)
+        u += tab[i, H_TIP] * y
+        ud += tab[i, H_TIP] * yd
+    return u, ud
+
+
+@njit(cache=True)
+def _fn(kind, tt, cp, o, tab, ho, n):
+    t0, w0, wd0, a, L0 = cp[0], cp[1], cp[2], cp[3], cp[4]
+    if kind == _FN_HORN:
+        s = tt - t0
+        u, ud = _tip(tt, cp, tab, ho, n, 0)
+        return w0 + s * (wd0 + 0.5 * a * s) - u, wd0 + a * s - ud
+    if kind == _FN_TOOL:
+        s = tt - t0
+        vv, vvd = _osc_pv(o, s)
+        return L0 + vv - (w0 + s * (wd0 + 0.5 * a * s)), vvd - (wd0 + a * s)
+    if kind == _FN_PINCH:
+        vv, vvd = _osc_pv(o, tt - t0)
+        u, ud = _tip(tt, cp, tab, ho, n, 0)
+        return L0 + vv - u, vvd - ud
+    acc, jerk = _osc_eval(o, tt - t0, 2)
+    return a - acc, -jerk
+
+
+@njit(cache=True)
+def _brent(kind, cp, o, tab, ho, n, xa, xb, fa, fb):
+    xpre, xcur, fpre, fcur = xa, xb, fa, fb
+    xblk = 0.0
+    fblk = 0.0
+    spre = 0.0
+    scur = 0.0
+    for _ in range(200):
+        if fpre != 0.0 and fcur != 0.0 and (fpre < 0.0) != (fcur < 0.0):
+            xblk, fblk = xpre, fpre
+            spre = xcur - xpre
+            scur = spre
+        if abs(fblk) < abs(fcur):
+            xpre, xcur, xblk = xcur, xblk, xcur
+            fpre, fcur, fblk = fcur, fblk, fcur
+        delta = 0.5 * (_XTOL + _RTOL * abs(xcur))
+        sbis = 0.5 * (xblk - xcur)
+        if fcur == 0.0 or abs(sbis) < delta:
+            return xcur
+        if abs(spre) > delta and abs(fcur) < abs(fpre):
+            if xpre == xblk:
+                stry = -fcur * (xcur - xpre) / (fcur - fpre)
+            else:
+                dpre = (fpre - fcur) / (xpre - xcur)
+                dblk = (fblk - fcur) / (xblk - xcur)
+                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
+            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
+                spre, scur = scur, stry
+            else:
+                spre = sbis
+                scur = sbis
+        else:
+            spre = sbis
+            scur = sbis
+        xpre, fpre = xcur, fcur
+        if abs(scur) > delta:
+            xcur += scur
+        else:
+            xcur += delta if sbis > 0.0 else -delta
+        fcur = _fn(kind, xcur, cp, o, tab, ho, n)[0]
+    return xcur
+
+
+@njit(cache=True)
+def _refine(kind, cp, o, tab, ho, n, a, b, fa, fpa, fb, fpb, B, tol, stack):
+    sp = 0
+    stack[0, 0], stack[0, 1], stack[0, 2], stack[0, 3], stack[0, 4], stack[0, 5] = a, b, fa, fpa, fb, fpb
+    sp = 1
+    while sp > 0:
+        sp -= 1
+        a, b, fa, fpa, fb, fpb = (stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3],
+                                  stack[sp, 4], stack[sp, 5])
+        h = b - a
+        if fb <= -tol:
+            if fpa + fpb + B * h < 0.0 or h < _H_MIN:
+                if fa <= 0.0:
+                    return True, a
+                return True, _brent(kind, cp, o, tab, ho, n, a, b, fa, fb)
+        else:
+            c2 = B * h * h
+            if (min(fa, fb) - 0.125 * c2 > -tol or fa + fpa * h - 0.5 * c2 > -tol
+                    or fb - fpb * h - 0.5 * c2 > -tol or h < _H_MIN):
+                continue
+        m = 0.5 * (a + b)
+        fm, fpm = _fn(kind, m, cp, o, tab, ho, n)
+        stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3], stack[sp, 4], stack[sp, 5] = \
+            m, b, fm, fpm, fb, fpb
+        sp += 1
+        stack[sp, 0], stack[sp, 1], stack[sp, 2], stack[sp, 3], stack[sp, 4], stack[sp, 5] = \
+            a, m, fa, fpa, fm, fpm
+        sp += 1
+    return False, 0.0
+
+
+@njit(cache=True)
+def _search(kind, cp, o, tab, ho, n, B, lo, hi, h, stack):
+    nn = 32
+    a = lo
+    while a < hi:
+        b = min(a + nn * h, hi)
+        k = max(1, int(math.ceil((b - a) / h)))
+        hh = (b - a) / k
+        fa, fpa = _fn(kind, a, cp, o, tab, ho, n)
+        if fa <= -CONTACT_TOL and fpa < 0.0:
+            return True, a
+        ta = a
+        for i in range(k):
+            tb = b if i == k - 1 else a + (i + 1) * hh
+            fb, fpb = _fn(kind, tb, cp, o, tab, ho, n)
+            if not _safe(fa, fpa, fb, fpb, B, hh, CONTACT_TOL):
+                found, r = _refine(kind, cp, o, tab, ho, n, ta, tb, fa, fpa, fb, fpb, B, CONTACT_TOL, stack)
+                if found:
+                    return True, r
+            ta, fa, fpa = tb, fb, fpb
+        a = b
+        nn = min(nn * 2, 4096)
+    return False, 0.0
+
+
+# ----------------------------------------------------------------------------- integrals
+
+
+@njit(cache=True)
+def _expint(lam, S):
+    """int_0^S exp(lam s) ds (complex lam), as impact.horn._expint."""
+    z = lam * S
+    if abs(z) < 1e-6:
+        return S * (1.0 + z / 2.0 + z * z / 6.0)
+    x, y = z.real, z.imag
+    em1 = complex(math.expm1(x) * math.cos(y) - 2.0 * math.sin(0.5 * y) ** 2, math.exp(x) * math.sin(y))
+    return em1 / lam
+
+
+@njit(cache=True)
+def _pair(A, la, B, lb, S):
+    return 0.5 * (A * B * _expint(la + lb, S)).real + 0.5 * (A * B.conjugate() * _expint(la + lb.conjugate(), S)).real
+
+
+@njit(cache=True)
+def _integrals(tab, xs, n, t0, q, qd, sa, sb):
+    """(drive work, damping loss, fundamental) over [t0 + sa, t0 + sb] of a free segment."""
+    W = xs[X_W]
+    jw = 1j * W
+    S = sb - sa
+    ta = t0 + sa
+    ewa = cmath.exp(jw * ta)
+    drive = 0.0
+    damp = 0.0
+    U = complex(xs[X_UC], -xs[X_US])
+    Uc = U * ewa
+    fund = 0.5 * (Uc * S + Uc.conjugate() * _expint(-2j * W, S))
+    e0 = cmath.exp(jw * t0)
+    for i in range(n):
+        om, ze, m = tab[i, H_OMEGA], tab[i, H_ZETA], tab[i, H_MASS]
+        qs = complex(tab[i, H_A], -tab[i, H_B])
+        mu = complex(-ze * om, om * math.sqrt(1.0 - ze * ze))
+        h0 = q[i] - (qs * e0).real
+        hd0 = qd[i] - (jw * qs * e0).real
+        C = complex(h0, -(hd0 - h0 * mu.real) / mu.imag) * cmath.exp(mu * sa)
+        G = jw * qs * ewa
+        H = C * mu
+        F = complex(tab[i, H_FC], -tab[i, H_FS]) * ewa
+        drive += _pair(F, jw, G, jw, S) + _pair(F, jw, H, mu, S)
+        c = 2.0 * ze * om * m
+        damp += c * (_pair(G, jw, G, jw, S) + 2.0 * _pair(G, jw, H, mu, S) + _pair(H, mu, H, mu, S))
+        Ct = C * tab[i, H_TIP]
+        fund += 0.5 * (Ct * _expint(mu - jw, S) + Ct.conjugate() * _expint(mu.conjugate() - jw, S))
+    fund = fund * cmath.exp(-jw * ta)
+    return drive, damp, fund
+
+
+@njit(cache=True)
+def _window_integrals(tab, xs, n, t0, t1, q, qd, t_from, t_end, stats):
+    lo = max(t0, t_from)
+    hi = min(t1, t_end)
+    if hi > lo:
+        d, dm, f = _integrals(tab, xs, n, t0, q, qd, lo - t0, hi - t0)
+        stats[C_DRIVE] += d
+        stats[C_DAMP] += dm
+        stats[C_FUND_RE] += f.real
+        stats[C_FUND_IM] += f.imag
+
+
+# ----------------------------------------------------------------------------- main loop
+
+
+@njit(cache=True)
+def _make_horn(ho, tab, n, W, t0, q, qd):
+    """Free-oscillation records of every mode at t0; returns bounds (|u|, |u''|) minus the steady part."""
+    c = math.cos(W * t0)
+    s = math.sin(W * t0)
+    b0 = 0.0
+    b2 = 0.0
+    for i in range(n):
+        a_, b_ = tab[i, H_A], tab[i, H_B]
+        p = a_ * c + b_ * s
+        pd = W * (-a_ * s + b_ * c)
+        m = tab[i, H_MASS]
+        om = tab[i, H_OMEGA]
+        _osc_make(ho[i], m, m * om * om, 2.0 * tab[i, H_ZETA] * om * m, 0.0, q[i] - p, qd[i] - pd)
+        b0 += abs(tab[i, H_TIP]) * ho[i, _O_B0]
+        b2 += abs(tab[i, H_TIP]) * ho[i, _O_B2]
+    return b0, b2
+
+
+@njit(cache=True)
+def _modal_at(ho, tab, n, W, t0, tt, q, qd):
+    c = math.cos(W * tt)
+    s = math.sin(W * tt)
+    for i in range(n):
+        y, yd = _osc_eval(ho[i], tt - t0, 0)
+        q[i] = tab[i, H_A] * c + tab[i, H_B] * s + y
+        qd[i] = W * (-tab[i, H_A] * s + tab[i, H_B] * c) + yd
+
+
+@njit(cache=True)
+def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
+    m_free, e1, e2 = pv[P_M_FREE], pv[P_E1], pv[P_E2]
+    m_tool, k0, c, L0 = pv[P_M_TOOL], pv[P_K0], pv[P_C], pv[P_GAP]
+    v_stick = pv[P_V_STICK]
+    a = pv[P_G] - pv[P_SPRING_FORCE] / m_free
+    M = m_tool + m_free
+    n = tab.shape[0]
+    W = xs[X_W]
+    Ua = math.hypot(xs[X_UC], xs[X_US])
+    Sg = 0.0
+    for i in range(n):
+        Sg += tab[i, H_TIP] * tab[i, H_TIP] / tab[i, H_MASS]
+
+    cap = 1024 if record else 1
+    ev = np.empty((cap, _E_N + 3))
+    kinds = np.empty(cap, np.int8)
+    segs = np.empty((cap, 6 + 2 * n))
+    stk = np.empty((cap, 3))
+    n_rec = 0
+    n_seg = 0
+    n_stk = 0
+
+    o = np.empty(_O_N)
+    o2 = np.empty(_O_N)
+    ho = np.empty((n, _O_N))
+    cp = np.empty(_C_N)
+    stack = np.empty((128, 6))
+    fkind = np.empty(4, np.int64)
+    fB = np.empty(4)
+    fstart = np.empty(4)
+    fh = np.empty(4)
+    fend = np.empty(4)
+    q = np.empty(n)
+    qd = np.empty(n)
+    for j in range(stats.shape[0]):
+        stats[j] = 0.0
+    w_from = 0.0
+    w_last = 0.0
+
+    steady = xs[X_STEADY] == 1.0
+    for i in range(n):
+        if steady:
+            q[i] = tab[i, H_A]
+            qd[i] = W * tab[i, H_B]
+        else:
+            q[i] = 0.0
+            qd[i] = 0.0
+    cp[0], cp[5], cp[6], cp[7] = 0.0, W, xs[X_UC], xs[X_US]
+    _make_horn(ho, tab, n, W, 0.0, q, qd)
+    u0, ud0 = _tip(0.0, cp, tab, ho, n, 0)
+    t = 0.0
+    mode = FREE
+    w = u0
+    wd = ud0 + pv[P_V0]
+    v = 0.0
+    vd = 0.0
+    skip_rel = 2.0 * pv[P_V0]
+    skip_h = 0.0
+    skip_t = 0.0
+    E0 = 0.5 * m_free * wd * wd - m_free * a * w + 0.5 * m_tool * vd * vd + 0.5 * k0 * v * v
+    work = 0.0
+    stick_start = 0.0
+    n_ev = 0
+    status = STATUS_OK
+    t_status = 0.0
+    Rc, Rs = xs[X_RC], xs[X_RS]
+    while t < t_end:
+        if mode == ON_TOOL:
+            _osc_make(o, M, k0, c, m_free * a / k0, v, vd)
+        else:
+            _osc_make(o, m_tool, k0, c, 0.0, v, vd)
+        hb0, hb2 = _make_horn(ho, tab, n, W, t, q, qd)
+        B0 = Ua + hb0
+        B2 = Ua * W * W + hb2
+        Bh = abs(a) + B2
+        if skip_rel > 0.0:
+            skip_h = t + skip_rel / Bh
+            skip_rel = 0.0
+        if record:
+            if n_seg == segs.shape[0]:
+                segs = _grow2(segs, n_seg)
+            segs[n_seg, 0], segs[n_seg, 1], segs[n_seg, 2] = t, mode, w
+            segs[n_seg, 3], segs[n_seg, 4], segs[n_seg, 5] = wd, v, vd
+            for i in range(n):
+                segs[n_seg, 6 + i] = q[i]
+                segs[n_seg, 6 + n + i] = qd[i]
+            n_seg += 1
+        t0, w0, wd0 = t, w, wd
+        cp[0], cp[1], cp[2], cp[3], cp[4] = t0, w0, wd0, a, L0
+        Bv = o[_O_B2]
+        nf = 0
+        if mode == FREE:
+            Bt = Bv + abs(a)
+            zone_h = t0 + _parabola_reach(w0 - B0 - 1e-9, wd0, a)
+            zone_t = t0 + _parabola_reach(L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a)
+            xh1, xh2 = _parabola_excursion(w0 - B0 - 1e-9, wd0, a)
+            xt1, xt2 = _parabola_excursion(L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a)
+            for kind, zone, skip, B, lead, vel, acc, x1, x2 in (
+                    (_FN_HORN, zone_h, skip_h, Bh, w0 - B0 - 1e-9, wd0, a, xh1, xh2),
+                    (_FN_TOOL, zone_t, skip_t, Bt, L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a, xt1, xt2)):
+                if zone < math.inf:
+                    start = max(t0, skip, zone)
+                    end = t0 + _parabola_leave(lead, vel, acc)
+                    for part in range(2 if x2 < math.inf else 1):
+                        fkind[nf], fB[nf] = kind, B
+                        fh[nf] = _grid_step(B, t_end, 1e-7)
+                        if x2 < math.inf:
+                            fstart[nf] = start if part == 0 else max(start, t0 + x2)
+                            fend[nf] = min(end, t0 + x1) if part == 0 else end
+                        else:
+                            fstart[nf], fend[nf] = start, end
+                        nf += 1
+        else:
+            Br = o[_O_B4]
+            B = Bv + B2
+            if L0 + o[_O_DELTA] - o[_O_B0] - B0 <= 0.0:
+                fkind[nf], fB[nf] = _FN_PINCH, B
+                fstart[nf] = t0
+                fh[nf] = _grid_step(B, t_end, 1e-7)
+                fend[nf] = math.inf
+                nf += 1
+            if o[_O_B2] >= a:
+                fkind[nf], fB[nf] = _FN_RELEASE, Br
+                fstart[nf] = t0
+                fh[nf] = _grid_step(Br, t_end, 1e-3 * (abs(a) + o[_O_B2]))
+                fend[nf] = math.inf
+                nf += 1
+
+        have = False
+        te = 0.0
+        name = -1
+        for i in range(nf):
+            lo = fstart[i]
+            hi = min(te if have else t_end, fend[i])
+            if lo >= hi:
+                continue
+            found, r = _search(fkind[i], cp, o, tab, ho, n, fB[i], lo, hi, fh[i], stack)
+            if found:
+                have, te, name = True, r, fkind[i]
+        if not have:
+            # the last segment runs to t_end: its share of the window integrals
+            _window_integrals(tab, xs, n, t0, t_end, q, qd, t_from, t_end, stats)
+            break
+        if name == _FN_PINCH:
+            status, t_status = STATUS_PINCHED, te
+            break
+        n_ev += 1
+        if n_ev > max_events:
+            status, t_status = STATUS_MAX_EVENTS, te
+            break
+        _window_integrals(tab, xs, n, t0, te, q, qd, t_from, t_end, stats)
+        s = te - t0
+        v, vd = _osc_pv(o, s)
+        _modal_at(ho, tab, n, W, t0, te, q, qd)
+        uh, uhd = _tip(te, cp, tab, ho, n, 0)
+        if mode == FREE:
+            w, wd = w0 + s * (wd0 + 0.5 * a * s), wd0 + a * s
+        else:
+            w, wd = L0 + v, vd
+        t = te
+        if L0 + v <= 2.0 * B0:
+            status, t_status = STATUS_PINCHED, te
+            break
+        if name == _FN_RELEASE:
+            skip_h = te
+            skip_t = te
+            if record:
+                if n_stk == stk.shape[0]:
+                    stk = _grow2(stk, n_stk)
+                stk[n_stk, 0], stk[n_stk, 1], stk[n_stk, 2] = stick_start, te, BODY_TOOL
+                n_stk += 1
+            d = max(0.0, min(te, t_end) - max(stick_start, t_from))
+            stats[S_T_ON_TOOL] += d
+            mode = FREE
+            continue
+        if name == _FN_HORN:
+            x = uh
+            rel_in = wd - uhd
+            J = -(1.0 + e2) * rel_in / (1.0 / m_free + Sg)
+            wa = wd + J / m_free
+            for i in range(n):
+                qd[i] -= tab[i, H_TIP] * J / tab[i, H_MASS]
+            ua = uhd - J * Sg
+            work += J * 0.5 * (uhd + ua)
+            if te >= t_from and te <= t_end:
+                # the residual is a driven displacement: the source does its work on the free mass
+                stats[C_DRIVE] += J * W * (-Rc * math.sin(W * te) + Rs * math.cos(W * te))
+            wb = wd
+            uacc = _tip(te, cp, tab, ho, n, 2)[0]
+            if _sticks(wa - ua, uacc - a, v_stick):
+                status, t_status = STATUS_HORN_STICK, te
+                break
+            skip_rel = 2.0 * (wa - ua)
+            skip_t = te
+            w, wd = x, wa
+            vb = vd
+            va = vd
+            ub = uhd
+            kind = KIND_HORN
+        else:
+            x = L0 + v
+            vb, wb = vd, wd
+            rel = wd - vd
+            va = vd + m_free / M * (1.0 + e1) * rel
+            wa = wd - m_tool / M * (1.0 + e1) * rel
+            J = m_free * (wa - wd)
+            acc_tool = -(c * va + k0 * v) / m_tool
+            if _sticks(va - wa, a - acc_tool, v_stick):
+                va = (m_tool * vd + m_free * wd) / M
+                wa = va
+                J = m_free * (wa - wd)
+                mode = ON_TOOL
+                stick_start = te
+            else:
+                _osc_make(o2, m_tool, k0, c, 0.0, v, va)
+                skip_t = te + 2.0 * (va - wa) / (abs(a) + o2[_O_B2])
+                skip_h = te
+            w, wd, vd = x, wa, va
+            ub = uhd
+            ua = uhd
+            kind = KIND_TOOL
+        energy = 0.5 * m_free * wd * wd - m_free * a * w + 0.5 * m_tool * vd * vd + 0.5 * k0 * v * v
+        if record:
+            if n_rec == kinds.shape[0]:
+                ev = _grow2(ev, n_rec)
+                kinds = _grow1(kinds, n_rec)
+            ev[n_rec, 0], ev[n_rec, 1], ev[n_rec, 2], ev[n_rec, 3] = te, x, wb, wa
+            ev[n_rec, 4], ev[n_rec, 5], ev[n_rec, 6], ev[n_rec, 7] = vb, va, energy, work
+            ev[n_rec, 8], ev[n_rec, 9], ev[n_rec, 10] = J, ub, ua
+            kinds[n_rec] = kind
+            n_rec += 1
+        if te < t_from:
+            w_from = work
+        w_last = work
+        if te >= t_from and te <= t_end:
+            if kind == KIND_TOOL:
+                stats[S_N_TOOL] += 1.0
+                stats[S_KE_AFTER] += 0.5 * m_tool * va ** 2
+                stats[S_KE_GAIN] += 0.5 * m_tool * (va ** 2 - vb ** 2)
+            else:
+                stats[S_N_HORN] += 1.0
+    if status == STATUS_OK and mode != FREE:
+        if record:
+            if n_stk == stk.shape[0]:
+                stk = _grow2(stk, n_stk)
+            stk[n_stk, 0], stk[n_stk, 1], stk[n_stk, 2] = stick_start, t_end, BODY_TOOL
+            n_stk += 1
+        d = max(0.0, t_end - max(stick_start, t_from))
+        stats[S_T_ON_TOOL] += d
+    stats[S_HORN_WORK] = w_last - w_from
+    stats[S_STATUS] = status
+    stats[S_N_EVENTS] = n_ev
+    return ev, kinds, n_rec, segs, n_seg, stk, n_stk, E0, status, t_status, n_ev
+
+
+def run_coupled(params: ImpactParams, horn: ModalHorn):
+    """One coupled run (compiled) as a :class:`impact.coupled.CoupledResult`.
+
+    Raises :class:`impact.model.SimulationError` (pinched, too many events) or
+    :class:`impact.coupled.HornStickError` like the reference engine.
+    """
+    from .coupled import CoupledResult, HornStickError
+    from .model import HORN, TOOL, ImpactResult, SimulationError, _pinch_message
+
+    tab, xs = horn.pack(params.freq)
+    stats = np.zeros(N_CSTATS)
+    ev, kinds, nr, segs, ns, stk, nk, E0, status, t_status, n_ev = _core(
+        pack(params), tab, xs, float(params.t_end), int(params.max_events), True, 0.0, stats)
+    if status == STATUS_PINCHED:
+        raise SimulationError(_pinch_message(t_status))
+    if status == STATUS_MAX_EVENTS:
+        raise SimulationError(f"more than max_events = {params.max_events} events by t = {t_status:.9g} s")
+    if status == STATUS_HORN_STICK:
+        raise HornStickError(f"the free mass would rest on the modal horn at t = {t_status:.9g} s: not modelled")
+    ev = ev[:nr]
+    segs = segs[:ns]
+    n = tab.shape[0]
+    contact = np.where(kinds[:nr] == KIND_TOOL, TOOL, HORN).astype("<U4")
+    stick = [(float(a), float(b), "tool") for a, b, _ in stk[:nk]]
+    res = ImpactResult(params=params, t=ev[:, 0].copy(), contact=contact, x=ev[:, 1].copy(),
+                       w_before=ev[:, 2].copy(), w_after=ev[:, 3].copy(), v_before=ev[:, 4].copy(),
+                       v_after=ev[:, 5].copy(), energy=ev[:, 6].copy(), horn_work=ev[:, 7].copy(),
+                       energy0=float(E0), stick=stick, n_events=int(n_ev))
+    seg = (segs[:, 0].copy(), segs[:, 1].astype(np.int8), segs[:, 2].copy(), segs[:, 3].copy(),
+           segs[:, 4].copy(), segs[:, 5].copy())
+    return CoupledResult(impact=res, horn=horn, freq_hz=params.freq, seg_t0=segs[:, 0].copy(),
+                         seg_q=segs[:, 6:6 + n].copy(), seg_qd=segs[:, 6 + n:6 + 2 * n].copy(),
+                         impulse=ev[:, 8].copy(), tip_v_before=ev[:, 9].copy(), tip_v_after=ev[:, 10].copy(),
+                         extra={"segments": seg, "window": stats})
+
+
+@njit(cache=True, parallel=True)
+def _ensemble(pmat, tab, xs, t_from, t_end, max_events, out):
+    for i in prange(pmat.shape[0]):
+        _core(pmat[i], tab, xs, t_end, max_events, False, t_from, out[i])
+
+
+def ensemble_coupled(pmat: np.ndarray, horn: ModalHorn, freq_hz: float, t_from: float, t_end: float,
+                     max_events: int) -> np.ndarray:
+    """Window statistics of many coupled runs (one horn, members differ in ``pmat`` rows).
+
+    Parameters
+    ----------
+    pmat : ndarray (n_members, N_PARAMS)
+        Packed impact parameters (:func:`impact.kernel.pack`); their ``freq`` must equal ``freq_hz``.
+    horn : ModalHorn
+    freq_hz : float
+        Drive frequency, Hz.
+    t_from, t_end : float
+        Window, s.
+    max_events : int
+
+    Returns
+    -------
+    ndarray (n_members, N_CSTATS)
+        The columns of :func:`impact.kernel.ensemble_stats` (status 3: the free mass would rest on
+        the horn) and ``C_DRIVE``, ``C_DAMP`` (J), ``C_FUND_RE``, ``C_FUND_IM`` (m s).
+    """
+    pmat = np.ascontiguousarray(np.atleast_2d(pmat), dtype=np.float64)
+    if pmat.shape[1] != N_PARAMS:
+        raise ValueError(f"pmat has {pmat.shape[1]} columns, expected {N_PARAMS}")
+    tab, xs = horn.pack(freq_hz)
+    out = np.zeros((pmat.shape[0], N_CSTATS))
+    _ensemble(pmat, np.ascontiguousarray(tab), xs, float(t_from), float(t_end), int(max_events), out)
+    return out
