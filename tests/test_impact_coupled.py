@@ -1,0 +1,234 @@
+"""The coupled model (modal horn in the impact loop) against independent references.
+
+References and tolerances (issue 12):
+- compiled kernel = Python reference engine, seeded random cases: event kinds identical, times
+  1e-12 s, velocities and modal states 1e-9 relative;
+- superposition: a linear horn hit by impulses J_k at t_k moves as its impact-free response plus
+  sum_k (-s J_k / m) e^{-zeta w tau} sin(w_d tau) / w_d (textbook form, written here): 1e-10 relative;
+- energy balance over 0.1 s: drive work = damping loss + stored change + work on the free mass,
+  to 1e-6 of the drive work (and the compiled window integrals = the numpy ones, 1e-9);
+- very stiff, lossless, heavy horn: the kinematic model's first 5 impacts within 1e-9 s;
+- no impacts: the FE-reduced horn's tip = the direct harmonic working point (amplitude and phase
+  0.5 %), and = fem.transient.ring_up (modal Newmark, 8 modes) within 1 % of the peak over 20 cycles;
+- bad input: ParameterError naming the field.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+from rpud_common import ParameterError
+from impact.coupled import HornStickError, simulate_coupled
+from impact.horn import ModalHorn
+from impact.model import simulate
+from impact.params import ImpactParams
+
+F = 20e3
+W = 2 * math.pi * F
+
+
+def _horn(n=1, start="rest", A=15e-6, tip_mass=0.1, zeta=0.005, f1=20.3e3, seed=None):
+    """A horn whose first mode sits near the drive and gives a steady tip amplitude A."""
+    rng = np.random.default_rng(seed) if seed is not None else None
+    om = 2 * np.pi * np.array([f1, 35e3, 52e3, 61e3, 70e3, 81e3, 90e3, 99e3])[:n]
+    s = np.array([1 / math.sqrt(tip_mass)] + [0.3] * (n - 1))[:n]
+    z = np.full(n, zeta)
+    cre = np.array([0.0] + [20.0] * (n - 1))[:n]
+    if rng is not None:
+        s[1:] *= rng.uniform(-2, 2, n - 1)
+        z = z * rng.uniform(0.2, 5, n)
+        cre[1:] *= rng.uniform(-1, 1, n - 1)
+    cre[0] = A / s[0] * abs(om[0] ** 2 - W ** 2 + 2j * z[0] * om[0] * W) / 225.0
+    return ModalHorn(om, z, np.ones(n), s, cre, 0.1 * cre, 225.0, residual_re=2e-10, residual_im=-1e-11,
+                     start=start)
+
+
+@pytest.mark.parametrize("case", range(12))
+def test_kernel_equals_python_engine(case):
+    rng = np.random.default_rng(1000 + case)
+    n = int(rng.integers(1, 9))
+    horn = _horn(n, ("rest", "steady")[case % 2], A=rng.uniform(5e-6, 25e-6), tip_mass=rng.uniform(0.03, 1.0),
+                 seed=case)
+    p = ImpactParams(m_free=rng.uniform(0.001, 0.01), e1=rng.uniform(0.3, 1), e2=rng.uniform(0.3, 1),
+                     c=rng.uniform(0, 100), spring_force=rng.choice([0.0, 5.0]), v0=rng.uniform(1, 5), t_end=0.02,
+                     g=rng.uniform(-10, 10))
+    try:
+        rp = simulate_coupled(p, horn, engine="python", series=False)
+    except HornStickError:
+        with pytest.raises(HornStickError):
+            simulate_coupled(p, horn, engine="kernel", series=False)
+        return
+    rk = simulate_coupled(p, horn, engine="kernel", series=False)
+    k = min(20, rp.impact.t.size)
+    assert rk.impact.t.size >= k and k >= 3
+    assert list(rk.impact.contact[:k]) == list(rp.impact.contact[:k])
+    np.testing.assert_allclose(rk.impact.t[:k], rp.impact.t[:k], rtol=0, atol=1e-12)
+    for name in ("w_after", "v_after"):
+        a, b = getattr(rk.impact, name)[:k], getattr(rp.impact, name)[:k]
+        np.testing.assert_allclose(a, b, rtol=1e-9, atol=1e-9 * np.max(np.abs(b)))
+    np.testing.assert_allclose(rk.seg_qd[:k], rp.seg_qd[:k], rtol=1e-9, atol=1e-9 * np.max(np.abs(rp.seg_qd[:k])))
+
+
+@pytest.mark.parametrize("n", [1, 3])
+def test_modal_motion_is_free_response_plus_impulse_responses(n):
+    """Linear horn: the response to the drive (from rest) plus one damped impulse response per
+    horn impact, at the impact's time and with its impulse (textbook SDOF form)."""
+    horn = _horn(n, "rest", seed=7)
+    p = ImpactParams(m_free=0.008, spring_force=5.0, t_end=0.03)
+    res = simulate_coupled(p, horn, engine="kernel", series=False)
+    hi = ~res.impact.is_tool
+    tk, Jk = res.impact.t[hi], res.impulse[hi]
+    assert tk.size >= 5
+    # drive response from rest, textbook: steady part + homogeneous part fixed by q(0) = q'(0) = 0
+    om, ze, m, s = horn.omega, horn.zeta, horn.modal_mass, horn.tip
+    wd = om * np.sqrt(1 - ze ** 2)
+    fc, fs = horn.voltage * horn.coupling_im, horn.voltage * horn.coupling_re
+    den = (om ** 2 - W ** 2) ** 2 + (2 * ze * om * W) ** 2
+    # q_p = A cos + B sin solving q'' + 2 ze om q' + om^2 q = (fc cos + fs sin) / m
+    A = ((om ** 2 - W ** 2) * fc - 2 * ze * om * W * fs) / den / m
+    B = ((om ** 2 - W ** 2) * fs + 2 * ze * om * W * fc) / den / m
+    c1 = -A
+    c2 = (-W * B + ze * om * c1) / wd          # q'(0) = 0
+
+    def q_ref(t):
+        q = A * np.cos(W * t) + B * np.sin(W * t) + np.exp(-ze * om * t) * (c1 * np.cos(wd * t) + c2 * np.sin(wd * t))
+        for tj, Jj in zip(tk, Jk):
+            if t > tj:
+                tau = t - tj
+                q = q + (-s * Jj / m) * np.exp(-ze * om * tau) * np.sin(wd * tau) / wd
+        return q
+
+    ref = np.array([q_ref(t) for t in res.seg_t0])
+    scale = np.max(np.abs(ref), axis=0)
+    assert np.max(np.abs(res.seg_q - ref) / scale) <= 1e-10
+
+
+def test_energy_balance_closes_over_0p1_s():
+    horn = _horn(3, "rest", seed=3)
+    p = ImpactParams(m_free=0.008, spring_force=5.0, t_end=0.1)
+    res = simulate_coupled(p, horn, engine="kernel", series=False)
+    rows = res.energy_balance([0.0, 0.02, 0.05, 0.1])
+    drive = sum(r["drive_j"] for r in rows)
+    resid = sum(r["residual_j"] for r in rows)
+    assert drive > 0 and res.impact.horn_impacts > 20
+    assert abs(resid) <= 1e-6 * drive
+    for r in rows:
+        assert abs(r["residual_j"]) <= 1e-6 * r["drive_j"]
+        assert r["damping_j"] > 0 and r["to_free_mass_j"] > 0 and r["restitution_horn_j"] >= 0
+    # the compiled window integrals (whole run) agree with the numpy closed forms
+    win = res.extra["window"]
+    from impact.kernel_modal import C_DAMP, C_DRIVE
+    whole = res.energy_balance([0.0, 0.1])[0]
+    assert win[C_DRIVE] == pytest.approx(whole["drive_j"], rel=1e-9)
+    assert win[C_DAMP] == pytest.approx(whole["damping_j"], rel=1e-9)
+    # and the numpy closed forms agree with a plain quadrature of the sampled integrand (1e-5)
+    t = np.linspace(0.0, 0.01, 400_001)
+    from impact.coupled import _states_on
+    q, qd, _ = _states_on(res, t)
+    fc, fs = horn.forcing()
+    f = np.outer(np.cos(W * t), fc) + np.outer(np.sin(W * t), fs)
+    quad = np.trapezoid(np.sum(f * qd, axis=1), t)
+    assert res.energy_balance([0.0, 0.01])[0]["drive_j"] == pytest.approx(quad, rel=1e-5)
+
+
+def test_stiff_lossless_heavy_horn_reproduces_the_kinematic_events():
+    A0 = 15e-6
+    m, om = 1e12, 2 * np.pi * 1e6
+    fc = A0 * m * (om ** 2 - W ** 2)         # steady q = A0 cos(W t), tip participation 1
+    horn = ModalHorn([om], [0.0], [m], [1.0], [0.0], [fc / 100.0], 100.0, start="steady")
+    for sf in (0.0, 5.0):
+        p = ImpactParams(A0=A0, freq=F, t_end=0.01, spring_force=sf)
+        kin = simulate(p, series=False)
+        cop = simulate_coupled(p, horn, series=False).impact
+        assert kin.t.size >= 5
+        assert list(cop.contact[:5]) == list(kin.contact[:5])
+        np.testing.assert_allclose(cop.t[:5], kin.t[:5], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(cop.w_after[:5], kin.w_after[:5], rtol=1e-6)
+
+
+def test_bad_horn_and_params_are_clear_errors():
+    ok = dict(omega=[1e5], zeta=[0.01], modal_mass=[1.0], tip=[1.0], coupling_re=[1.0], coupling_im=[0.0],
+              voltage=10.0)
+    with pytest.raises(ParameterError, match="zeta"):
+        ModalHorn(**{**ok, "zeta": [1.5]})
+    with pytest.raises(ParameterError, match="omega"):
+        ModalHorn(**{**ok, "omega": [-1.0]})
+    with pytest.raises(ParameterError, match="tip"):
+        ModalHorn(**{**ok, "tip": [0.0]})
+    with pytest.raises(ParameterError, match="coupling_re"):
+        ModalHorn(**{**ok, "coupling_re": [1.0, 2.0]})
+    with pytest.raises(ParameterError, match="start"):
+        ModalHorn(**{**ok, "start": "hot"})
+    with pytest.raises(ParameterError, match="voltage"):
+        ModalHorn(**{**ok, "voltage": -1.0})
+    with pytest.raises(ParameterError, match="horn_law"):
+        simulate_coupled(ImpactParams(horn_law="article"), ModalHorn(**ok))
+    h = ModalHorn(**ok)
+    assert ModalHorn.from_dict(h.to_dict()).tip_mass == h.tip_mass
+
+
+# ----------------------------------------------------------------------------- with the FE model
+
+
+@pytest.fixture(scope="module")
+def fe():
+    from fem.assembly import assemble
+    from fem.harmonic import LossModel, modal_basis
+    from fem.modal import modal_analysis
+    from test_fem_harmonic import _stack
+
+    system = assemble(_stack())
+    modes = modal_analysis(system, 70e3, 8, open_circuit=False)
+    f_r = float(modes.f_r_hz[int(np.argmax(modes.shares[:, 0]))])
+    loss = LossModel(100.0, 0.004)
+    basis = modal_basis(system, f_r, 8, loss=loss, modes=modes)
+    return system, f_r, loss, basis
+
+
+def _quiet_params(freq, t_end):
+    # the free mass flies away from the tip and never reaches the tool: no impacts
+    return ImpactParams(freq=freq, v0=2.0, g=0.0, gap=0.5, t_end=t_end, sample_dt=1.0 / (400 * freq), A0=0.0)
+
+
+def test_no_impacts_tip_equals_the_harmonic_working_point(fe):
+    from fem.harmonic import working_point
+    from fem.reduced import reduce_transducer
+    from results.coupled import horn_from_reduced
+
+    system, f_r, loss, basis = fe
+    for ratio in (0.998, 1.0):
+        f = ratio * f_r
+        red = reduce_transducer(system, basis, f, tip_surface="electrode_4")
+        horn = horn_from_reduced(red, 2.0, start="steady")
+        res = simulate_coupled(_quiet_params(f, 20 / f), horn, series=True)
+        assert res.impact.t.size == 0
+        direct = working_point(system, f, 2.0, loss=loss, surfaces=("electrode_4",)).surfaces["electrode_4"]["axial"]
+        Z = res._fundamental(0.0, 20 / f) * 2 / (20 / f)       # u = Re(Z e^{jWt})
+        expect = -1j * direct                                   # drive V sin = Re(-j V e^{jWt})
+        assert abs(Z) == pytest.approx(abs(expect), rel=5e-3)
+        assert abs(np.angle(Z / expect)) <= 5e-3
+        # the sampled series carries the same sine
+        A = np.column_stack([np.cos(2 * np.pi * f * res.t_grid), np.sin(2 * np.pi * f * res.t_grid)])
+        coef = np.linalg.lstsq(A, res.u, rcond=None)[0]
+        assert complex(coef[0], -coef[1]) == pytest.approx(expect, rel=5e-3)
+        # the power drawn equals the harmonic input power (steady state, no load)
+        P, _ = res.drive_power(0.0, 20 / f)
+        wp = working_point(system, f, 2.0, loss=loss, surfaces=("electrode_4",), basis=basis)
+        assert P == pytest.approx(wp.power_w, rel=2e-2)
+
+
+def test_no_impacts_ring_up_equals_fem_ring_up(fe):
+    from fem.reduced import reduce_transducer
+    from fem.transient import ring_up
+    from results.coupled import horn_from_reduced
+
+    system, f_r, loss, basis = fe
+    red = reduce_transducer(system, basis, f_r, tip_surface="electrode_4")
+    horn = horn_from_reduced(red, 1.0, start="rest")
+    t_end = 20 / f_r
+    res = simulate_coupled(_quiet_params(f_r, t_end), horn, series=True)
+    ref = ring_up(system, f_r, 1.0, t_end, loss=loss, basis=basis, surfaces=("electrode_4",), steps_per_cycle=400)
+    y_ref = ref.surfaces["electrode_4"]["axial"]
+    y = np.interp(ref.t, res.t_grid, res.u)
+    assert np.max(np.abs(y - y_ref)) <= 1e-2 * np.max(np.abs(y_ref))
