@@ -45,11 +45,11 @@ HORN_STARTS = ("rest", "steady")
 MAX_HORN_MODES = 64
 
 # columns of the packed per-mode table (ModalHorn.pack)
-H_OMEGA, H_ZETA, H_MASS, H_TIP, H_A, H_B, H_FC, H_FS = range(8)
-N_HCOLS = 8
+H_OMEGA, H_ZETA, H_MASS, H_TIP, H_A, H_B, H_FC, H_FS, H_GRE, H_GIM = range(10)
+N_HCOLS = 10
 # packed scalars
-X_W, X_UC, X_US, X_RC, X_RS, X_STEADY = range(6)
-N_HX = 6
+X_W, X_UC, X_US, X_RC, X_RS, X_STEADY, X_V0, X_QBR, X_QBI = range(9)
+N_HX = 9
 
 _ARRAYS = ("omega", "zeta", "modal_mass", "tip", "coupling_re", "coupling_im")
 
@@ -175,9 +175,10 @@ class ModalHorn:
 
     def pack(self, freq_hz: float) -> tuple[np.ndarray, np.ndarray]:
         """``(table, scalars)`` for the compiled kernel: ``table`` (n, N_HCOLS) with columns
-        ``H_*`` (omega, zeta, mass, tip, steady cos / sin coefficients a_i, b_i, force Fc, Fs),
+        ``H_*`` (omega, zeta, mass, tip, steady cos / sin coefficients a_i, b_i, force Fc, Fs, coupling
+        per volt re / im),
         ``scalars`` (N_HX,) with ``X_*`` (W, steady tip cos / sin coefficients, residual cos /
-        sin coefficients, 1.0 if the start is steady)."""
+        sin coefficients, 1.0 if the start is steady, voltage, blocked charge per volt re / im)."""
         W = 2 * math.pi * freq_hz
         q = self.steady_modal(freq_hz)
         fc, fs = self.forcing()
@@ -186,9 +187,11 @@ class ModalHorn:
                                                                           self.modal_mass, self.tip)
         tab[:, H_A], tab[:, H_B] = q.real, -q.imag
         tab[:, H_FC], tab[:, H_FS] = fc, fs
+        tab[:, H_GRE], tab[:, H_GIM] = self.coupling_re, self.coupling_im
         U = self.steady_tip(freq_hz)
         r = self.residual_phasor()
-        x = np.array([W, U.real, -U.imag, r.real, -r.imag, 1.0 if self.start == "steady" else 0.0])
+        x = np.array([W, U.real, -U.imag, r.real, -r.imag, 1.0 if self.start == "steady" else 0.0,
+                      self.voltage, self.blocked_charge_re, self.blocked_charge_im])
         return tab, x
 
     # ------------------------------------------------------------------ free response
@@ -276,7 +279,8 @@ def segment_integrals(horn: ModalHorn, freq_hz: float, t0, q0, qd0, s_a, s_b) ->
     Returns
     -------
     dict of ndarray (k,)
-        ``drive_j``: work of the modal forces ``int sum f_i q_i'``, J; ``damping_j``: modal
+        ``drive_j``: work of the modal forces ``int sum f_i q_i'``, J; ``electric_j``: electrical
+        energy drawn ``int V I dt`` (current of :meth:`ModalHorn.drive_current`), J; ``damping_j``: modal
         damping loss ``int sum c_i q_i'^2``, J; ``fundamental``: ``int u e^{-jWt} dt`` (complex,
         m s).
     """
@@ -303,6 +307,15 @@ def segment_integrals(horn: ModalHorn, freq_hz: float, t0, q0, qd0, s_a, s_b) ->
     drive = _pair(F, jw, G, jw, S) + _pair(F, jw, H, mu, S)
     c = horn.damping[None, :]
     damp = c * (_pair(G, jw, G, jw, S) + 2 * _pair(G, jw, H, mu, S) + _pair(H, mu, H, mu, S))
+    # electrical input int V I dt, I = sum (Re g_i q_i' + Im g_i q_i'' / W) + Re(Qb) V' - Im(Qb) W V
+    Vc = -1j * horn.voltage * ewa
+    vq1 = _pair(Vc, jw, G, jw, S) + _pair(Vc, jw, H, mu, S)
+    vq2 = _pair(Vc, jw, jw * G, jw, S) + _pair(Vc, jw, mu * H, mu, S)
+    elec = (horn.coupling_re[None, :] * vq1 + horn.coupling_im[None, :] / W * vq2).sum(axis=1)
+    ta, tb = t0[:, 0] + sa[:, 0], t0[:, 0] + sa[:, 0] + S[:, 0]
+    V0 = horn.voltage
+    elec = elec + horn.blocked_charge_re * 0.5 * V0 ** 2 * (np.sin(W * tb) ** 2 - np.sin(W * ta) ** 2)
+    elec = elec - horn.blocked_charge_im * W * V0 ** 2 * (0.5 * S[:, 0] - (np.sin(2 * W * tb) - np.sin(2 * W * ta)) / (4 * W))
     U = horn.steady_tip(freq_hz)
     # int Re(X e^{lam s}) e^{-jW s} ds = (X E(lam - jW) + conj(X) E(conj(lam) - jW)) / 2
     Uc = U * ewa[:, 0]
@@ -310,4 +323,4 @@ def segment_integrals(horn: ModalHorn, freq_hz: float, t0, q0, qd0, s_a, s_b) ->
     Ct = C * horn.tip[None, :]
     fund = fund + 0.5 * (Ct * _expint(mu - jw, S) + np.conj(Ct) * _expint(np.conj(mu) - jw, S)).sum(axis=1)
     fund = fund * np.exp(-1j * W * (t0[:, 0] + sa[:, 0]))
-    return {"drive_j": drive.sum(axis=1), "damping_j": damp.sum(axis=1), "fundamental": fund}
+    return {"drive_j": drive.sum(axis=1), "damping_j": damp.sum(axis=1), "fundamental": fund, "electric_j": elec}

@@ -10,7 +10,8 @@ Entry points: :func:`run_coupled` (one run, every event and segment) and
 :func:`ensemble_coupled` (window statistics of many members in parallel, the columns of
 :func:`impact.kernel.ensemble_stats` followed by ``C_DRIVE`` (work of the drive on the modes and
 the residual, J), ``C_DAMP`` (modal damping loss, J), ``C_FUND_RE``/``C_FUND_IM``
-(``int u e^{-jWt} dt`` over the window, m s): closed-form integrals per segment).
+(``int u e^{-jWt} dt`` over the window, m s), ``C_ELEC`` (electrical energy drawn ``int V I dt``,
+J): closed-form integrals per segment).
 """
 
 from __future__ import annotations
@@ -21,23 +22,22 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .horn import (H_A, H_B, H_FC, H_FS, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_RC, X_RS, X_STEADY, X_UC, X_US, X_W,
+from .horn import (H_A, H_B, H_FC, H_FS, H_GIM, H_GRE, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_QBI, X_QBR, X_RC, X_RS,
+                   X_STEADY, X_UC, X_US, X_V0, X_W,
                    ModalHorn)
-from .kernel import (_O_B0, _O_B2, _O_B4, _O_DELTA, _O_N, _O_P, _O_Q, _O_AL, _O_BE, CONTACT_TOL, _H_MIN, _RTOL,
-                     _XTOL, BODY_TOOL, FREE, KIND_HORN, KIND_TOOL, N_PARAMS, N_STATS, ON_TOOL, P_C, P_E1, P_E2, P_GAP,
-                     P_K0, P_M_FREE, P_M_TOOL, P_V0, P_V_STICK, P_G, P_SPRING_FORCE, S_HORN_WORK, S_KE_AFTER,
-                     S_KE_GAIN, S_N_EVENTS, S_N_HORN, S_N_TOOL, S_STATUS, S_T_ON_TOOL, STATUS_MAX_EVENTS, STATUS_OK,
+from .kernel import (_O_B0, _O_B2, _O_B4, _O_DELTA, _O_N, CONTACT_TOL, _H_MIN, _RTOL,
+                     _XTOL, BODY_HORN, BODY_TOOL, FREE, KIND_HORN, KIND_TOOL, N_PARAMS, N_STATS, ON_TOOL, P_C, P_E1, P_E2, P_GAP,
+                     P_K0, P_M_FREE, P_M_TOOL, P_V0, P_V_STICK, P_G, P_SPRING_FORCE, ON_HORN, S_HORN_WORK, S_KE_AFTER,
+                     S_KE_GAIN, S_N_EVENTS, S_N_HORN, S_N_TOOL, S_STATUS, S_T_ON_HORN, S_T_ON_TOOL, STATUS_MAX_EVENTS, STATUS_OK,
                      STATUS_PINCHED, _E_N, _grid_step, _grow1, _grow2, _osc_eval, _osc_make, _osc_pv,
                      _parabola_excursion, _parabola_leave, _parabola_reach, _safe, _sticks, pack)
 from .params import ImpactParams
 
-__all__ = ["run_coupled", "ensemble_coupled", "N_CSTATS", "STATUS_HORN_STICK"]
+__all__ = ["run_coupled", "ensemble_coupled", "N_CSTATS"]
+C_DRIVE, C_DAMP, C_FUND_RE, C_FUND_IM, C_ELEC = N_STATS, N_STATS + 1, N_STATS + 2, N_STATS + 3, N_STATS + 4
+N_CSTATS = N_STATS + 5
 
-STATUS_HORN_STICK = 3
-C_DRIVE, C_DAMP, C_FUND_RE, C_FUND_IM = N_STATS, N_STATS + 1, N_STATS + 2, N_STATS + 3
-N_CSTATS = N_STATS + 4
-
-_FN_HORN, _FN_TOOL, _FN_PINCH, _FN_RELEASE = 0, 1, 2, 3
+_FN_HORN, _FN_TOOL, _FN_PINCH, _FN_RELEASE, _FN_HREL = 0, 1, 2, 3, 4
 # contact record: t0, w0, wd0, a, L0, W, Uc, Us
 _C_N = 8
 
@@ -81,6 +81,10 @@ def _fn(kind, tt, cp, o, tab, ho, n):
         vv, vvd = _osc_pv(o, tt - t0)
         u, ud = _tip(tt, cp, tab, ho, n, 0)
         return L0 + vv - u, vvd - ud
+    if kind == _FN_HREL:
+        # riding on the horn: the contact force per mass (u'' - a) falls to zero at the release
+        u2, u3 = _tip(tt, cp, tab, ho, n, 2)
+        return u2 - a, u3
     acc, jerk = _osc_eval(o, tt - t0, 2)
     return a - acc, -jerk
 
@@ -217,6 +221,11 @@ def _integrals(tab, xs, n, t0, q, qd, sa, sb):
     Uc = U * ewa
     fund = 0.5 * (Uc * S + Uc.conjugate() * _expint(-2j * W, S))
     e0 = cmath.exp(jw * t0)
+    V0 = xs[X_V0]
+    Vc = -1j * V0 * ewa
+    tb = ta + S
+    elec = xs[X_QBR] * 0.5 * V0 * V0 * (math.sin(W * tb) ** 2 - math.sin(W * ta) ** 2)
+    elec -= xs[X_QBI] * W * V0 * V0 * (0.5 * S - (math.sin(2.0 * W * tb) - math.sin(2.0 * W * ta)) / (4.0 * W))
     for i in range(n):
         om, ze, m = tab[i, H_OMEGA], tab[i, H_ZETA], tab[i, H_MASS]
         qs = complex(tab[i, H_A], -tab[i, H_B])
@@ -230,10 +239,13 @@ def _integrals(tab, xs, n, t0, q, qd, sa, sb):
         drive += _pair(F, jw, G, jw, S) + _pair(F, jw, H, mu, S)
         c = 2.0 * ze * om * m
         damp += c * (_pair(G, jw, G, jw, S) + 2.0 * _pair(G, jw, H, mu, S) + _pair(H, mu, H, mu, S))
+        vq1 = _pair(Vc, jw, G, jw, S) + _pair(Vc, jw, H, mu, S)
+        vq2 = _pair(Vc, jw, jw * G, jw, S) + _pair(Vc, jw, mu * H, mu, S)
+        elec += tab[i, H_GRE] * vq1 + tab[i, H_GIM] / W * vq2
         Ct = C * tab[i, H_TIP]
         fund += 0.5 * (Ct * _expint(mu - jw, S) + Ct.conjugate() * _expint(mu.conjugate() - jw, S))
     fund = fund * cmath.exp(-jw * ta)
-    return drive, damp, fund
+    return drive, damp, fund, elec
 
 
 @njit(cache=True)
@@ -241,7 +253,8 @@ def _window_integrals(tab, xs, n, t0, t1, q, qd, t_from, t_end, stats):
     lo = max(t0, t_from)
     hi = min(t1, t_end)
     if hi > lo:
-        d, dm, f = _integrals(tab, xs, n, t0, q, qd, lo - t0, hi - t0)
+        d, dm, f, el = _integrals(tab, xs, n, t0, q, qd, lo - t0, hi - t0)
+        stats[C_ELEC] += el
         stats[C_DRIVE] += d
         stats[C_DAMP] += dm
         stats[C_FUND_RE] += f.real
@@ -258,6 +271,7 @@ def _make_horn(ho, tab, n, W, t0, q, qd):
     s = math.sin(W * t0)
     b0 = 0.0
     b2 = 0.0
+    b4 = 0.0
     for i in range(n):
         a_, b_ = tab[i, H_A], tab[i, H_B]
         p = a_ * c + b_ * s
@@ -267,7 +281,8 @@ def _make_horn(ho, tab, n, W, t0, q, qd):
         _osc_make(ho[i], m, m * om * om, 2.0 * tab[i, H_ZETA] * om * m, 0.0, q[i] - p, qd[i] - pd)
         b0 += abs(tab[i, H_TIP]) * ho[i, _O_B0]
         b2 += abs(tab[i, H_TIP]) * ho[i, _O_B2]
-    return b0, b2
+        b4 += abs(tab[i, H_TIP]) * ho[i, _O_B4]
+    return b0, b2, b4
 
 
 @njit(cache=True)
@@ -343,6 +358,7 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
     E0 = 0.5 * m_free * wd * wd - m_free * a * w + 0.5 * m_tool * vd * vd + 0.5 * k0 * v * v
     work = 0.0
     stick_start = 0.0
+    stick_E = 0.0
     n_ev = 0
     status = STATUS_OK
     t_status = 0.0
@@ -352,7 +368,7 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
             _osc_make(o, M, k0, c, m_free * a / k0, v, vd)
         else:
             _osc_make(o, m_tool, k0, c, 0.0, v, vd)
-        hb0, hb2 = _make_horn(ho, tab, n, W, t, q, qd)
+        hb0, hb2, hb4 = _make_horn(ho, tab, n, W, t, q, qd)
         B0 = Ua + hb0
         B2 = Ua * W * W + hb2
         Bh = abs(a) + B2
@@ -393,6 +409,20 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
                         else:
                             fstart[nf], fend[nf] = start, end
                         nf += 1
+        elif mode == ON_HORN:
+            B = Bv + B2
+            if L0 - o[_O_B0] - B0 <= 0.0:
+                fkind[nf], fB[nf] = _FN_PINCH, B
+                fstart[nf] = max(t0, skip_t)
+                fh[nf] = _grid_step(B, t_end, 1e-7)
+                fend[nf] = math.inf
+                nf += 1
+            B4 = Ua * W * W * W * W + hb4
+            fkind[nf], fB[nf] = _FN_HREL, B4
+            fstart[nf] = t0
+            fh[nf] = _grid_step(B4, t_end, 1e-3 * (abs(a) + B2))
+            fend[nf] = math.inf
+            nf += 1
         else:
             Br = o[_O_B4]
             B = Bv + B2
@@ -438,12 +468,27 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
         uh, uhd = _tip(te, cp, tab, ho, n, 0)
         if mode == FREE:
             w, wd = w0 + s * (wd0 + 0.5 * a * s), wd0 + a * s
+        elif mode == ON_HORN:
+            w, wd = uh, uhd
         else:
             w, wd = L0 + v, vd
         t = te
         if L0 + v <= 2.0 * B0:
             status, t_status = STATUS_PINCHED, te
             break
+        if name == _FN_HREL:
+            # the horn did the work that moved the riding mass (its reaction on the modes is neglected)
+            work += (0.5 * m_free * wd * wd - m_free * a * w) - stick_E
+            skip_h = te
+            skip_t = te
+            if record:
+                if n_stk == stk.shape[0]:
+                    stk = _grow2(stk, n_stk)
+                stk[n_stk, 0], stk[n_stk, 1], stk[n_stk, 2] = stick_start, te, BODY_HORN
+                n_stk += 1
+            stats[S_T_ON_HORN] += max(0.0, min(te, t_end) - max(stick_start, t_from))
+            mode = FREE
+            continue
         if name == _FN_RELEASE:
             skip_h = te
             skip_t = te
@@ -471,9 +516,12 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
             wb = wd
             uacc = _tip(te, cp, tab, ho, n, 2)[0]
             if _sticks(wa - ua, uacc - a, v_stick):
-                status, t_status = STATUS_HORN_STICK, te
-                break
-            skip_rel = 2.0 * (wa - ua)
+                wa = ua
+                mode = ON_HORN
+                stick_start = te
+                stick_E = 0.5 * m_free * wa * wa - m_free * a * x
+            else:
+                skip_rel = 2.0 * (wa - ua)
             skip_t = te
             w, wd = x, wa
             vb = vd
@@ -523,13 +571,14 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
             else:
                 stats[S_N_HORN] += 1.0
     if status == STATUS_OK and mode != FREE:
+        body = BODY_HORN if mode == ON_HORN else BODY_TOOL
         if record:
             if n_stk == stk.shape[0]:
                 stk = _grow2(stk, n_stk)
-            stk[n_stk, 0], stk[n_stk, 1], stk[n_stk, 2] = stick_start, t_end, BODY_TOOL
+            stk[n_stk, 0], stk[n_stk, 1], stk[n_stk, 2] = stick_start, t_end, body
             n_stk += 1
         d = max(0.0, t_end - max(stick_start, t_from))
-        stats[S_T_ON_TOOL] += d
+        stats[S_T_ON_HORN if body == BODY_HORN else S_T_ON_TOOL] += d
     stats[S_HORN_WORK] = w_last - w_from
     stats[S_STATUS] = status
     stats[S_N_EVENTS] = n_ev
@@ -539,10 +588,9 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
 def run_coupled(params: ImpactParams, horn: ModalHorn):
     """One coupled run (compiled) as a :class:`impact.coupled.CoupledResult`.
 
-    Raises :class:`impact.model.SimulationError` (pinched, too many events) or
-    :class:`impact.coupled.HornStickError` like the reference engine.
+    Raises :class:`impact.model.SimulationError` (pinched, too many events) like the reference engine.
     """
-    from .coupled import CoupledResult, HornStickError
+    from .coupled import CoupledResult
     from .model import HORN, TOOL, ImpactResult, SimulationError, _pinch_message
 
     tab, xs = horn.pack(params.freq)
@@ -553,13 +601,11 @@ def run_coupled(params: ImpactParams, horn: ModalHorn):
         raise SimulationError(_pinch_message(t_status))
     if status == STATUS_MAX_EVENTS:
         raise SimulationError(f"more than max_events = {params.max_events} events by t = {t_status:.9g} s")
-    if status == STATUS_HORN_STICK:
-        raise HornStickError(f"the free mass would rest on the modal horn at t = {t_status:.9g} s: not modelled")
     ev = ev[:nr]
     segs = segs[:ns]
     n = tab.shape[0]
     contact = np.where(kinds[:nr] == KIND_TOOL, TOOL, HORN).astype("<U4")
-    stick = [(float(a), float(b), "tool") for a, b, _ in stk[:nk]]
+    stick = [(float(a), float(b), "tool" if body == BODY_TOOL else "horn") for a, b, body in stk[:nk]]
     res = ImpactResult(params=params, t=ev[:, 0].copy(), contact=contact, x=ev[:, 1].copy(),
                        w_before=ev[:, 2].copy(), w_after=ev[:, 3].copy(), v_before=ev[:, 4].copy(),
                        v_after=ev[:, 5].copy(), energy=ev[:, 6].copy(), horn_work=ev[:, 7].copy(),
@@ -596,8 +642,7 @@ def ensemble_coupled(pmat: np.ndarray, horn: ModalHorn, freq_hz: float, t_from: 
     Returns
     -------
     ndarray (n_members, N_CSTATS)
-        The columns of :func:`impact.kernel.ensemble_stats` (status 3: the free mass would rest on
-        the horn) and ``C_DRIVE``, ``C_DAMP`` (J), ``C_FUND_RE``, ``C_FUND_IM`` (m s).
+        The columns of :func:`impact.kernel.ensemble_stats` and ``C_DRIVE``, ``C_DAMP`` (J), ``C_FUND_RE``, ``C_FUND_IM`` (m s).
     """
     pmat = np.ascontiguousarray(np.atleast_2d(pmat), dtype=np.float64)
     if pmat.shape[1] != N_PARAMS:

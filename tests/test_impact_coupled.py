@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from rpud_common import ParameterError
-from impact.coupled import HornStickError, simulate_coupled
+from impact.coupled import simulate_coupled
 from impact.horn import ModalHorn
 from impact.model import simulate
 from impact.params import ImpactParams
@@ -53,12 +53,7 @@ def test_kernel_equals_python_engine(case):
     p = ImpactParams(m_free=rng.uniform(0.001, 0.01), e1=rng.uniform(0.3, 1), e2=rng.uniform(0.3, 1),
                      c=rng.uniform(0, 100), spring_force=rng.choice([0.0, 5.0]), v0=rng.uniform(1, 5), t_end=0.02,
                      g=rng.uniform(-10, 10))
-    try:
-        rp = simulate_coupled(p, horn, engine="python", series=False)
-    except HornStickError:
-        with pytest.raises(HornStickError):
-            simulate_coupled(p, horn, engine="kernel", series=False)
-        return
+    rp = simulate_coupled(p, horn, engine="python", series=False)
     rk = simulate_coupled(p, horn, engine="kernel", series=False)
     k = min(20, rp.impact.t.size)
     assert rk.impact.t.size >= k and k >= 3
@@ -232,3 +227,21 @@ def test_no_impacts_ring_up_equals_fem_ring_up(fe):
     y_ref = ref.surfaces["electrode_4"]["axial"]
     y = np.interp(ref.t, res.t_grid, res.u)
     assert np.max(np.abs(y - y_ref)) <= 1e-2 * np.max(np.abs(y_ref))
+
+
+def test_riding_the_horn_matches_between_engines_and_keeps_the_modal_balance():
+    """A spring-loaded free mass on a horn ringing up from rest chatters into a ride on the tip
+    (the approximation of impact.coupled): both engines agree, the modal balance still closes."""
+    horn = _horn(2, "rest", seed=1)
+    p = ImpactParams(m_free=0.008, spring_force=5.0, v0=0.0, t_end=0.004)
+    rk = simulate_coupled(p, horn, engine="kernel", series=True)
+    rp = simulate_coupled(p, horn, engine="python", series=False)
+    rides = [s for s in rk.impact.stick if s[2] == "horn"]
+    assert rides and rk.impact.stick == rp.impact.stick
+    np.testing.assert_allclose(rk.impact.t, rp.impact.t, rtol=0, atol=1e-12)
+    row = rk.energy_balance([0.0, p.t_end])[0]
+    assert abs(row["residual_j"]) <= 1e-6 * row["drive_j"]
+    # riding: the free mass is on the tip, and leaves it where u'' = a
+    s0, s1, _ = rides[0]
+    k = (rk.t_grid > s0) & (rk.t_grid < s1)
+    np.testing.assert_array_equal(rk.impact.w[k], rk.u[k])
