@@ -616,6 +616,30 @@ def _series(res: CoupledResult) -> None:
     res.impact.w[riding] = res.u[riding]
 
 
+def _run_kernel(params: ImpactParams, horn: ModalHorn) -> CoupledResult:
+    from . import kernel as K
+    from . import kernel_modal
+
+    ev, kinds, segs, stk, E0, status, t_status, n_ev, window = kernel_modal.run_events(params, horn)
+    if status == K.STATUS_PINCHED:
+        raise SimulationError(_pinch_message(t_status))
+    if status == K.STATUS_MAX_EVENTS:
+        raise SimulationError(f"more than max_events = {params.max_events} events by t = {t_status:.9g} s")
+    n = horn.n_modes
+    contact = np.where(kinds == K.KIND_TOOL, TOOL, HORN).astype("<U4")
+    stick = [(float(a), float(b), "tool" if body == K.BODY_TOOL else "horn") for a, b, body in stk]
+    res = ImpactResult(params=params, t=ev[:, 0].copy(), contact=contact, x=ev[:, 1].copy(),
+                       w_before=ev[:, 2].copy(), w_after=ev[:, 3].copy(), v_before=ev[:, 4].copy(),
+                       v_after=ev[:, 5].copy(), energy=ev[:, 6].copy(), horn_work=ev[:, 7].copy(),
+                       energy0=E0, stick=stick, n_events=n_ev)
+    seg = (segs[:, 0].copy(), segs[:, 1].astype(np.int8), segs[:, 2].copy(), segs[:, 3].copy(),
+           segs[:, 4].copy(), segs[:, 5].copy())
+    return CoupledResult(impact=res, horn=horn, freq_hz=params.freq, seg_t0=segs[:, 0].copy(),
+                         seg_q=segs[:, 6:6 + n].copy(), seg_qd=segs[:, 6 + n:6 + 2 * n].copy(),
+                         impulse=ev[:, 8].copy(), tip_v_before=ev[:, 9].copy(), tip_v_after=ev[:, 10].copy(),
+                         extra={"segments": seg, "window": window})
+
+
 def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = True,
                      engine: str = "kernel") -> CoupledResult:
     """Run the impact model with the modal horn (see the module docstring).
@@ -644,9 +668,7 @@ def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = Tr
     if engine == "python":
         res = _ModalSim(params, horn).run()
     elif engine == "kernel":
-        from . import kernel_modal
-
-        res = kernel_modal.run_coupled(params, horn)
+        res = _run_kernel(params, horn)
     else:
         raise ParameterError("engine", engine, "must be 'kernel' or 'python'")
     if series:

@@ -6,7 +6,7 @@ sticking rule). The kinematic kernel is untouched: this module adds a second eve
 horn tip is ``u = Uc cos Wt + Us sin Wt + sum_i s_i h_i(t - t0)``, each ``h_i`` the free
 oscillation of mode i over the current segment (an ``impact.kernel`` oscillator record).
 
-Entry points: :func:`run_coupled` (one run, every event and segment) and
+Entry points: :func:`run_events` (one run, every event and segment) and
 :func:`ensemble_coupled` (window statistics of many members in parallel, the columns of
 :func:`impact.kernel.ensemble_stats` followed by ``C_DRIVE`` (work of the drive on the modes and
 the residual, J), ``C_DAMP`` (modal damping loss, J), ``C_FUND_RE``/``C_FUND_IM``
@@ -33,7 +33,7 @@ from .kernel import (_O_B0, _O_B2, _O_B4, _O_DELTA, _O_N, CONTACT_TOL, _H_MIN, _
                      _parabola_excursion, _parabola_leave, _parabola_reach, _safe, _sticks, pack)
 from .params import ImpactParams
 
-__all__ = ["run_coupled", "ensemble_coupled", "N_CSTATS"]
+__all__ = ["run_events", "ensemble_coupled", "N_CSTATS"]
 C_DRIVE, C_DAMP, C_FUND_RE, C_FUND_IM, C_ELEC = N_STATS, N_STATS + 1, N_STATS + 2, N_STATS + 3, N_STATS + 4
 N_CSTATS = N_STATS + 5
 
@@ -585,37 +585,25 @@ def _core(pv, tab, xs, t_end, max_events, record, t_from, stats):
     return ev, kinds, n_rec, segs, n_seg, stk, n_stk, E0, status, t_status, n_ev
 
 
-def run_coupled(params: ImpactParams, horn: ModalHorn):
-    """One coupled run (compiled) as a :class:`impact.coupled.CoupledResult`.
+def run_events(params: ImpactParams, horn: ModalHorn) -> tuple:
+    """One coupled run (compiled): every event and segment.
 
-    Raises :class:`impact.model.SimulationError` (pinched, too many events) like the reference engine.
+    Returns
+    -------
+    tuple
+        ``(ev, kinds, segs, stick, E0, status, t_status, n_events, window)``: ``ev`` (k, 11) columns
+        t, x, w_before, w_after, v_before, v_after, energy, cumulative horn work, impulse on the free
+        mass, tip velocity before / after (SI); ``kinds`` (k,) int8 ``KIND_*``; ``segs`` (s, 6 + 2n)
+        segment starts: t, mode, w, w', v, v', then the n modal coordinates and n modal velocities;
+        ``stick`` (p, 3): start, end, ``BODY_*``; initial energy (J); ``STATUS_*`` and its time (s);
+        number of events; ``window`` the whole run's statistics row (``N_CSTATS``).
     """
-    from .coupled import CoupledResult
-    from .model import HORN, TOOL, ImpactResult, SimulationError, _pinch_message
-
     tab, xs = horn.pack(params.freq)
     stats = np.zeros(N_CSTATS)
     ev, kinds, nr, segs, ns, stk, nk, E0, status, t_status, n_ev = _core(
         pack(params), tab, xs, float(params.t_end), int(params.max_events), True, 0.0, stats)
-    if status == STATUS_PINCHED:
-        raise SimulationError(_pinch_message(t_status))
-    if status == STATUS_MAX_EVENTS:
-        raise SimulationError(f"more than max_events = {params.max_events} events by t = {t_status:.9g} s")
-    ev = ev[:nr]
-    segs = segs[:ns]
-    n = tab.shape[0]
-    contact = np.where(kinds[:nr] == KIND_TOOL, TOOL, HORN).astype("<U4")
-    stick = [(float(a), float(b), "tool" if body == BODY_TOOL else "horn") for a, b, body in stk[:nk]]
-    res = ImpactResult(params=params, t=ev[:, 0].copy(), contact=contact, x=ev[:, 1].copy(),
-                       w_before=ev[:, 2].copy(), w_after=ev[:, 3].copy(), v_before=ev[:, 4].copy(),
-                       v_after=ev[:, 5].copy(), energy=ev[:, 6].copy(), horn_work=ev[:, 7].copy(),
-                       energy0=float(E0), stick=stick, n_events=int(n_ev))
-    seg = (segs[:, 0].copy(), segs[:, 1].astype(np.int8), segs[:, 2].copy(), segs[:, 3].copy(),
-           segs[:, 4].copy(), segs[:, 5].copy())
-    return CoupledResult(impact=res, horn=horn, freq_hz=params.freq, seg_t0=segs[:, 0].copy(),
-                         seg_q=segs[:, 6:6 + n].copy(), seg_qd=segs[:, 6 + n:6 + 2 * n].copy(),
-                         impulse=ev[:, 8].copy(), tip_v_before=ev[:, 9].copy(), tip_v_after=ev[:, 10].copy(),
-                         extra={"segments": seg, "window": stats})
+    return (ev[:nr].copy(), kinds[:nr].copy(), segs[:ns].copy(), stk[:nk].copy(), float(E0), int(status),
+            float(t_status), int(n_ev), stats)
 
 
 @njit(cache=True, parallel=True)
