@@ -245,3 +245,19 @@ def test_riding_the_horn_matches_between_engines_and_keeps_the_modal_balance():
     s0, s1, _ = rides[0]
     k = (rk.t_grid > s0) & (rk.t_grid < s1)
     np.testing.assert_array_equal(rk.impact.w[k], rk.u[k])
+
+
+@pytest.mark.parametrize("args, name", [(["--voltage", "-1"], "--voltage"), (["--modes", "0"], "--modes"),
+                                        (["--history", "0"], "--history"), (["--horn-law", "article"], "--horn-law"),
+                                        (["--freq", "nan"], "--freq")])
+def test_fem_horn_cli_bad_input_is_one_line_exit_2(args, name, tmp_path):
+    import subprocess
+    import sys
+
+    out = tmp_path / "c.json"
+    r = subprocess.run([sys.executable, "-m", "impact", "--horn", "fem", *args, "--json", str(out)],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and name in lines[0]
+    assert not out.exists()
