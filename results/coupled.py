@@ -50,10 +50,10 @@ def round_sig(x: float, digits: int) -> float:
     return float(f"{x:.{digits - 1}e}")
 
 
-def rounded(reduced, digits: int = 10):
+def rounded(reduced, digits: int = 6):
     """The reduced transducer with every number rounded to ``digits`` significant digits: the
     chaotic impact stage must not see the last-bit scatter of threaded FE solvers (reruns give
-    identical numbers; 1e-10 is far below the FE discretisation error)."""
+    identical numbers; 1e-6 is far below the FE discretisation error)."""
     from fem.reduced import ReducedTransducer
 
     d = reduced.to_dict()
@@ -194,3 +194,72 @@ def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, inte
                     "drive_current_rms_a": i_rms},
            "horn_impact_times_s": imp.t[~imp.is_tool].tolist(), "tool_impact_times_s": imp.t[imp.is_tool].tolist()}
     return {"result": res, "lines": lines, "json": doc}
+
+
+def coupled_stage(system, basis, freq_hz: float, working: int, voltage: float, base, masses, stats_settings,
+                  damper_stats: list, damper_amplitudes: dict, unloaded_m: float, unloaded_power_w: float,
+                  f_r_hz: float, f_a_hz: float, *, n_modes: int | None = None, history_s: float = 0.05,
+                  reference_m_free: float = 0.008, say=None) -> dict:
+    """The pipeline's coupled-model stage: the FE transducer in the impact loop, next to the
+    kinematic horn (unloaded FE amplitude) and the damper-corrected amplitude.
+
+    Parameters
+    ----------
+    system, basis : the FE system and the harmonic modal basis of the run
+    freq_hz : drive frequency handed to the impacts, Hz
+    working : index of the working mode in the basis
+    voltage : drive amplitude, V
+    base : impact.params.ImpactParams of the run (``m_free`` and ``A0`` replaced per case)
+    masses : free masses, kg
+    stats_settings : impact.stats.StatsSettings
+    damper_stats : EnsembleStats per mass of the kinematic horn at the damper-corrected amplitude
+        (device scenario)
+    damper_amplitudes : mass -> damper-corrected amplitude, m
+    unloaded_m, unloaded_power_w : unloaded harmonic tip amplitude (m) and power (W)
+    n_modes : modes kept (default: the tip-participation rule)
+    history_s : ring-up history length, s
+
+    Returns
+    -------
+    dict with ``json`` (summary part), ``stats`` (coupled EnsembleStats per mass), ``kinematic``
+    (EnsembleStats per mass, kinematic horn at the unloaded amplitude), ``history``
+    (coupled_history output), ``reduced``.
+    """
+    from fem.reduced import reduce_transducer
+    from impact.coupled import coupled_batch
+    from impact.stats import ensemble_batch
+
+    say = say or (lambda msg: log.info("%s", msg))
+    red = rounded(reduce_transducer(system, basis, freq_hz, n_modes=n_modes, working=int(working)))
+    fe = FeTransducer(red, f_r_hz, f_a_hz, freq_hz, unloaded_m, unloaded_power_w, {})
+    horn = horn_from_reduced(red, voltage, start="steady")
+    cases = [base.with_(m_free=m, freq=freq_hz) for m in masses]
+    stats = coupled_batch(cases, horn, "device", stats_settings)
+    kin = ensemble_batch([c.with_(A0=round_sig(unloaded_m, 4)) for c in cases], "device", stats_settings)
+    hist = coupled_history(fe, base.with_(m_free=reference_m_free, freq=freq_hz, spring_force=5.0), voltage,
+                           history_s)
+    rows = []
+    for m, c, k, d in zip(masses, stats, kin, damper_stats):
+        amp = c.estimates["tip_amplitude_m"]
+        a_d = damper_amplitudes[m]
+        rows.append({
+            "m_free_kg": m, "members": c.members, "converged": c.converged, "note": c.note,
+            "coupled": {q: c.estimates[q].to_dict() for q in ("tip_amplitude_m", "mean_tool_ke_after_j",
+                                                               "tool_impact_rate_hz", "tool_power_w", "horn_power_w",
+                                                               "drive_power_w", "damping_power_w", "frac_on_horn")},
+            "kinematic_unloaded": {"A0_m": round_sig(unloaded_m, 4),
+                                   "mean_tool_ke_after_j": k.estimates["mean_tool_ke_after_j"].to_dict()},
+            "damper": {"A0_m": a_d, "mean_tool_ke_after_j": d.estimates["mean_tool_ke_after_j"].to_dict()},
+            "amplitude_damper_minus_coupled_m": a_d - amp.mean,
+            "amplitude_within_ci": bool(abs(a_d - amp.mean) <= amp.half_width),
+        })
+    r8 = rows[-1]
+    say(f"      coupled model ({red.n_modes} modes: {red.rule}): at {masses[-1] * 1e3:g} g tip "
+        f"{r8['coupled']['tip_amplitude_m']['mean'] * 1e6:.2f} um (damper {r8['damper']['A0_m'] * 1e6:.2f} um), tool KE "
+        f"{r8['coupled']['mean_tool_ke_after_j']['mean'] * 1e3:.2f} mJ (damper "
+        f"{r8['damper']['mean_tool_ke_after_j']['mean'] * 1e3:.2f}, kinematic unloaded "
+        f"{r8['kinematic_unloaded']['mean_tool_ke_after_j']['mean'] * 1e3:.2f}), drive "
+        f"{r8['coupled']['drive_power_w']['mean']:.1f} W")
+    doc = {"reduced_transducer": red.to_dict(), "tip_mass_kg": horn.tip_mass, "scenario": "device",
+           "horn_start_for_statistics": "steady", "rows": rows, "history": hist["json"]}
+    return {"json": doc, "stats": stats, "kinematic": kin, "history": hist, "reduced": red}
