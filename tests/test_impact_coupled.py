@@ -207,10 +207,10 @@ def test_no_impacts_tip_equals_the_harmonic_working_point(fe):
         A = np.column_stack([np.cos(2 * np.pi * f * res.t_grid), np.sin(2 * np.pi * f * res.t_grid)])
         coef = np.linalg.lstsq(A, res.u, rcond=None)[0]
         assert complex(coef[0], -coef[1]) == pytest.approx(expect, rel=5e-3)
-        # the power drawn equals the harmonic input power (steady state, no load)
+        # the power drawn (mean V I over 20 cycles, sampled current) equals the direct harmonic input power
         P, _ = res.drive_power(0.0, 20 / f)
-        wp = working_point(system, f, 2.0, loss=loss, surfaces=("electrode_4",), basis=basis)
-        assert P == pytest.approx(wp.power_w, rel=2e-2)
+        direct_p = working_point(system, f, 2.0, loss=loss, surfaces=("electrode_4",)).power_w
+        assert P == pytest.approx(direct_p, rel=1e-3)
 
 
 def test_no_impacts_ring_up_equals_fem_ring_up(fe):
