@@ -43,7 +43,7 @@ import numpy as np
 from rpud_common import ParameterError
 
 from .horn import ModalHorn, segment_integrals
-from .model import (CONTACT_TOL, FREE, HORN, ON_HORN, ON_TOOL, TOOL, ImpactResult, SimulationError, _first_event, _Fn,
+from .model import (FREE, HORN, ON_HORN, ON_TOOL, TOOL, ImpactResult, SimulationError, _first_event, _Fn,
                     _grid_step, _Osc, _parabola_excursion, _parabola_leave, _parabola_reach, _pinch_message,
                     _sticks)
 from .params import ImpactParams

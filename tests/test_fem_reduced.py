@@ -14,7 +14,7 @@ from fem.harmonic import LossModel, modal_basis, working_point
 from fem.modal import modal_analysis
 from fem.reduced import ReducedTransducer, reduce_transducer
 
-from test_fem_harmonic import TIP, _longitudinal, _stack
+from test_fem_harmonic import TIP, _stack
 
 
 @pytest.fixture(scope="module")
