@@ -263,3 +263,22 @@ def coupled_stage(system, basis, freq_hz: float, working: int, voltage: float, b
     doc = {"reduced_transducer": red.to_dict(), "tip_mass_kg": horn.tip_mass, "scenario": "device",
            "horn_start_for_statistics": "steady", "rows": rows, "history": hist["json"]}
     return {"json": doc, "stats": stats, "kinematic": kin, "history": hist, "reduced": red}
+
+
+def history_csv(res) -> str:
+    """The sampled history of a coupled run as CSV text: time (s), tip displacement (m) and velocity
+    (m/s), free mass and tool face positions (m), drive voltage (V) and current (A)."""
+    import io
+
+    from impact.coupled import _states_on
+
+    t = res.t_grid
+    _, qd, qdd = _states_on(res, t)
+    W = 2 * np.pi * res.freq_hz
+    V = res.horn.voltage * np.sin(W * t)
+    current = res.horn.drive_current(res.freq_hz, t, qd, qdd)
+    cols = np.column_stack([t, res.u, res.tip_velocity, res.impact.w, res.impact.tool_face, V, current])
+    buf = io.StringIO()
+    buf.write("t_s,tip_m,tip_velocity_m_per_s,free_mass_m,tool_face_m,voltage_v,current_a\n")
+    np.savetxt(buf, cols, delimiter=",", fmt="%.10g")
+    return buf.getvalue()

@@ -20,8 +20,8 @@ import math
 import sys
 from pathlib import Path
 
-from rpud_common import (CliParser, ParameterError, check_integer, check_output_paths, check_range, setup_logging,
-                         write_json)
+from rpud_common import (CliParser, ParameterError, atomic_write_text, check_integer, check_output_paths, check_range,
+                         setup_logging, write_json)
 
 
 def _parser() -> CliParser:
@@ -47,6 +47,11 @@ def _parser() -> CliParser:
     _add_params(ap, skip=("A0", "freq", "m_horn"))
     ap.add_argument("--json", metavar="PATH", help="write the reduced transducer, history summary, energy balance "
                                                    "and statistics as JSON")
+    ap.add_argument("--history-csv", dest="history_csv", metavar="PATH",
+                    help="write the ring-up history sampled every --sample-dt (tip, free mass, tool face, drive "
+                         "voltage and current) as CSV")
+    ap.add_argument("--sample-dt", dest="sample_dt", type=_real, default=None, metavar="S",
+                    help="sample spacing of the history, s (default 2.5e-6)")
     ap.add_argument("--plots", metavar="DIR", help="write tip_envelope.png and displacement.png here")
     return ap
 
@@ -72,15 +77,19 @@ def main(argv=None) -> int:
     p = _params(ns)
     sc = _scenario(ns, p)
     settings = _settings(ns)
+    if ns.sample_dt is not None:
+        check_range("--sample-dt", ns.sample_dt, 1e-8, 1e-4, "s")
+        p = p.with_(sample_dt=ns.sample_dt)
+    p.with_(t_end=ns.history)                  # at most 2e7 history samples (ImpactParams checks it)
     check_output_paths(inputs={"--config": ns.config, "--design": ns.design}, folders=("plots",), json=ns.json,
-                       plots=ns.plots)
+                       plots=ns.plots, history_csv=ns.history_csv)
     _threads(ns.threads)
     import geometry
     from geometry.guard import check_budget
 
     from impact.coupled import COUPLED_QUANTITIES, coupled_batch
 
-    from .coupled import build_transducer, coupled_history, horn_from_reduced
+    from .coupled import build_transducer, coupled_history, history_csv, horn_from_reduced
 
     design = geometry.load_design(ns.design) if ns.design is not None else geometry.default_design()
     check_budget(design, ns.mesh_size)
@@ -109,6 +118,8 @@ def main(argv=None) -> int:
                "unloaded_tip_amplitude_m": fe.tip_amplitude_m, "unloaded_power_w": fe.power_w},
                "params": p.to_dict(), "history": hist["json"], "statistics": st.to_dict()}
         write_json(ns.json, doc)
+    if ns.history_csv:
+        atomic_write_text(ns.history_csv, history_csv(hist["result"]))
     if ns.plots:
         from impact.plots import plot_history
 

@@ -261,3 +261,34 @@ def test_fem_horn_cli_bad_input_is_one_line_exit_2(args, name, tmp_path):
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1 and name in lines[0]
     assert not out.exists()
+
+
+def test_fem_horn_cli_end_to_end_on_a_coarse_drill(tmp_path):
+    """``python -m impact --horn fem`` on a coarse drill: JSON, CSV history and figures written; the
+    history's energy balance closes; the statistics carry their CIs; the CSV's tip matches the JSON."""
+    import json
+    import subprocess
+    import sys
+
+    import geometry
+
+    design = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+                                                "stack.ring_thickness": 0.006})
+    d = tmp_path / "d.toml"
+    d.write_text(design.to_toml())
+    out, csv, figs = tmp_path / "c.json", tmp_path / "h.csv", tmp_path / "figs"
+    r = subprocess.run([sys.executable, "-m", "impact", "--horn", "fem", "--design", str(d), "--mesh-size", "0.008",
+                        "--m-free", "0.004", "--scenario", "device", "--members", "16", "--history", "0.01",
+                        "--json", str(out), "--history-csv", str(csv), "--plots", str(figs), "--no-progress"],
+                       capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(out.read_text())
+    for row in doc["history"]["energy_balance"]:
+        assert abs(row["residual_j"]) <= 1e-6 * row["drive_j"]
+    st = doc["statistics"]
+    assert st["members"] == 16 and st["tip_amplitude_m"]["ci95_half_width"] > 0
+    assert 0 < st["tip_amplitude_m"]["mean"] < doc["drive"]["unloaded_tip_amplitude_m"]
+    data = np.loadtxt(csv, delimiter=",", skiprows=1)
+    assert data.shape[1] == 7 and data[-1, 0] == pytest.approx(0.01, abs=3e-6)
+    assert np.max(np.abs(data[:, 1])) <= 1.5 * doc["drive"]["unloaded_tip_amplitude_m"]
+    assert (figs / "tip_envelope.png").stat().st_size > 10_000
