@@ -126,6 +126,9 @@ class CoupledResult:
         docstring). ``residual_j`` = drive - damping - stored change - to_free_mass (0 up to
         round-off).
         """
+        if self.extra.get("contacts"):
+            raise ParameterError("energy_balance", "compliant contact",
+                                 "needs closed-form segments; not available with the Hunt-Crossley option")
         edges = np.asarray(edges, float)
         p = self.impact.params
         t_end = p.t_end
@@ -344,9 +347,10 @@ class _HornState:
 class _ModalSim:
     """Readable reference of the coupled model (see the module docstring)."""
 
-    def __init__(self, p: ImpactParams, horn: ModalHorn):
+    def __init__(self, p: ImpactParams, horn: ModalHorn, contact=None):
         check_coupled_params(p, horn)
         self.p, self.horn = p, horn
+        self.contact = contact
         tab, x = horn.pack(p.freq)
         from .horn import H_A, H_B, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_RC, X_RS, X_UC, X_US, X_W
         self.n = tab.shape[0]
@@ -387,6 +391,7 @@ class _ModalSim:
         stick = []
         stick_start = None
         stick_E = 0.0
+        contacts = []
         n_ev = 0
         while t < t_end:
             if mode == ON_TOOL:
@@ -527,6 +532,40 @@ class _ModalSim:
                 stick.append((stick_start, te, "tool"))
                 mode = FREE
                 continue
+            if name == HORN and self.contact is not None:
+                # compliant contact: integrate the contact phase (impact.contact)
+                from .contact import contact_phase
+
+                fc, fs = self.horn.forcing()
+                tab = {"omega": np.array(self.hw), "zeta": np.array(self.hz), "mass": np.array(self.hm),
+                       "tip": np.array(self.hs), "fc": fc, "fs": fs}
+                t1, w1, wd1, q1, qd1, J, diss = contact_phase(self.contact, tab, te, wd=wd, w=w, q=np.array(q),
+                                                              qd=np.array(qd), m_free=p.m_free, a=a, W=self.W,
+                                                              rc=self.Rc, rs=self.Rs, t_max=t_end)
+                v, vd = osc.pv(t1 - t0)
+                work += (0.5 * p.m_free * wd1 * wd1 - p.m_free * a * w1) - (0.5 * p.m_free * wd * wd - p.m_free * a * w) + diss
+                contacts.append((te, t1, J, diss))
+                ev["t"].append(te)
+                ev["contact"].append(HORN)
+                ev["x"].append(uh)
+                ev["wb"].append(wd)
+                ev["wa"].append(wd1)
+                ev["vb"].append(vd)
+                ev["va"].append(vd)
+                ev["J"].append(J)
+                ev["ub"].append(uhd)
+                q, qd = [float(x) for x in q1], [float(x) for x in qd1]
+                t, w, wd = t1, w1, wd1
+                hs1 = _HornState(self, t1, q, qd)
+                u1, ud1 = hs1.tip(self, t1)
+                ev["ua"].append(ud1)
+                ev["E"].append(self.energy(w, wd, v, vd))
+                ev["W"].append(work)
+                if t1 >= t_end:
+                    break
+                skip_rel = 2.0 * max(wd1 - ud1, 0.0)
+                skip_t = t1
+                continue
             if name == HORN:
                 x = uh
                 rel_in = wd - uhd
@@ -590,7 +629,7 @@ class _ModalSim:
                              seg_q=np.array(seg_q, float).reshape(len(segs), self.n),
                              seg_qd=np.array(seg_qd, float).reshape(len(segs), self.n),
                              impulse=arr["J"], tip_v_before=arr["ub"], tip_v_after=arr["ua"],
-                             extra={"segments": seg})
+                             extra={"segments": seg, "contacts": contacts})
 
 
 def _series(res: CoupledResult) -> None:
@@ -641,7 +680,7 @@ def _run_kernel(params: ImpactParams, horn: ModalHorn) -> CoupledResult:
 
 
 def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = True,
-                     engine: str = "kernel") -> CoupledResult:
+                     engine: str = "kernel", contact=None) -> CoupledResult:
     """Run the impact model with the modal horn (see the module docstring).
 
     Parameters
@@ -654,6 +693,10 @@ def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = Tr
         Also sample the tip, free mass and tool face on the grid ``params.sample_dt``.
     engine : {"kernel", "python"}
         The compiled kernel (:mod:`impact.kernel_modal`) or the reference above.
+    contact : impact.contact.HuntCrossley, optional
+        Compliant horn contact (Hertz + Hunt-Crossley, integrated numerically during each contact)
+        instead of Newton's law; Python engine only, without series or energy balance (the
+        contact phases are not closed-form segments).
 
     Returns
     -------
@@ -665,6 +708,14 @@ def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = Tr
         Pinched free mass, too many events.
     """
     check_coupled_params(params, horn)
+    if contact is not None:
+        from .contact import HuntCrossley
+
+        if not isinstance(contact, HuntCrossley):
+            raise ParameterError("contact", type(contact).__name__, "must be an impact.contact.HuntCrossley")
+        if engine != "python" or series:
+            raise ParameterError("contact", "hunt-crossley", "runs in the Python engine only, with series=False")
+        return _ModalSim(params, horn, contact).run()
     if engine == "python":
         res = _ModalSim(params, horn).run()
     elif engine == "kernel":

@@ -282,3 +282,22 @@ def history_csv(res) -> str:
     buf.write("t_s,tip_m,tip_velocity_m_per_s,free_mass_m,tool_face_m,voltage_v,current_a\n")
     np.savetxt(buf, cols, delimiter=",", fmt="%.10g")
     return buf.getvalue()
+
+
+def contact_from_design(design, m_free: float, restitution: float, free_mass_material: str = "steel_45"):
+    """Hunt-Crossley horn contact from the design: the horn tip's material (``design.horn.material``)
+    against a free mass taken as a sphere of ``free_mass_material`` with the mass ``m_free`` (its
+    radius is the contact radius; the tip face is flat).
+
+    Returns
+    -------
+    impact.contact.HuntCrossley
+    """
+    from geometry.materials import get_material
+    from impact.contact import HuntCrossley, hertz_stiffness
+
+    horn = get_material(design.horn.material)
+    ball = get_material(free_mass_material)
+    radius = (3.0 * m_free / (4.0 * np.pi * ball.density)) ** (1.0 / 3.0)
+    k = hertz_stiffness(horn.youngs_modulus, horn.poisson_ratio, ball.youngs_modulus, ball.poisson_ratio, radius)
+    return HuntCrossley(k, restitution)

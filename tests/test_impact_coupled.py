@@ -292,3 +292,79 @@ def test_fem_horn_cli_end_to_end_on_a_coarse_drill(tmp_path):
     assert data.shape[1] == 7 and data[-1, 0] == pytest.approx(0.01, abs=3e-6)
     assert np.max(np.abs(data[:, 1])) <= 1.5 * doc["drive"]["unloaded_tip_amplitude_m"]
     assert (figs / "tip_envelope.png").stat().st_size > 10_000
+
+
+# ----------------------------------------------------------------------------- compliant contact
+
+
+def test_hunt_crossley_restitution_mapping():
+    """e(chi) of the scaled Hunt-Crossley impact: Hunt & Crossley's small-damping limit
+    1 - e = (2/3) chi (0.1 % at chi = 1e-3), and chi_for_restitution inverts e(chi) (1e-10)."""
+    from impact.contact import chi_for_restitution, restitution_of
+
+    assert (1 - restitution_of(1e-3)) / (2e-3 / 3) == pytest.approx(1.0, abs=1e-3)
+    for e in (0.3, 0.6, 0.9):
+        assert restitution_of(chi_for_restitution(e)) == pytest.approx(e, abs=1e-10)
+    assert chi_for_restitution(1.0) == 0.0
+
+
+def test_hunt_crossley_contact_duration_is_hertz_and_restitution_is_e2():
+    """A free mass falling back onto a heavy, still horn (voltage 0): the elastic contact lasts the
+    Hertz time (closed form, 2 %); with e2 = 0.9 it leaves at 0.9 of its approach speed (1e-3,
+    gravity acting during the 50 us contact)."""
+    from impact.contact import HuntCrossley, hertz_contact_time, hertz_stiffness
+
+    k = hertz_stiffness(113.8e9, 0.342, 209e9, 0.269, 6.2e-3)        # Ti-6Al-4V flat, 6.2 mm steel ball
+    heavy = ModalHorn([2 * math.pi * 1e6], [0.0], [1e12], [1.0], [1.0], [0.0], 0.0)
+    for e in (1.0, 0.9):
+        p = ImpactParams(m_free=0.008, g=-10.0, v0=1.0, t_end=0.25, gap=0.5, A0=0.0, e2=e)
+        r = simulate_coupled(p, heavy, engine="python", series=False, contact=HuntCrossley(k, e))
+        t0, t1, J, _ = r.extra["contacts"][0]
+        v_in = -r.impact.w_before[0]
+        assert v_in == pytest.approx(1.0, rel=1e-9)
+        assert r.impact.w_after[0] / v_in == pytest.approx(e, abs=1e-3)
+        assert J == pytest.approx(0.008 * (r.impact.w_after[0] + v_in), rel=1e-3)
+        if e == 1.0:
+            assert t1 - t0 == pytest.approx(hertz_contact_time(0.008, k, v_in), rel=2e-2)
+
+
+def test_hunt_crossley_converges_to_newton_as_stiffness_grows():
+    """Stiffer contacts approach the Newton law with the same e2: the outgoing speed of the first
+    horn impact differs by O(contact time) ~ k^{-2/5} (x0.16 per two decades), below 1e-3 at 1e18."""
+    from impact.contact import HuntCrossley
+
+    h = _horn(2, "steady", seed=1)
+    p = ImpactParams(m_free=0.008, t_end=0.004, spring_force=5.0)
+    newt = simulate_coupled(p, h, engine="python", series=False).impact
+    ih = int(np.flatnonzero(newt.contact == "horn")[0])
+    err = {}
+    for k in (1e14, 1e16, 1e18):
+        r = simulate_coupled(p, h, engine="python", series=False, contact=HuntCrossley(k, p.e2)).impact
+        j = int(np.flatnonzero(r.contact == "horn")[0])
+        assert r.t[j] == newt.t[ih]                       # first touch: same flight
+        err[k] = abs(r.w_after[j] / newt.w_after[ih] - 1)
+    assert 0.1 < err[1e16] / err[1e14] < 0.25 and 0.1 < err[1e18] / err[1e16] < 0.25
+    assert err[1e18] < 1e-3
+
+
+def test_hunt_crossley_bad_input():
+    from impact.contact import HuntCrossley
+
+    with pytest.raises(ParameterError, match="stiffness"):
+        HuntCrossley(-1.0, 0.9)
+    with pytest.raises(ParameterError, match="restitution"):
+        HuntCrossley(1e10, 0.0)
+    with pytest.raises(ParameterError, match="contact"):
+        simulate_coupled(ImpactParams(), _horn(1), contact=HuntCrossley(1e10, 0.9))    # kernel: Newton only
+
+
+def test_contact_from_design_uses_the_horn_material_and_the_free_mass_sphere():
+    import geometry
+    from impact.contact import hertz_contact_time, hertz_stiffness
+    from results.coupled import contact_from_design
+
+    hc = contact_from_design(geometry.default_design(), 0.008, 0.9)
+    r = (3 * 0.008 / (4 * np.pi * 7890.0)) ** (1 / 3)                 # 8 g steel sphere: 6.23 mm
+    assert hc.stiffness == pytest.approx(hertz_stiffness(113.8e9, 0.342, 209e9, 0.269, r), rel=1e-12)
+    # the contact lasts a sizeable part of the 50 us drive period at impact speeds of ~1 m/s
+    assert 30e-6 < hertz_contact_time(0.008, hc.stiffness, 1.0) < 60e-6
