@@ -4,7 +4,7 @@ Modules: ``fem.materials`` (constitutive matrices, poling rotation), ``fem.assem
 (``assemble(mesh) -> PiezoSystem``: K, M, K_loss, DOF layout, boundary conditions),
 ``fem.solvers`` (``factorize``: PARDISO or SuperLU), ``fem.modal`` (``modal_analysis``),
 ``fem.matching`` (``match``), ``fem.harmonic`` (``harmonic_sweep``, ``working_point``),
-``fem.transient`` (``ring_up``), ``fem.modeshape`` (shares, labels, MAC, surface motion),
+``fem.transient`` (``ring_up``), ``fem.reduced`` (``reduce_transducer``), ``fem.modeshape`` (shares, labels, MAC, surface motion),
 ``fem.render``; command lines in ``fem.modal_cli`` and ``fem.harmonic_cli``
 (``python -m fem.modal``, ``python -m fem.harmonic``). Importing ``fem`` imports none of them
 (no scikit-fem load): the names below load on first use.
@@ -16,6 +16,7 @@ _WHERE = {"assemble": "assembly", "PiezoSystem": "assembly", "factorize": "solve
           "modal_analysis": "modal", "ModalResult": "modal", "match": "matching", "MatchSettings": "matching",
           "LossModel": "harmonic", "modal_basis": "harmonic", "harmonic_sweep": "harmonic",
           "working_point": "harmonic", "ring_up": "transient", "energy_shares": "modeshape",
-          "classify": "modeshape", "mac": "modeshape", "surface_motion": "modeshape"}
+          "classify": "modeshape", "mac": "modeshape", "surface_motion": "modeshape",
+          "reduce_transducer": "reduced", "ReducedTransducer": "reduced"}
 __all__ = list(_WHERE)
 __getattr__, __dir__ = exports(__name__, _WHERE)
