@@ -368,3 +368,34 @@ def test_contact_from_design_uses_the_horn_material_and_the_free_mass_sphere():
     assert hc.stiffness == pytest.approx(hertz_stiffness(113.8e9, 0.342, 209e9, 0.269, r), rel=1e-12)
     # the contact lasts a sizeable part of the 50 us drive period at impact speeds of ~1 m/s
     assert 30e-6 < hertz_contact_time(0.008, hc.stiffness, 1.0) < 60e-6
+
+
+def test_random_coupled_cases_finish_and_never_interpenetrate():
+    """Seeded random horns (1-8 modes, damping ratios 1e-4-0.5, tip masses 20 g-2 kg, rest or steady)
+    and impact parameters (springs up to 10 N, g of either sign, e down to 0.2): each 20 ms run
+    finishes within 2 s, and on a 0.1 us grid the free mass never enters the horn or the tool by more
+    than 1e-12 m (the event search's guarantee: no contact missed)."""
+    import time
+
+    simulate_coupled(ImpactParams(t_end=1e-3), _horn(1), series=False)     # compiled code loaded before timing
+    rng = np.random.default_rng(20261)
+    for case in range(30):
+        n = int(rng.integers(1, 9))
+        om = 2 * np.pi * np.sort(rng.uniform(15e3, 120e3, n))
+        tip_mass = rng.uniform(0.02, 2.0)
+        s = rng.uniform(-1, 1, n) * rng.uniform(0.05, 1.0)
+        s[0] = 1 / math.sqrt(tip_mass)
+        z = 10 ** rng.uniform(-4, math.log10(0.5), n)
+        cre = rng.uniform(-50, 50, n)
+        A = rng.uniform(3e-6, 30e-6)
+        cre[0] = A / s[0] * abs(om[0] ** 2 - W ** 2 + 2j * z[0] * om[0] * W) / 100.0
+        horn = ModalHorn(om, z, np.ones(n), s, cre, rng.uniform(-1, 1, n), 100.0,
+                         start=("rest", "steady")[case % 2])
+        p = ImpactParams(m_free=rng.uniform(0.001, 0.02), e1=rng.uniform(0.2, 1), e2=rng.uniform(0.2, 1),
+                         spring_force=rng.uniform(0, 10), g=rng.uniform(-20, 20), v0=rng.uniform(0, 5),
+                         t_end=0.02, sample_dt=1e-7)
+        t0 = time.perf_counter()
+        res = simulate_coupled(p, horn, series=True)
+        assert time.perf_counter() - t0 < 2.0, case
+        assert np.min(res.impact.w - res.u) >= -1e-12, case
+        assert np.min(res.impact.tool_face - res.impact.w) >= -1e-12, case
