@@ -46,7 +46,7 @@ def main():
     stats = np.zeros(kernel_modal.N_CSTATS)
 
     def coupled_core():
-        kernel_modal._core(pv, tab, xs, p.t_end, p.max_events, True, 0.0, stats)
+        kernel_modal._core(pv, tab, xs, np.zeros(2), p.t_end, p.max_events, True, 0.0, stats)
 
     n_kin = kernel.run_events(pv, p.t_end, p.max_events)[-1]
     n_cop = kernel_modal.run_events(p, horn)[7]

@@ -126,7 +126,7 @@ class CoupledResult:
         docstring). ``residual_j`` = drive - damping - stored change - to_free_mass (0 up to
         round-off).
         """
-        if self.extra.get("contacts"):
+        if self.extra.get("compliant"):
             raise ParameterError("energy_balance", "compliant contact",
                                  "needs closed-form segments; not available with the Hunt-Crossley option")
         edges = np.asarray(edges, float)
@@ -629,7 +629,7 @@ class _ModalSim:
                              seg_q=np.array(seg_q, float).reshape(len(segs), self.n),
                              seg_qd=np.array(seg_qd, float).reshape(len(segs), self.n),
                              impulse=arr["J"], tip_v_before=arr["ub"], tip_v_after=arr["ua"],
-                             extra={"segments": seg, "contacts": contacts})
+                             extra={"segments": seg, "contacts": contacts, "compliant": self.contact is not None})
 
 
 def _series(res: CoupledResult) -> None:
@@ -655,11 +655,11 @@ def _series(res: CoupledResult) -> None:
     res.impact.w[riding] = res.u[riding]
 
 
-def _run_kernel(params: ImpactParams, horn: ModalHorn) -> CoupledResult:
+def _run_kernel(params: ImpactParams, horn: ModalHorn, contact=None) -> CoupledResult:
     from . import kernel as K
     from . import kernel_modal
 
-    ev, kinds, segs, stk, E0, status, t_status, n_ev, window = kernel_modal.run_events(params, horn)
+    ev, kinds, segs, stk, E0, status, t_status, n_ev, window = kernel_modal.run_events(params, horn, contact)
     if status == K.STATUS_PINCHED:
         raise SimulationError(_pinch_message(t_status))
     if status == K.STATUS_MAX_EVENTS:
@@ -694,9 +694,10 @@ def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = Tr
     engine : {"kernel", "python"}
         The compiled kernel (:mod:`impact.kernel_modal`) or the reference above.
     contact : impact.contact.HuntCrossley, optional
-        Compliant horn contact (Hertz + Hunt-Crossley, integrated numerically during each contact)
-        instead of Newton's law; Python engine only, without series or energy balance (the
-        contact phases are not closed-form segments).
+        Compliant horn contact (Hertz + Hunt-Crossley, integrated numerically during each contact:
+        DOP853 in the Python engine, an adaptive Dormand-Prince 5(4) scheme in the kernel) instead of
+        Newton's law; without series or energy balance (the contact phases are not closed-form
+        segments; the kernel's window statistics integrate them).
 
     Returns
     -------
@@ -713,9 +714,16 @@ def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = Tr
 
         if not isinstance(contact, HuntCrossley):
             raise ParameterError("contact", type(contact).__name__, "must be an impact.contact.HuntCrossley")
-        if engine != "python" or series:
-            raise ParameterError("contact", "hunt-crossley", "runs in the Python engine only, with series=False")
-        return _ModalSim(params, horn, contact).run()
+        if series:
+            raise ParameterError("series", series, "must be False with a compliant contact (its contact phases "
+                                 "are not closed-form segments)")
+        if engine == "python":
+            return _ModalSim(params, horn, contact).run()
+        if engine != "kernel":
+            raise ParameterError("engine", engine, "must be 'kernel' or 'python'")
+        res = _run_kernel(params, horn, contact)
+        res.extra["compliant"] = True
+        return res
     if engine == "python":
         res = _ModalSim(params, horn).run()
     elif engine == "kernel":
@@ -741,13 +749,15 @@ COUPLED_QUANTITIES = (
 
 
 def coupled_batch(cases: list[ImpactParams], horn: ModalHorn, scenario="device", settings=None,
-                  progress=None) -> list:
+                  progress=None, contact=None) -> list:
     """Converged ensemble statistics of coupled runs (one horn, several cases, e.g. free masses).
 
     The members, scenarios, confidence intervals and the convergence rule are those of
     :func:`impact.stats.ensemble_batch` (every case's ``freq`` must be the drive frequency); the
     statistics add :data:`COUPLED_QUANTITIES` (per-member window means, Student t intervals). A
     case with a failed member (pinched, too many events) has no statistics, with the reason.
+    ``contact``: an :class:`impact.contact.HuntCrossley` for compliant horn contacts (compiled
+    kernel, contact phases integrated numerically), None for Newton's law.
 
     Returns
     -------
@@ -781,7 +791,8 @@ def coupled_batch(cases: list[ImpactParams], horn: ModalHorn, scenario="device",
             members += new
             owner += [i] * len(new)
         pmat = np.array([kernel.pack(p) for p in members], dtype=float).reshape(len(members), -1)
-        raw = KM.ensemble_coupled(pmat, horn, freq, sc.t_from, sc.t_end, max(p.max_events for p in members))
+        raw = KM.ensemble_coupled(pmat, horn, freq, sc.t_from, sc.t_end, max(p.max_events for p in members),
+                                  contact=contact)
         owner = np.array(owner)
         for i in todo:
             r = np.vstack([raws[i], raw[owner == i]])
