@@ -249,7 +249,8 @@ def test_riding_the_horn_matches_between_engines_and_keeps_the_modal_balance():
 
 @pytest.mark.parametrize("args, name", [(["--voltage", "-1"], "--voltage"), (["--modes", "0"], "--modes"),
                                         (["--history", "0"], "--history"), (["--horn-law", "article"], "--horn-law"),
-                                        (["--freq", "nan"], "--freq")])
+                                        (["--freq", "nan"], "--freq"),
+                                        (["--contact", "hunt-crossley", "--plots", "figs"], "--plots")])
 def test_fem_horn_cli_bad_input_is_one_line_exit_2(args, name, tmp_path):
     import subprocess
     import sys
