@@ -203,6 +203,15 @@ def _expint(lam, S):
 
 
 @njit(cache=True)
+def _expint_e(lam, S, e):
+    """_expint(lam, S) given e = exp(lam S): (e - 1) / lam when |lam S| >= 0.5 (no cancellation
+    there), else the cancellation-free form."""
+    if abs(lam * S) >= 0.5:
+        return (e - 1.0) / lam
+    return _expint(lam, S)
+
+
+@njit(cache=True)
 def _integrals(tab, xs, n, t0, q, qd, sa, sb):
     """(drive work, damping loss, fundamental, electrical energy) over [t0 + sa, t0 + sb] of a free
     segment: the integrals of impact.horn.segment_integrals, with the exponential integrals shared
@@ -213,7 +222,8 @@ def _integrals(tab, xs, n, t0, q, qd, sa, sb):
     S = sb - sa
     ta = t0 + sa
     ewa = cmath.exp(jw * ta)
-    E2w = _expint(2.0 * jw, S)
+    eW = cmath.exp(jw * S)
+    E2w = _expint_e(2.0 * jw, S, eW * eW)
     drive = 0.0
     damp = 0.0
     U = complex(xs[X_UC], -xs[X_US])
@@ -232,10 +242,11 @@ def _integrals(tab, xs, n, t0, q, qd, sa, sb):
         h0 = q[i] - (qs * e0).real
         hd0 = qd[i] - (jw * qs * e0).real
         C = complex(h0, -(hd0 - h0 * mu.real) / mu.imag) * cmath.exp(mu * sa)
-        Ep = _expint(jw + mu, S)
-        Em = _expint(mu - jw, S)
-        E2m = _expint(2.0 * mu, S)
-        E2r = _expint(complex(2.0 * mu.real, 0.0), S)
+        eM = cmath.exp(mu * S)
+        Ep = _expint_e(jw + mu, S, eM * eW)
+        Em = _expint_e(mu - jw, S, eM * eW.conjugate())
+        E2m = _expint_e(2.0 * mu, S, eM * eM)
+        E2r = _expint_e(complex(2.0 * mu.real, 0.0), S, complex(abs(eM) ** 2, 0.0))
         cEm = Em.conjugate()
         G = jw * qs * ewa
         H = C * mu
