@@ -30,7 +30,7 @@ def _parser() -> CliParser:
     ap = CliParser(prog="python -m impact --horn fem",
                    description="Impact model with the FE transducer in the loop: the design's modes that carry "
                                "tip motion, driven at V sin(2 pi f t), exchange impulses with the free mass (exact "
-                               "event-driven coupling). Tool statistics as ensemble means with 95 %% CIs.")
+                               "event-driven coupling). Tool statistics as ensemble means with 95 % CIs.")
     ap.add_argument("--horn", choices=["fem"], required=True, help="fem: the reduced FE transducer (this command)")
     ap.add_argument("--design", metavar="TOML", help="design file (default: the built-in RPUD design)")
     ap.add_argument("--voltage", type=_real, default=225.0, metavar="V", help="drive amplitude, V (default 225)")
