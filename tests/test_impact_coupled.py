@@ -434,3 +434,30 @@ def test_hunt_crossley_kernel_equals_python_engine_and_balances_energy():
     assert abs(resid) <= 1e-6 * win[KM.C_DRIVE]
     with pytest.raises(ParameterError, match="series"):
         simulate_coupled(p, h, contact=hc)
+
+
+def test_random_compliant_cases_finish_in_bounded_time():
+    """Seeded random horns and parameters with Hunt-Crossley contacts (k 1e8-1e14 N/m^1.5, e2 0.2-1):
+    every 20 ms compiled run finishes within 2 s with finite, time-ordered events."""
+    import time
+
+    from impact.contact import HuntCrossley
+
+    simulate_coupled(ImpactParams(t_end=1e-3), _horn(1), series=False, contact=HuntCrossley(1e10, 0.9))
+    rng = np.random.default_rng(5)
+    for case in range(12):
+        n = int(rng.integers(1, 9))
+        om = 2 * np.pi * np.sort(rng.uniform(15e3, 120e3, n))
+        s = rng.uniform(-1, 1, n) * rng.uniform(0.05, 1.0)
+        s[0] = 1 / math.sqrt(rng.uniform(0.02, 2.0))
+        z = 10 ** rng.uniform(-4, math.log10(0.5), n)
+        cre = rng.uniform(-50, 50, n)
+        cre[0] = rng.uniform(3e-6, 30e-6) / s[0] * abs(om[0] ** 2 - W ** 2 + 2j * z[0] * om[0] * W) / 100.0
+        horn = ModalHorn(om, z, np.ones(n), s, cre, rng.uniform(-1, 1, n), 100.0, start=("rest", "steady")[case % 2])
+        p = ImpactParams(m_free=rng.uniform(0.001, 0.02), e1=rng.uniform(0.2, 1), e2=rng.uniform(0.2, 1),
+                         spring_force=rng.uniform(0, 10), g=rng.uniform(-20, 20), v0=rng.uniform(0, 5), t_end=0.02)
+        hc = HuntCrossley(10 ** rng.uniform(8, 14), p.e2)
+        t0 = time.perf_counter()
+        r = simulate_coupled(p, horn, series=False, contact=hc).impact
+        assert time.perf_counter() - t0 < 2.0, case
+        assert r.horn_impacts > 0 and np.all(np.isfinite(r.w_after)) and np.all(np.diff(r.t) > 0), case
