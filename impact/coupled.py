@@ -664,6 +664,9 @@ def _run_kernel(params: ImpactParams, horn: ModalHorn, contact=None) -> CoupledR
         raise SimulationError(_pinch_message(t_status))
     if status == K.STATUS_MAX_EVENTS:
         raise SimulationError(f"more than max_events = {params.max_events} events by t = {t_status:.9g} s")
+    if status == kernel_modal.STATUS_CONTACT:
+        raise SimulationError(f"the compliant contact starting at t = {t_status:.9g} s was not resolved in 1e6 "
+                              "integration steps (contact stiffness or damping out of range)")
     n = horn.n_modes
     contact = np.where(kinds == K.KIND_TOOL, TOOL, HORN).astype("<U4")
     stick = [(float(a), float(b), "tool" if body == K.BODY_TOOL else "horn") for a, b, body in stk]
@@ -801,7 +804,7 @@ def coupled_batch(cases: list[ImpactParams], horn: ModalHorn, scenario="device",
             n = r.shape[0]
             if np.any(status != 0):
                 why = (f"{int(np.sum(status != 0))} of {n} members failed (free mass pinched between horn and "
-                       f"tool, or too many events); increase gap or k0")
+                       f"tool: increase gap or k0; too many events; or an unresolved compliant contact)")
                 est = {q: Estimate(math.nan, math.nan, n, st.level, why) for q in names}
                 out[i] = EnsembleStats(params=bases[i], scenario=sc, estimates=est, members=n,
                                        failed=int(np.sum(status != 0)), converged=False, settings=st, note=why,

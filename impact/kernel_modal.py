@@ -33,7 +33,10 @@ from .kernel import (_O_B0, _O_B2, _O_B4, _O_DELTA, _O_N, CONTACT_TOL, _H_MIN, _
                      _parabola_excursion, _parabola_leave, _parabola_reach, _safe, _sticks, pack)
 from .params import ImpactParams
 
-__all__ = ["run_events", "ensemble_coupled", "N_CSTATS"]
+__all__ = ["run_events", "ensemble_coupled", "N_CSTATS", "STATUS_CONTACT"]
+
+#: status of a run whose compliant contact was not resolved in 1e6 integration steps
+STATUS_CONTACT = 4
 C_DRIVE, C_DAMP, C_FUND_RE, C_FUND_IM, C_ELEC = N_STATS, N_STATS + 1, N_STATS + 2, N_STATS + 3, N_STATS + 4
 N_CSTATS = N_STATS + 5
 
@@ -393,7 +396,7 @@ def _pen(t, y, tab, xs, n):
 def _hc_contact(t0, w, wd, q, qd, tab, xs, n, k, chi, m_free, a, v_in, t_end, t_from, stats):
     """Integrate a Hunt-Crossley contact from first touch at t0 until the penetration returns to
     zero (or t_end). Updates q, qd in place and the window integrals in ``stats``; returns
-    (t1, w1, wd1, impulse, dissipated)."""
+    (t1, w1, wd1, impulse, dissipated, ok); ok is False if 1e6 steps did not reach either."""
     m = 2 + 2 * n + 8
     y = np.zeros(m)
     y[0], y[1] = w, wd
@@ -420,8 +423,10 @@ def _hc_contact(t0, w, wd, q, qd, tab, xs, n, k, chi, m_free, a, v_in, t_end, t_
     h = 1e-3 * tc
     t = t0
     j0 = 2 + 2 * n
+    ok = False
     for _ in range(1000000):
         if t >= t_end:
+            ok = True
             break
         hh = min(h, t_end - t)
         if t < t_from:
@@ -458,6 +463,7 @@ def _hc_contact(t0, w, wd, q, qd, tab, xs, n, k, chi, m_free, a, v_in, t_end, t_
             t = t + hh
             for j in range(m):
                 y[j] = y5[j]
+            ok = True
             break
         if t >= t_from:
             stats[C_DRIVE] += y5[j0 + 2] - y[j0 + 2] + y5[j0 + 7] - y[j0 + 7]
@@ -472,7 +478,7 @@ def _hc_contact(t0, w, wd, q, qd, tab, xs, n, k, chi, m_free, a, v_in, t_end, t_
     for i in range(n):
         q[i] = y[2 + i]
         qd[i] = y[2 + n + i]
-    return t, y[0], y[1], y[j0], y[j0 + 1]
+    return t, y[0], y[1], y[j0], y[j0 + 1], ok
 
 
 # ----------------------------------------------------------------------------- main loop
@@ -719,8 +725,11 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats):
             # compliant contact (Hunt-Crossley): integrated until the penetration is gone
             x = uh
             wb = wd
-            t1, w1, wd1, J, diss = _hc_contact(te, w, wd, q, qd, tab, xs, n, hc[0], hc[1], m_free, a, uhd - wd,
-                                               t_end, t_from, stats)
+            t1, w1, wd1, J, diss, ok = _hc_contact(te, w, wd, q, qd, tab, xs, n, hc[0], hc[1], m_free, a,
+                                                   uhd - wd, t_end, t_from, stats)
+            if not ok:
+                status, t_status = STATUS_CONTACT, te
+                break
             work += (0.5 * m_free * wd1 * wd1 - m_free * a * w1) - (0.5 * m_free * wd * wd - m_free * a * w) + diss
             v, vd = _osc_pv(o, t1 - t0)
             t = t1
