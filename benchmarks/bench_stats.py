@@ -15,7 +15,7 @@ from _table import print_table
 from impact.model import simulate
 from impact.params import ImpactParams
 from impact.stats import SCENARIOS, StatsSettings, ensemble_members, member_stats
-from impact.sweep import sweep
+from impact.sweeps import sweep
 
 MASSES = (0.001, 0.002, 0.003, 0.004, 0.005, 0.006, 0.007, 0.008)
 

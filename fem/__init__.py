@@ -15,8 +15,12 @@ from rpud_common.lazy import exports
 _WHERE = {"assemble": "assembly", "PiezoSystem": "assembly", "factorize": "solvers",
           "modal_analysis": "modal", "ModalResult": "modal", "match": "matching", "MatchSettings": "matching",
           "LossModel": "harmonic", "modal_basis": "harmonic", "harmonic_sweep": "harmonic",
-          "working_point": "harmonic", "ring_up": "transient", "energy_shares": "modeshape",
+          "working_point": "harmonic", "working_mode": "modal", "HarmonicResult": "harmonic", "WorkingPoint": "harmonic",
+          "ModalBasis": "harmonic", "MatchResult": "matching", "ring_up": "transient",
+          "TransientResult": "transient", "energy_shares": "modeshape",
           "classify": "modeshape", "mac": "modeshape", "surface_motion": "modeshape",
-          "reduce_transducer": "reduced", "ReducedTransducer": "reduced"}
+          "render_mode": "render", "render_modes": "render", "write_modes_vtu": "render",
+          "plot_admittance": "plots:admittance", "plot_tip_response": "plots:tip_response",
+          "plot_ring_up": "plots:ring_up", "reduce_transducer": "reduced", "ReducedTransducer": "reduced"}
 __all__ = list(_WHERE)
 __getattr__, __dir__ = exports(__name__, _WHERE)

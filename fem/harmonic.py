@@ -62,6 +62,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from rpud_common import ParameterError, check_positive, check_range
+from rpud_common.result import Result
 
 from .assembly import PiezoSystem
 from .modeshape import COMPONENTS, surface_rows
@@ -169,6 +170,35 @@ def _check_freqs(freqs) -> np.ndarray:
     return f
 
 
+LOSSLESS_RESONANCE_RTOL = 1e-6
+"""A lossless drive closer than this (relative) to a resonance is refused: unbounded response."""
+
+
+def _refuse_lossless_resonance(system, f: np.ndarray, loss: LossModel, clamp, backend, f_r_hz=None) -> None:
+    """Without any loss the response at a short-circuit resonance is unbounded: a finite number
+    printed there would be round-off. Refused with the resonance named; the resonances come from
+    ``f_r_hz`` (a basis) or one small eigen solve per frequency."""
+    if not loss.lossless:
+        return
+    from .modal import modal_analysis
+
+    f = np.atleast_1d(f)
+    if f_r_hz is None and f.size > 1:
+        f_r_hz = _band_modes(system, f, 12, int(min(MAX_BASIS_MODES, system.ndof // 4)), clamp, backend)[0].f_r_hz
+    for fk in f:
+        if f_r_hz is None:
+            # shift just below the drive frequency (a shift on an eigenvalue would be singular)
+            near = modal_analysis(system, fk, 2, clamp=clamp, backend=backend, open_circuit=False,
+                                  sigma=(2 * np.pi * fk) ** 2 * (1 - 1e-3)).f_r_hz
+        else:
+            near = np.asarray(f_r_hz, float)
+        if near.size and np.min(np.abs(near - fk)) <= LOSSLESS_RESONANCE_RTOL * fk:
+            fr = float(near[np.argmin(np.abs(near - fk))])
+            raise ParameterError("freq", float(fk), f"is the resonance {fr:.6f} Hz of a lossless model: the response "
+                                                    "is unbounded there; add loss (q_mech, tan_delta) or drive off "
+                                                    "the resonance")
+
+
 def _check_voltage(voltage) -> float:
     check_positive("voltage", voltage, "V")
     return float(voltage)
@@ -204,9 +234,9 @@ class ModalBasis:
     ``Phi`` (n_free, n) mass-normalised modes, ``lam`` (n,) eigenvalues (rad/s)^2, ``eta``
     (n,) modal loss factors (diagonal of ``D / lam``), ``D = Phi^T L Phi`` the modal loss
     matrix, ``R`` (n_free,) complex residual response to the unit-voltage load ``b1``,
-    ``gamma = Phi^T b1``; ``W = A_T^-1 L Phi`` and ``g = gamma - j Phi^T L R`` carry the
-    first-order loss coupling between modes and truncated space. Solutions scale linearly with
-    the voltage.
+    ``gamma = Phi^T b1``; ``W = (A_T + j L_T)^-1 L Phi``, ``E = Phi^T L W`` and
+    ``g = gamma - j Phi^T L R`` carry the loss coupling between modes and truncated space (all
+    orders at the shift). Solutions scale linearly with the voltage.
     """
 
     free: np.ndarray
@@ -218,6 +248,7 @@ class ModalBasis:
     R_terms: np.ndarray
     D: np.ndarray
     W: np.ndarray
+    E: np.ndarray
     g: np.ndarray
     b1: np.ndarray
     sigma: float
@@ -232,12 +263,12 @@ class ModalBasis:
 
     def coordinates(self, freq_hz: np.ndarray, damper: tuple[np.ndarray, float] | None = None) -> np.ndarray:
         """Modal coordinates per volt, (n_freq, n_modes) complex:
-        ``(Lambda + j D + j w c s s^T - w^2 I) q = g`` with the full modal loss matrix ``D``
+        ``(Lambda + j D + E + j w c s s^T - w^2 I) q = g`` with the full modal loss matrix ``D``
         and an optional viscous damper ``damper = (s, c)``: ``c`` (N s/m) acting on the
         displacement ``s^T q`` (``s``: the damped output per modal coordinate)."""
         w = 2 * np.pi * np.atleast_1d(np.asarray(freq_hz, dtype=float))
         n = len(self.lam)
-        A = (np.diag(self.lam) + 1j * self.D)[None, :, :] - (w ** 2)[:, None, None] * np.eye(n)[None]
+        A = (np.diag(self.lam) + 1j * self.D + self.E)[None, :, :] - (w ** 2)[:, None, None] * np.eye(n)[None]
         if damper is not None:
             s, c = damper
             A = A + 1j * (w * c)[:, None, None] * np.outer(s, s)[None]
@@ -309,10 +340,29 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
         out = y[:, :k] + 1j * y[:, k:] - Phi @ ((Phi.T @ V) / (lam - sigma)[:, None])
         return out.reshape(v.shape)
 
+    def solve_lossy(v):
+        """(A_T + j L_T)^-1 v on the truncated space: the Neumann series z = T v - j T L z on
+        the real factorisation (|T L| ~ the loss factors, so a few terms reach round-off).
+        First order in the losses is not enough at an anti-resonance, where |Y| itself is of
+        the order of the losses (tan delta 0.01 gave a 9 % error in |Y| there)."""
+        z0 = solve_truncated(v)
+        z = z0
+        for it in range(60):
+            z_new = z0 - 1j * solve_truncated(Lf @ z)
+            done = np.linalg.norm(z_new - z) <= 1e-12 * max(np.linalg.norm(z_new), 1e-300)
+            z = z_new
+            if done:
+                break
+        log.debug("harmonic: lossy truncated solve, %d terms", it + 1)
+        return z
+
     # the truncated modes' response, with their (and the clamped field's) dielectric and
-    # mechanical loss to first order; deflating first keeps the expansion valid near resonance
+    # mechanical loss; deflating first keeps the expansion valid near resonance
+    # (one multi-column series for the residual and the mode coupling below)
+    LPhi = (Lf @ Phi).astype(complex) if Phi.shape[1] else np.zeros((len(free), 0), complex)
+    RW = solve_lossy(np.column_stack([b1, LPhi]))
     R0 = solve_truncated(b1)
-    R = R0 - 1j * solve_truncated(Lf @ R0)
+    R, W = RW[:, 0], RW[:, 1:]
     # frequency dependence of the truncated modes: (A_T - d M)^-1 b = sum_k d^k (A_T^-1 M)^k A_T^-1 b
     # with d = w^2 - sigma; the higher longitudinal modes that carry the clamped-field charge
     # change by ~10 % across the band, so the series is kept to second order
@@ -322,13 +372,13 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
         terms.append(solve_truncated(Mf @ terms[-1] if len(terms) > 1 else Mf @ R0))
     # loss couples the modes with each other and with the truncated space (first order)
     D = Phi.T @ (Lf @ Phi)
-    W = solve_truncated((Lf @ Phi).astype(complex)) if Phi.shape[1] else np.zeros((len(free), 0))
-    g = gamma - 1j * (Phi.T @ (Lf @ R0))
+    E = Phi.T @ (Lf @ W)
+    g = gamma - 1j * (Phi.T @ (Lf @ R))
     seconds = time.perf_counter() - t0
     log.info("harmonic: modal basis of %d modes (%.1f-%.1f kHz) + residual at sigma, %.2f s",
              len(lam), modes.f_r_hz.min() / 1e3 if len(lam) else 0, modes.f_r_hz.max() / 1e3 if len(lam) else 0,
              seconds)
-    return ModalBasis(free=free, Phi=Phi, lam=lam, eta=eta, gamma=gamma, R=R, D=D, W=W, g=g, b1=b1,
+    return ModalBasis(free=free, Phi=Phi, lam=lam, eta=eta, gamma=gamma, R=R, D=D, W=W, E=E, g=g, b1=b1,
                       R_terms=np.column_stack(terms), sigma=sigma,
                       loss=loss, clamp=clamp, f_r_hz=np.asarray(modes.f_r_hz, float), seconds=seconds,
                       L=L, factor=F)
@@ -346,8 +396,8 @@ def _residual_shift(sigma: float, lam: np.ndarray) -> float:
 # --------------------------------------------------------------------------- sweep
 
 
-@dataclass(eq=False)
-class HarmonicResult:
+@dataclass(eq=False, repr=False)
+class HarmonicResult(Result):
     """Frequency response at a drive voltage.
 
     Attributes
@@ -373,6 +423,10 @@ class HarmonicResult:
     method: str
     loss: LossModel
     timings: dict = field(default_factory=dict)
+    basis_modes: int = 0
+    """Modes in the modal basis (0 for the direct method)."""
+    check_error: float = float("nan")
+    """Worst relative difference to the direct check solves (NaN: not checked)."""
 
     @property
     def f_r_hz(self) -> float:
@@ -388,9 +442,18 @@ class HarmonicResult:
             raise ParameterError("surface", surface, "not computed; computed: " + ", ".join(self.surfaces))
         return np.abs(self.surfaces[surface][component])
 
-    def to_json(self) -> dict:
+    def _headline(self) -> str:
+        f = self.freqs_hz
+        head = (f"{self.method}, {f.size} frequencies {f.min() / 1e3:.3f}-{f.max() / 1e3:.3f} kHz at "
+                f"{self.voltage:g} V: f_r {self.f_r_hz:.1f} Hz, f_a {self.f_a_hz:.1f} Hz")
+        if "horn_tip" in self.surfaces:
+            head += f", peak tip {self.amplitude().max() / self.voltage * 1e6:.3g} um/V"
+        return head
+
+    def _record(self) -> dict:
         return {
-            "method": self.method, "voltage_v": self.voltage,
+            "method": self.method, "voltage_v": self.voltage, "basis_modes": self.basis_modes,
+            "check_error": self.check_error,
             "loss": {"q_mech": self.loss.q_mech, "tan_delta": self.loss.tan_delta},
             "f_r_hz": _nan_none(self.f_r_hz), "f_a_hz": _nan_none(self.f_a_hz),
             "freqs_hz": self.freqs_hz.tolist(),
@@ -419,11 +482,91 @@ def _extremum(f: np.ndarray, y: np.ndarray, kind: str) -> float:
     return float(f3[1] - c[1] / (2 * c[0]))
 
 
+BAND_TOL = 0.01
+"""Largest relative difference between the modal sweep and a direct solve at a check frequency."""
+
+MAX_BASIS_MODES = 192
+"""Most modes a basis grows to while it tries to represent a wide band."""
+
+_REACH = 0.5        # rule for the basis size: |w^2 - sigma| <= _REACH * (basis radius) in the band
+_REACH_SAFE = 0.1   # within this reach the residual series is accurate far below BAND_TOL: no check
+
+
+def basis_reach(basis, freqs_hz) -> float:
+    """How far the band reaches out of the basis: ``max |w^2 - sigma| / max |lam_i - sigma|``.
+
+    The residual (truncated modes) is a power series in ``w^2 - sigma``; every truncated
+    eigenvalue lies farther from ``sigma`` than the farthest basis mode, so the series converges
+    in the band when this ratio is below 1 and is accurate to ~ratio^3 of the residual. ``inf``
+    for a basis without modes. ``basis``: a :class:`ModalBasis` or the
+    :class:`fem.modal.ModalResult` it is built from.
+    """
+    w2 = (2 * np.pi * np.atleast_1d(np.asarray(freqs_hz, float))) ** 2
+    lam = (2 * np.pi * np.asarray(basis.f_r_hz, float)) ** 2
+    radius = float(np.max(np.abs(lam - basis.sigma))) if len(lam) else 0.0
+    return float(np.max(np.abs(w2 - basis.sigma)) / radius) if radius > 0 else np.inf
+
+
+def _band_modes(system, f, n, cap, clamp, backend):
+    """Short-circuit modes for a basis over ``f``: ``n`` modes, doubled while the band reaches
+    out of them (:func:`basis_reach` > 0.5) and the size limit ``cap`` allows."""
+    from .modal import modal_analysis
+
+    near = float(np.sqrt(f.min() * f.max()))
+    sigma = (2 * np.pi * near) ** 2 * (1 - 2e-3)       # not on an eigenvalue
+    while True:
+        modes = modal_analysis(system, near, n, clamp=clamp, backend=backend, open_circuit=False, sigma=sigma)
+        if basis_reach(modes, f) <= _REACH or n >= cap:
+            return modes, n
+        n = min(2 * n, cap)
+        log.info("harmonic: the band %.6g-%.6g Hz reaches out of the basis: %d modes", f.min(), f.max(), n)
+
+
+def _modal_values(system, basis, f, funcs, qrow, voltage):
+    """Charge and surface means over ``f`` from the basis (outputs as functionals of it)."""
+    free = basis.free
+    cols = basis.columns()
+    full = np.zeros((system.ndof, cols.shape[1]), complex)
+    full[free] = cols
+    hot_x = np.zeros(cols.shape[1], complex)
+    hot_x[len(basis.lam)] = 1.0 / system.phi_scale   # the hot voltage rides on the weight-1 term
+    full[system.hot_dof] = hot_x
+    coef = basis.weights(f) * voltage
+    Q = coef @ (qrow @ full)
+    out = {}
+    for s in funcs:
+        vals = coef @ (s.rows @ full).T                # (n_f, 3)
+        out[s.name] = {c: vals[:, i] for i, c in enumerate(COMPONENTS)}
+    return Q, out
+
+
+def _direct_values(system, fk, voltage, clamp, loss, backend, funcs, qrow):
+    x = solve_direct(system, fk, voltage, clamp=clamp, loss=loss, backend=backend)
+    return qrow @ x, {s.name: s.rows @ x for s in funcs}
+
+
+def _band_check(system, basis, f, Q, out_s, voltage, clamp, loss, backend, funcs, qrow) -> tuple[float, float]:
+    """Worst relative difference to direct solves at the band's two ends and its middle, and
+    where. Charges are compared relative to the direct charge, surface motion relative to the
+    largest modal amplitude of that surface in the band (a node is not a 100 % error)."""
+    idx = sorted({0, len(f) // 2, len(f) - 1})
+    worst, where = 0.0, float(f[0])
+    for k in idx:
+        q_d, s_d = _direct_values(system, float(f[k]), voltage, clamp, loss, backend, funcs, qrow)
+        errs = [abs(Q[k] - q_d) / max(abs(q_d), 1e-300)]
+        for s in funcs:
+            scale = max(max(np.abs(v).max() for v in out_s[s.name].values()), 1e-300)
+            errs += [abs(out_s[s.name][c][k] - s_d[s.name][i]) / scale for i, c in enumerate(COMPONENTS)]
+        if max(errs) > worst:
+            worst, where = max(errs), float(f[k])
+    return worst, where
+
+
 def harmonic_sweep(system: PiezoSystem, freqs_hz: Sequence[float], voltage: float = 1.0, *,
                    clamp: Iterable[str] = (), loss: LossModel = LossModel(),
                    surfaces: Sequence[str] = ("horn_tip",), method: str = "modal",
                    basis: ModalBasis | None = None, n_modes: int = 12,
-                   backend: str | None = None, progress=None) -> HarmonicResult:
+                   backend: str | None = None, progress=None, check: bool | None = None) -> HarmonicResult:
     """Admittance and surface motion over a band of frequencies.
 
     Parameters
@@ -436,8 +579,14 @@ def harmonic_sweep(system: PiezoSystem, freqs_hz: Sequence[float], voltage: floa
     surfaces : facet sets whose mean motion is reported
     method : "modal" (superposition, default) or "direct" (one factorisation per frequency)
     basis : a ModalBasis to reuse (modal method)
-    n_modes : modes in the basis if it is built here (centred on the band)
+    n_modes : modes in the basis if it is built here (centred on the band); a wide band grows
+        the basis (doubling, up to :data:`MAX_BASIS_MODES`) until :func:`basis_reach` <= 0.5
     progress : optional callable(i, n) for progress reporting
+    check : compare the modal sweep with direct solves at the band's ends and middle (three
+        factorisations). ``None`` (default): only when the band reaches far out of the basis
+        (:func:`basis_reach` > 0.1). A difference above :data:`BAND_TOL` (1 %) grows a basis
+        built here and sweeps again; with a given basis, or at the size limit, it is a
+        :class:`ParameterError` naming the frequency.
     """
     t0 = time.perf_counter()
     f = _check_freqs(freqs_hz)
@@ -448,55 +597,59 @@ def harmonic_sweep(system: PiezoSystem, freqs_hz: Sequence[float], voltage: floa
     funcs = [surface_functional(system, s) for s in surfaces]
     L = loss_matrix(system, loss)
     qrow = _charge_row(system, L)
-    out_s = {s.name: {c: np.zeros(len(f), complex) for c in COMPONENTS} for s in funcs}
-    Q = np.zeros(len(f), complex)
+    timings, basis_modes, check_error = {}, 0, float("nan")
     if method == "modal":
-        if basis is None:
-            basis = modal_basis(system, float(np.sqrt(f.min() * f.max())), n_modes, clamp=clamp,
-                                loss=loss, backend=backend)
-        elif basis.loss != loss or basis.clamp != clamp:
+        given = basis is not None
+        if given and (basis.loss != loss or basis.clamp != clamp):
             raise ParameterError("basis", "mismatch", "was built for another loss model or clamp")
-        free = basis.free
-        # outputs as functionals of the basis: cols = modes..., residual
-        cols = basis.columns()
-        full = np.zeros((system.ndof, cols.shape[1]), complex)
-        full[free] = cols
-        hot_x = np.zeros(cols.shape[1], complex)
-        hot_x[len(basis.lam)] = 1.0 / system.phi_scale   # the hot voltage rides on the weight-1 term
-        full[system.hot_dof] = hot_x
-        qc = qrow @ full
-        sc = {s.name: s.rows @ full for s in funcs}
-        coef = basis.weights(f) * voltage
-        Q = coef @ qc
-        for s in funcs:
-            vals = coef @ sc[s.name].T                # (n_f, 3)
-            for i, c in enumerate(COMPONENTS):
-                out_s[s.name][c] = vals[:, i]
+        cap = int(min(MAX_BASIS_MODES, system.ndof // 4))
+        n = int(n_modes)
+        while True:
+            if not given:
+                modes, n = _band_modes(system, f, n, cap, clamp, backend)
+                basis = modal_basis(system, float(np.sqrt(f.min() * f.max())), clamp=clamp, loss=loss,
+                                    modes=modes, backend=backend)
+            _refuse_lossless_resonance(system, f, loss, clamp, backend, basis.f_r_hz)
+            Q, out_s = _modal_values(system, basis, f, funcs, qrow, voltage)
+            if not (check or (check is None and basis_reach(basis, f) > _REACH_SAFE)):
+                break
+            err, where = _band_check(system, basis, f, Q, out_s, voltage, clamp, loss, backend, funcs, qrow)
+            check_error = err
+            if err <= BAND_TOL:
+                break
+            if given or n >= cap:
+                raise ParameterError(
+                    "freqs", f"{f.min():.6g}-{f.max():.6g} Hz",
+                    f"the modal basis of {len(basis.lam)} modes misses the direct solution by {err:.1%} at "
+                    f"{where:.6g} Hz (limit {BAND_TOL:.0%}); use a narrower band or method='direct'")
+            n = min(2 * n, cap)
+            log.info("harmonic: modal sweep off by %.2g %% at %.6g Hz: basis grows to %d modes", 100 * err, where, n)
+        timings["basis_s"] = basis.seconds
+        basis_modes = len(basis.lam)
     else:
+        _refuse_lossless_resonance(system, f, loss, clamp, backend)
+        Q = np.zeros(len(f), complex)
+        out_s = {s.name: {c: np.zeros(len(f), complex) for c in COMPONENTS} for s in funcs}
         for k, fk in enumerate(f):
-            x = solve_direct(system, fk, voltage, clamp=clamp, loss=loss, backend=backend)
-            Q[k] = qrow @ x
+            Q[k], vals = _direct_values(system, fk, voltage, clamp, loss, backend, funcs, qrow)
             for s in funcs:
-                vals = s.rows @ x
                 for i, c in enumerate(COMPONENTS):
-                    out_s[s.name][c][k] = vals[i]
+                    out_s[s.name][c][k] = vals[s.name][i]
             if progress:
                 progress(k + 1, len(f))
     w = 2 * np.pi * f
     current = 1j * w * Q
     Y = current / voltage
     power = 0.5 * np.real(voltage * np.conj(current))
-    timings = {"sweep_s": time.perf_counter() - t0}
-    if method == "modal":
-        timings["basis_s"] = basis.seconds
-    return HarmonicResult(f, voltage, Y, current, power, out_s, method, loss, timings)
+    timings = {"sweep_s": time.perf_counter() - t0, **timings}
+    return HarmonicResult(f, voltage, Y, current, power, out_s, method, loss, timings, basis_modes, check_error)
 
 
 # --------------------------------------------------------------------------- working point
 
 
-@dataclass(eq=False)
-class WorkingPoint:
+@dataclass(eq=False, repr=False)
+class WorkingPoint(Result):
     """Response at one frequency and voltage (direct solution).
 
     ``tip_amplitude_m`` and ``tip_per_volt_m`` are the axial mean amplitude of ``tip_surface``
@@ -540,7 +693,15 @@ class WorkingPoint:
             return float("nan")
         return float(np.degrees(np.angle(s["tangential"] / s["axial"])))
 
-    def to_json(self) -> dict:
+    def _headline(self) -> str:
+        head = (f"{self.freq_hz:.1f} Hz, {self.voltage:g} V: {self.tip_surface} {self.tip_amplitude_m * 1e6:.3g} um "
+                f"({self.tip_per_volt_m * 1e6:.4g} um/V), |Y| {abs(self.admittance) * 1e3:.3g} mS, "
+                f"power {self.power_w:.3g} W")
+        if np.isfinite(self.teeth_ellipse_ratio):
+            head += f", teeth ellipse ratio {self.teeth_ellipse_ratio:.3f}"
+        return head
+
+    def _record(self) -> dict:
         return {
             "freq_hz": self.freq_hz, "voltage_v": self.voltage, "method": self.method,
             "tip_amplitude_m": self.tip_amplitude_m, "tip_per_volt_m": self.tip_per_volt_m,
@@ -576,6 +737,7 @@ def working_point(system: PiezoSystem, freq_hz: float, voltage: float, *, clamp:
     if tip_damping > 0 and basis is None:
         raise ParameterError("tip_damping", tip_damping, "needs the modal method (pass basis=)")
     if basis is not None:
+        _refuse_lossless_resonance(system, f, basis.loss, basis.clamp, backend, basis.f_r_hz)
         damper = None
         if tip_damping > 0:
             axial = funcs[0].rows[0, basis.free]
@@ -583,6 +745,7 @@ def working_point(system: PiezoSystem, freq_hz: float, voltage: float, *, clamp:
         x = system.expand(basis.solution_free(f, voltage, damper), basis.free, voltage)
         method = "modal"
     else:
+        _refuse_lossless_resonance(system, f, loss, tuple(clamp), backend)
         x = solve_direct(system, f, voltage, clamp=clamp, loss=loss, backend=backend)
         method = "direct"
     L = basis.L if basis is not None and basis.L is not None else loss_matrix(system, loss if basis is None else basis.loss)

@@ -7,9 +7,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from rpud_common import ParameterError, check_range
+from rpud_common import ParameterError, check_range, save_figure
 
-from .harmonic import LossModel, harmonic_sweep, modal_basis, working_point
+from .harmonic import LossModel, basis_reach, harmonic_sweep, modal_basis, working_point
 
 def build_parser():
     from rpud_common import CliParser
@@ -32,7 +32,11 @@ def build_parser():
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
     p.add_argument("--mesh-size", type=float, metavar="M", help="mesh size, m")
-    p.add_argument("--modes", type=int, default=8, metavar="N", help="modes in the superposition basis (default 8)")
+    p.add_argument("--modes", type=int, default=8, metavar="N",
+                   help="modes in the superposition basis (default 8; a wide --band grows it as needed)")
+    p.add_argument("--mode", type=int, metavar="K",
+                   help="drive this mode (its number in the modal table, 1 = lowest computed); default: the "
+                        "mode with the largest electromechanical coupling k_eff near the frequency")
     p.add_argument("--ring-up", type=float, metavar="S",
                    help="also integrate the ring-up for S seconds (0: six time constants)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON")
@@ -60,6 +64,8 @@ def _check_options(args) -> None:
         check_range("--freq", args.freq, *FREQUENCY_BAND, "Hz")
     check_integer("--points", args.points, 3, MAX_POINTS)
     check_integer("--modes", args.modes, 1, 200)
+    if args.mode is not None:
+        check_integer("--mode", args.mode, 1, args.modes)
     if args.q_mech is not None:
         check_range("--q-mech", args.q_mech, 1.0, 1e6)
     if args.tan_delta is not None:
@@ -71,6 +77,20 @@ def _check_options(args) -> None:
     if args.json is not None and not args.json.endswith(".json"):
         raise ParameterError("--json", args.json, "must end in .json")
     check_output_paths(inputs={"--design": args.design}, folders=("plots",), json=args.json, plots=args.plots)
+
+
+def driven_mode(modal, near_hz: float) -> int:
+    """The mode a voltage drive near ``near_hz`` excites: the largest effective coupling
+    ``k_eff`` among the elastic modes within 40 % of it (the largest axial share, as
+    :func:`fem.modal.working_mode`, when no mode has a finite k_eff)."""
+    from .modal import working_mode
+
+    f = np.asarray(modal.f_r_hz, float)
+    k = np.where(np.isfinite(modal.k_eff), modal.k_eff, -1.0)
+    ok = (np.abs(f) > 0.01 * near_hz) & (np.abs(f - near_hz) < 0.4 * near_hz)
+    if not ok.any() or np.max(k[ok]) <= 0:
+        return working_mode(modal.system, modal.f_r_hz, modal.vectors, near_hz)
+    return int(np.argmax(np.where(ok, k, -np.inf)))
 
 
 def _parse_band(text: str) -> tuple[float, float]:
@@ -89,7 +109,6 @@ def main(argv=None) -> int:
     from geometry.guard import check_budget
 
     from .assembly import assemble
-    from .matching import working_mode
     from .modal import modal_analysis
 
     args = build_parser().parse_args(argv)
@@ -111,7 +130,9 @@ def main(argv=None) -> int:
     system = assemble(mesh)
     near = float(args.freq or getattr(design, "target_frequency", 20e3))
     modal = modal_analysis(system, near, args.modes)
-    w = working_mode(system, modal.f_r_hz, modal.vectors, near)
+    if args.mode is not None and args.mode > modal.n_modes:
+        raise ParameterError("--mode", args.mode, f"must be <= {modal.n_modes}, the modes computed")
+    w = args.mode - 1 if args.mode is not None else driven_mode(modal, near)
     f_w = float(args.freq or modal.f_r_hz[w])
     f_a = float(modal.f_a_hz[w])
     if band is None:
@@ -119,8 +140,10 @@ def main(argv=None) -> int:
     elif not band[0] <= f_w <= band[1]:
         raise ParameterError("--band", args.band, f"does not contain the working frequency {f_w:.1f} Hz")
     basis = modal_basis(system, f_w, loss=loss, modes=modal)
-    res = harmonic_sweep(system, np.linspace(band[0], band[1], args.points), args.voltage, loss=loss,
-                         basis=basis, surfaces=surfaces)
+    freqs = np.linspace(band[0], band[1], args.points)
+    # a band wider than these modes represent gets its own, larger basis (see harmonic_sweep)
+    res = harmonic_sweep(system, freqs, args.voltage, loss=loss, surfaces=surfaces, n_modes=args.modes,
+                         basis=basis if basis_reach(basis, freqs) <= 0.5 else None)
     wp = working_point(system, f_w, args.voltage, loss=loss, surfaces=surfaces, basis=basis)
     ring = None
     if args.ring_up is not None:
@@ -129,21 +152,24 @@ def main(argv=None) -> int:
         tau = 2.0 / (basis.eta[w] * 2 * np.pi * f_w)
         ring = ring_up(system, f_w, args.voltage, args.ring_up or 6 * tau, loss=loss, basis=basis,
                        surfaces=surfaces[:1])
-    print(f"working mode {w + 1} ({modal.labels[w]}): f_r {f_w:.1f} Hz, f_a {f_a:.1f} Hz, k_eff {modal.k_eff[w]:.3f}")
+    drive = f"drive {f_w:.1f} Hz; " if args.freq is not None else ""
+    print(f"{drive}working mode {w + 1} ({modal.labels[w]}): f_r {modal.f_r_hz[w]:.1f} Hz, f_a {f_a:.1f} Hz, "
+          f"k_eff {modal.k_eff[w]:.3f}")
     print(f"{surfaces[0]} axial amplitude: {wp.tip_per_volt_m * 1e9:.2f} nm/V, {wp.tip_amplitude_m * 1e6:.3f} um "
           f"at {args.voltage:g} V; current {abs(wp.current_a):.3f} A, input power {wp.power_w:.2f} W")
     if "teeth_tops" in wp.surfaces:
         print(f"teeth: tangential/axial {wp.teeth_ellipse_ratio:.3f}, phase {wp.teeth_phase_deg:.1f} deg")
     print(f"admittance: peak {res.f_r_hz:.1f} Hz, dip {res.f_a_hz:.1f} Hz (band {band[0]:.0f}-{band[1]:.0f} Hz, "
-          f"{args.points} points, modal superposition of {len(basis.lam)} modes + residual)")
+          f"{args.points} points, modal superposition of {res.basis_modes} modes + residual)")
     if ring is not None:
         print(f"ring-up: steady {ring.steady_amplitude(surfaces[0]) * 1e6:.3f} um after {ring.t[-1] * 1e3:.2f} ms")
     text = None
     if args.json:
         data = {"design": str(args.design or "default"), "working_mode": {
-            "index": w, "f_r_hz": f_w, "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]), "label": modal.labels[w]},
-            "working_point": wp.to_json(), "sweep": res.to_json(),
-            "ring_up": ring.to_json() if ring is not None else None, "ndof": system.ndof}
+            "index": w, "f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
+            "label": modal.labels[w]}, "drive_hz": f_w,
+            "working_point": wp.to_dict(), "sweep": res.to_dict(),
+            "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof}
         text = json_text(data, nonfinite="null")
     if args.plots:
         from pathlib import Path
@@ -151,11 +177,11 @@ def main(argv=None) -> int:
         from . import plots
 
         out = Path(args.plots)
-        plots.admittance(res, f_w, f_a, out / "admittance.png")
+        save_figure(plots.admittance(res, float(modal.f_r_hz[w]), f_a), out / "admittance.png")
         if "horn_tip" in res.surfaces:
-            plots.tip_response(res, f_w, out / "tip_response.png")
+            save_figure(plots.tip_response(res, f_w), out / "tip_response.png")
         if ring is not None:
-            plots.ring_up(ring, wp.tip_amplitude_m, out / "ring_up.png")
+            save_figure(plots.ring_up(ring, wp.tip_amplitude_m), out / "ring_up.png")
     if text is not None:
         atomic_write_text(args.json, text)
     return 0

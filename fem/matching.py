@@ -53,11 +53,12 @@ import numpy as np
 from scipy.optimize import brentq
 
 from rpud_common import ParameterError, check_integer, check_positive, check_range
+from rpud_common.result import Result
 from geometry.mesh import TaggedMesh
 
 from .assembly import PiezoSystem, assemble
-from .modal import _eig
-from .modeshape import energy_shares, mac, surface_motion
+from .modal import _eig, working_mode
+from .modeshape import surface_motion
 from .solvers import factorize
 
 __all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half", "nodal_plane"]
@@ -165,26 +166,6 @@ def _modes(system: PiezoSystem, free: np.ndarray, near_hz: float, k: int):
     return f, full
 
 
-def working_mode(system: PiezoSystem, f_hz: np.ndarray, vectors: np.ndarray, near_hz: float,
-                 previous: np.ndarray | None = None) -> int:
-    """Index of the working (longitudinal) mode among computed modes.
-
-    With ``previous`` (the working mode's displacement on the same mesh topology) the mode of
-    largest mass-weighted MAC is taken; otherwise the mode with the largest axial kinetic-energy
-    share among those within 40 % of ``near_hz`` (rigid modes excluded). Both come from
-    :mod:`fem.modeshape` on the system's mass matrix, so the pick agrees with the modal labels.
-    """
-    shapes = system.displacement(vectors)
-    ok = (np.abs(f_hz) > 0.01 * near_hz) & (np.abs(f_hz - near_hz) < 0.4 * near_hz)
-    if not ok.any():
-        raise ParameterError("target_hz", near_hz, "no elastic mode within 40 % of the target")
-    if previous is not None:
-        score = mac(previous, shapes, mesh=system)[0]
-    else:
-        score = energy_shares(system, shapes).axial
-    return int(np.argmax(np.where(ok, score, -1.0)))
-
-
 def nodal_plane(design) -> float:
     """z (m) of the nodal plane: the electrode plane nearest the middle of the ceramic stack
     (the article's ceramics sit at the node; an electrode plane is a mesh interface)."""
@@ -219,9 +200,12 @@ def front_half(mesh: TaggedMesh, z_cut: float) -> TaggedMesh:
 # --------------------------------------------------------------------------- matching
 
 
-@dataclass(eq=False)
-class MatchResult:
-    """Outcome of :func:`match` (SI units)."""
+@dataclass(eq=False, repr=False)
+class MatchResult(Result):
+    """Outcome of :func:`match` (SI units): the tuned design, its mesh, system and modes.
+
+    ``repr`` shows target, matched frequency and iterations; :meth:`to_dict` the JSON record.
+    """
 
     target_hz: float
     matched_hz: float
@@ -239,11 +223,17 @@ class MatchResult:
     node_ratio: float
     timings: dict
 
-    def to_json(self) -> dict:
-        from rpud_common import to_jsonable
+    def _headline(self) -> str:
+        state = "converged" if self.converged else "NOT converged"
+        ratio = self.teeth.get("ellipse_ratio") if isinstance(self.teeth, dict) else None
+        teeth = f"; teeth ellipse ratio {ratio:.3f}" if isinstance(ratio, float) else ""
+        return (f"{state}: target {self.target_hz:.1f} Hz, matched {self.matched_hz:.1f} Hz "
+                f"({self.matched_hz / self.target_hz - 1:+.2%}) in {len(self.iterations)} iterations; "
+                f"working mode {self.working_index}{teeth}; {self.system.ndof} DOF")
 
-        modes = self.modal.to_json()["modes"]
-        return to_jsonable({
+    def _record(self) -> dict:
+        modes = self.modal.to_dict()["modes"]
+        return ({
             "target_hz": self.target_hz, "matched_hz": self.matched_hz,
             "error_rel": self.matched_hz / self.target_hz - 1.0, "converged": self.converged,
             "iterations": self.iterations, "n_iterations": len(self.iterations),

@@ -31,7 +31,7 @@ backend=None, tol=0.0, open_circuit=True) -> ModalResult``
 ``mode_shares`` (``fem.modeshape.energy_shares`` of the shapes on the system's own mass
 matrix), ``shares`` (``(n, 3)`` of them: axial / torsional / lateral about the z axis),
 ``labels`` (``fem.modeshape.classify`` of ``mode_shares``), ``rigid_hz``, ``ndof``, ``backend``, ``timings`` (assembly_s, factorisation_s,
-eigen_s, total_s), ``to_json()``.
+eigen_s, total_s), ``to_dict()``.
 
 CLI
 ---
@@ -62,19 +62,24 @@ import numpy as np
 import scipy.sparse.linalg as spla
 
 from rpud_common import ParameterError, check_nonnegative
+from rpud_common.result import Result
 
 from .assembly import PiezoSystem
 from .modeshape import ModeShares, classify, energy_shares, mac
 from .solvers import blas_threads, factorize
 
-__all__ = ["modal_analysis", "ModalResult"]
+__all__ = ["modal_analysis", "ModalResult", "working_mode"]
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(eq=False)
-class ModalResult:
-    """Paired short/open-circuit modes (see the module docstring)."""
+@dataclass(eq=False, repr=False)
+class ModalResult(Result):
+    """Paired short/open-circuit modes (see the module docstring).
+
+    ``repr`` shows the band and the mode nearest ``near_hz``; :meth:`to_dict` is the JSON
+    record of every mode; :meth:`save` writes it with the frequencies and mode shapes (npz).
+    """
 
     f_r_hz: np.ndarray
     f_a_hz: np.ndarray
@@ -103,7 +108,32 @@ class ModalResult:
     def n_modes(self) -> int:
         return len(self.f_r_hz)
 
-    def to_json(self) -> dict:
+    @property
+    def working(self) -> int:
+        """Index of the working (longitudinal) mode: :func:`working_mode` near ``near_hz``."""
+        if self.system is None:
+            raise ValueError("this result keeps no system; use fem.modal.working_mode")
+        return working_mode(self.system, self.f_r_hz, self.vectors, self.near_hz)
+
+    @property
+    def nearest(self) -> int:
+        """Index of the mode whose f_r is nearest ``near_hz``."""
+        return int(np.argmin(np.abs(self.f_r_hz - self.near_hz)))
+
+    def _headline(self) -> str:
+        if not self.n_modes:
+            return f"no modes, {self.ndof} DOF"
+        i = self.nearest
+        fa = f", f_a {self.f_a_hz[i]:.1f} Hz, k_eff {self.k_eff[i]:.3f}" if np.isfinite(self.f_a_hz[i]) else ""
+        return (f"{self.n_modes} modes {self.f_r_hz.min() / 1e3:.2f}-{self.f_r_hz.max() / 1e3:.2f} kHz; "
+                f"nearest {self.near_hz / 1e3:g} kHz: mode {i} {self.labels[i]}, f_r {self.f_r_hz[i]:.1f} Hz{fa}; "
+                f"{self.ndof} DOF")
+
+    def _arrays(self) -> dict:
+        return {"f_r_hz": self.f_r_hz, "f_a_hz": self.f_a_hz, "k_eff": self.k_eff, "shares": self.shares,
+                "shapes_m": self.shapes}
+
+    def _record(self) -> dict:
         modes = []
         for i in range(self.n_modes):
             modes.append({
@@ -119,6 +149,26 @@ class ModalResult:
                 "modes": modes, "rigid_hz": [float(f) for f in self.rigid_hz],
                 "ndof": int(self.ndof), "backend": self.backend,
                 "timings": {k: float(v) for k, v in self.timings.items()}}
+
+
+def working_mode(system: PiezoSystem, f_hz: np.ndarray, vectors: np.ndarray, near_hz: float,
+                 previous: np.ndarray | None = None) -> int:
+    """Index of the working (longitudinal) mode among computed modes.
+
+    With ``previous`` (the working mode's displacement on the same mesh topology) the mode of
+    largest mass-weighted MAC is taken; otherwise the mode with the largest axial kinetic-energy
+    share among those within 40 % of ``near_hz`` (rigid modes excluded). Both come from
+    :mod:`fem.modeshape` on the system's mass matrix, so the pick agrees with the modal labels.
+    """
+    shapes = system.displacement(vectors)
+    ok = (np.abs(f_hz) > 0.01 * near_hz) & (np.abs(f_hz - near_hz) < 0.4 * near_hz)
+    if not ok.any():
+        raise ParameterError("target_hz", near_hz, "no elastic mode within 40 % of the target")
+    if previous is not None:
+        score = mac(previous, shapes, mesh=system)[0]
+    else:
+        score = energy_shares(system, shapes).axial
+    return int(np.argmax(np.where(ok, score, -1.0)))
 
 
 def _freq(lam):

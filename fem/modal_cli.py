@@ -209,7 +209,7 @@ def main(argv=None) -> int:
             print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
                   f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
         # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
-        text = json_text(res_m.to_json(), nonfinite="null") if args.json else None
+        text = json_text(res_m.to_dict(), nonfinite="null") if args.json else None
         if out_design:
             atomic_write_text(out_design, res_m.design.to_toml())
             print(f"tuned design: {out_design}")
@@ -232,7 +232,7 @@ def main(argv=None) -> int:
     print(format_table(res))
     data = None
     if args.json:
-        data = res.to_json()
+        data = res.to_dict()
         data["design"] = str(args.design)
         data["mesh_size"] = args.mesh_size
         data = json_text(data, nonfinite="null")

@@ -19,6 +19,7 @@ import numpy as np
 
 from rpud_common import ParameterError, atomic_output
 from geometry.mesh import TaggedMesh
+from geometry.render import offscreen_plotter
 
 from .modeshape import _context, axis_frame, check_shapes
 
@@ -40,9 +41,9 @@ _SURF: "weakref.WeakKeyDictionary[TaggedMesh, _Surface]" = weakref.WeakKeyDictio
 
 
 def _pv():
-    from geometry.render import offscreen_pyvista
+    import pyvista as pv
 
-    return offscreen_pyvista()
+    return pv
 
 
 def _surface(mesh: TaggedMesh) -> _Surface:
@@ -135,7 +136,7 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
     deformed.points = s.surf.points + scale * us
     deformed.point_data["displacement"] = mag / peak if peak > 0 else mag
 
-    pl = pv.Plotter(off_screen=True, window_size=(w, h))
+    pl = offscreen_plotter((w, h))
     try:
         pl.set_background("white")
         pl.add_mesh(s.surf, color="lightgray", opacity=0.18, lighting=False)

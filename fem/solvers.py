@@ -29,7 +29,6 @@ logged at INFO level.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import time
@@ -79,37 +78,16 @@ def backend_name(backend: str | None = None) -> str:
     return choice
 
 
-@contextlib.contextmanager
 def blas_threads(n: int = 1):
-    """Limit the (scipy/numpy bundled) OpenBLAS threads of the calling thread inside the block.
+    """Limit the OpenBLAS threads (numpy's and scipy's bundled copies) inside a ``with`` block.
 
     ARPACK's small dense updates gain nothing from threads, and OpenBLAS threads spinning next to
-    PARDISO's MKL threads on 2 shared cores cost seconds per eigen solve. No-op where the
-    bundled OpenBLAS is not found (Linux ``/proc/self/maps`` is used to locate it).
+    PARDISO's MKL threads on 2 shared cores cost seconds per eigen solve. MKL (PARDISO) keeps its
+    threads. Uses :class:`threadpoolctl.ThreadpoolController`.
     """
-    setters = []
-    try:
-        with open("/proc/self/maps") as fh:
-            libs = sorted({ln.split()[-1] for ln in fh if "openblas" in ln.lower() and ".so" in ln})
-        import ctypes
+    from threadpoolctl import ThreadpoolController
 
-        for lib in libs:
-            try:
-                h = ctypes.CDLL(lib)
-                f = h.openblas_set_num_threads_local
-                f.restype = ctypes.c_int
-                f.argtypes = [ctypes.c_int]
-                setters.append(f)
-            except (OSError, AttributeError):
-                pass
-    except OSError:
-        pass
-    old = [f(n) for f in setters]
-    try:
-        yield
-    finally:
-        for f, o in zip(setters, old):
-            f(o)
+    return ThreadpoolController().select(internal_api="openblas").limit(limits=int(n))
 
 
 class Factor:

@@ -43,6 +43,7 @@ import numpy as np
 import scipy.signal as signal
 
 from rpud_common import ParameterError, check_positive
+from rpud_common.result import Result
 
 from .assembly import PiezoSystem
 from .harmonic import COMPONENTS, LossModel, ModalBasis, loss_matrix, modal_basis, surface_functional
@@ -53,8 +54,8 @@ __all__ = ["TransientResult", "ring_up", "steady_amplitude"]
 log = logging.getLogger(__name__)
 
 
-@dataclass(eq=False)
-class TransientResult:
+@dataclass(eq=False, repr=False)
+class TransientResult(Result):
     """Time histories of a ring-up.
 
     Attributes
@@ -78,26 +79,45 @@ class TransientResult:
     method: str
     timings: dict = field(default_factory=dict)
 
-    def steady_amplitude(self, surface: str = "horn_tip", component: str = "axial", cycles: int = 10) -> float:
-        """Amplitude (m) of a sine at the drive frequency fitted over the last ``cycles``."""
+    def _surface(self, surface: str | None) -> str:
+        surface = next(iter(self.surfaces)) if surface is None else surface
         if surface not in self.surfaces:
             raise ParameterError("surface", surface, "not computed; computed: " + ", ".join(self.surfaces))
+        return surface
+
+    def steady_amplitude(self, surface: str | None = None, component: str = "axial", cycles: int = 10) -> float:
+        """Amplitude (m) of a sine at the drive frequency fitted over the last ``cycles``
+        (``surface``: the first one computed, by default ``horn_tip``)."""
+        surface = self._surface(surface)
         return steady_amplitude(self.t, self.surfaces[surface][component], self.freq_hz, cycles)
 
-    def envelope(self, surface: str = "horn_tip", component: str = "axial") -> tuple[np.ndarray, np.ndarray]:
-        """Per-cycle peak |displacement| (m) and the cycle centre times (s)."""
-        y = self.surfaces[surface][component]
+    def envelope(self, surface: str | None = None, component: str = "axial") -> tuple[np.ndarray, np.ndarray]:
+        """Per-cycle peak |displacement| (m) and the cycle centre times (s) (``surface``: the
+        first one computed, by default ``horn_tip``)."""
+        y = self.surfaces[self._surface(surface)][component]
         n = max(int(round(1.0 / (self.freq_hz * self.dt))), 1)
         m = len(y) // n
         peaks = np.abs(y[: m * n]).reshape(m, n).max(axis=1)
         return self.t[: m * n].reshape(m, n).mean(axis=1), peaks
 
-    def to_json(self) -> dict:
-        tc, env = self.envelope()
+    def _headline(self) -> str:
+        s = next(iter(self.surfaces))
+        return (f"{self.method} ring-up at {self.freq_hz:.1f} Hz, {self.v0:g} V, {self.t[-1] * 1e3:.3g} ms: "
+                f"steady {s} amplitude {self.steady_amplitude(s) * 1e6:.3g} um")
+
+    def _arrays(self) -> dict:
+        out = {"t_s": self.t, "voltage_v": self.voltage}
+        for s, comps in self.surfaces.items():
+            out.update({f"{s}_{c}_m": v for c, v in comps.items()})
+        return out
+
+    def _record(self) -> dict:
+        first = self._surface(None)
+        tc, env = self.envelope(first)
         return {"method": self.method, "freq_hz": self.freq_hz, "voltage_v": self.v0, "dt_s": self.dt,
                 "n_steps": int(len(self.t) - 1), "t_end_s": float(self.t[-1]),
                 "steady_amplitude_m": {s: self.steady_amplitude(s) for s in self.surfaces},
-                "envelope": {"t_s": tc.tolist(), "horn_tip_axial_m": env.tolist()},
+                "envelope": {"t_s": tc.tolist(), f"{first}_axial_m": env.tolist()},
                 "timings": self.timings}
 
 

@@ -71,7 +71,10 @@ class Material:
         if self.kind not in ("isotropic", "piezo"):
             raise ParameterError(f"{where}.kind", self.kind, "must be 'isotropic' or 'piezo'")
         check_positive(f"{where}.density", self.density, "kg/m^3")
-        check_positive(f"{where}.q_mech", self.q_mech)
+        q = self.q_mech
+        if isinstance(q, bool) or not isinstance(q, (int, float)) or not q > 0:
+            # inf (the default) is lossless, as documented
+            raise ParameterError(f"{where}.q_mech", self.q_mech, "must be a number > 0 (inf or omitted: lossless)")
         check_range(f"{where}.tan_delta", self.tan_delta, 0.0, 1.0)
         if self.kind == "isotropic":
             check_positive(f"{where}.youngs_modulus", self.youngs_modulus, "Pa")

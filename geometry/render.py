@@ -11,7 +11,7 @@ from rpud_common import atomic_output
 from .design import DesignBase, RPUDDesign
 from .mesh import TaggedMesh
 
-__all__ = ["render_png", "design_title"]
+__all__ = ["render_png", "design_title", "offscreen_plotter"]
 
 log = logging.getLogger(__name__)
 
@@ -42,21 +42,27 @@ def design_title(design: DesignBase) -> str:
     return f"{design.name}: " + "; ".join(parts)
 
 
-def offscreen_pyvista():
-    """pyvista set up for off-screen rendering.
+def offscreen_plotter(window_size: tuple[int, int]):
+    """A ``pyvista.Plotter`` that renders off screen, made without touching global state.
 
-    Without a display, VTK would try an X window first and print "bad X server connection"
-    before falling back; asking for its EGL window directly renders the same picture quietly
-    (a user's own ``VTK_DEFAULT_OPENGL_WINDOW`` is respected).
+    pyvista's ``OFF_SCREEN`` flag is left as the user set it (the plotter is made with
+    ``off_screen=True``). Without a display VTK would try an X window first and print "bad X
+    server connection" before falling back; while this plotter's window is created, VTK is asked
+    for its EGL window instead (the same picture, quietly), and the environment is restored
+    right after. A user's own ``VTK_DEFAULT_OPENGL_WINDOW`` is respected.
     """
     import os
 
-    if not os.environ.get("DISPLAY"):
-        os.environ.setdefault("VTK_DEFAULT_OPENGL_WINDOW", "vtkEGLRenderWindow")
     import pyvista as pv
 
-    pv.OFF_SCREEN = True
-    return pv
+    key = "VTK_DEFAULT_OPENGL_WINDOW"
+    if os.environ.get("DISPLAY") or key in os.environ:
+        return pv.Plotter(off_screen=True, window_size=list(window_size))
+    os.environ[key] = "vtkEGLRenderWindow"
+    try:
+        return pv.Plotter(off_screen=True, window_size=list(window_size))
+    finally:
+        os.environ.pop(key, None)
 
 
 def render_png(mesh: TaggedMesh, path: str | Path, title: str = "", size: tuple[int, int] = (1400, 700)) -> Path:
@@ -72,7 +78,7 @@ def render_png(mesh: TaggedMesh, path: str | Path, title: str = "", size: tuple[
     size : (int, int)
         Window size in pixels.
     """
-    pv = offscreen_pyvista()
+    import pyvista as pv
 
     corners = mesh.cells[:, :4]
     cells = np.hstack([np.full((len(corners), 1), 4), corners]).ravel()
@@ -80,7 +86,7 @@ def render_png(mesh: TaggedMesh, path: str | Path, title: str = "", size: tuple[
     parts = list(mesh.parts)
     part_of_region = np.array([parts.index(r.part) for r in mesh.regions])
     grid.cell_data["part"] = part_of_region[mesh.cell_region]
-    plotter = pv.Plotter(off_screen=True, window_size=list(size))
+    plotter = offscreen_plotter(size)
     plotter.set_background("white")
     for i, part in enumerate(parts):
         sub = grid.extract_cells(np.flatnonzero(grid.cell_data["part"] == i)).extract_surface(algorithm="dataset_surface")

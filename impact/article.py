@@ -13,13 +13,14 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
-from rpud_common import write_json
+from rpud_common import save_figure, write_json
+from rpud_common.figures import subplots
 
 from .model import simulate
 from .params import ImpactParams
-from .plots import plot_history, plot_ke_vs_mass, plot_spectrum
+from .plots import plot_history, plot_ke_vs_mass, plot_spectrum, plot_tool_ke_history
 from .stats import SCENARIOS, StatsSettings, ensemble_statistics
-from .sweep import sweep
+from .sweeps import sweep
 
 __all__ = ["reproduce", "MASSES"]
 
@@ -56,14 +57,17 @@ def reproduce(out_dir, params: ImpactParams | None = None, *, settings: StatsSet
     st8 = ensemble_statistics(p, art, settings, progress)
     sample = simulate(art.apply(p))
     note = "one sample trajectory (chaotic); statistics in impact_summary.json"
-    plot_history(sample, out / "fig6_displacement_50ms.png", 0.05, title=f"First 50 ms: {note}")
-    plot_history(sample, out / "fig7_displacement_20ms.png", 0.02, title=f"First 20 ms: {note}")
+    save_figure(plot_history(sample, 0.05, title=f"First 50 ms: {note}"), out / "fig6_displacement_50ms.png")
+    save_figure(plot_history(sample, 0.02, title=f"First 20 ms: {note}"), out / "fig7_displacement_20ms.png")
     dev = SCENARIOS["device"]
     long_run = simulate(dev.apply(p).with_(t_end=spectrum_t_end))
-    plot_spectrum(long_run, out / "fig12_free_mass_spectrum.png")
+    save_figure(plot_spectrum(long_run), out / "fig12_free_mass_spectrum.png")
     sw = sweep(p, MASSES, scenario=art, settings=settings, progress=progress)
     hist = {m: simulate(art.apply(p).with_(m_free=m), series=False) for m in MASSES}
-    plot_ke_vs_mass(sw, out / "fig8_tool_ke_vs_free_mass.png", hist)
+    fig, (left, right) = subplots(1, 2, figsize=(12, 4.5), dpi=120)
+    plot_tool_ke_history(hist, ax=left)
+    plot_ke_vs_mass(sw, ax=right)
+    save_figure(fig, out / "fig8_tool_ke_vs_free_mass.png")
     f, amp = long_run.spectrum()
     band = (f > 0) & (f <= 2000)
     summary = {
@@ -73,7 +77,7 @@ def reproduce(out_dir, params: ImpactParams | None = None, *, settings: StatsSet
         "spectrum_device_sample": {"t_end_s": spectrum_t_end, "spring_force_n": dev.spring_force,
                                    "peak_hz": float(f[band][amp[band].argmax()]),
                                    "max_free_mass_displacement_m": float(long_run.w.max())},
-        "fig8": sw.to_json_dict(),
+        "fig8": sw.to_dict(),
         "figures": sorted(x.name for x in out.glob("fig*.png")),
     }
     write_json(out / "impact_summary.json", summary)

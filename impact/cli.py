@@ -14,8 +14,7 @@ from pathlib import Path
 
 from rpud_common import (
     CliParser, ParameterError, atomic_folder, atomic_write_text, check_integer, check_output_paths, from_mapping,
-    load_toml,
-    setup_logging, toml_section, write_json,
+    load_toml, save_figure, setup_logging, toml_section, write_json,
 )
 
 from .params import ImpactParams
@@ -200,9 +199,10 @@ def _run(argv):
         from .plots import plot_history, plot_spectrum
 
         d = Path(ns.plots)
-        plot_history(sample, d / "displacement.png", title="one sample trajectory (chaotic: see the statistics)")
-        plot_history(sample, d / "displacement_20ms.png", min(0.02, sample.params.t_end))
-        plot_spectrum(sample, d / "free_mass_spectrum.png")
+        save_figure(plot_history(sample, title="one sample trajectory (chaotic: see the statistics)"),
+                    d / "displacement.png")
+        save_figure(plot_history(sample, min(0.02, sample.params.t_end)), d / "displacement_20ms.png")
+        save_figure(plot_spectrum(sample), d / "free_mass_spectrum.png")
     return 0
 
 
@@ -236,7 +236,7 @@ def _sweep(argv):
     settings = _settings(ns)
     check_output_paths(inputs={"--config": ns.config}, folders=("plots",), csv=ns.csv, json=ns.json, plots=ns.plots)
     _threads(ns.threads)
-    from .sweep import sweep
+    from .sweeps import sweep
 
     sw = sweep(p, masses, scenario=sc, settings=settings, progress=_progress(ns))
     bad = [r for r in sw.rows if r.failed]
@@ -258,11 +258,11 @@ def _sweep(argv):
     if ns.csv:
         atomic_write_text(ns.csv, sw.csv())
     if ns.json:
-        write_json(ns.json, sw.to_json_dict())
+        write_json(ns.json, sw.to_dict())
     if ns.plots:
         from .plots import plot_ke_vs_mass
 
-        plot_ke_vs_mass(sw, Path(ns.plots) / "tool_ke_vs_free_mass.png")
+        save_figure(plot_ke_vs_mass(sw), Path(ns.plots) / "tool_ke_vs_free_mass.png")
     return 0
 
 

@@ -118,6 +118,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rpud_common.result import Result
+
 from .params import ImpactParams
 
 __all__ = ["simulate", "window_stats", "ImpactResult", "SimulationError", "CONTACT_TOL",
@@ -506,9 +508,10 @@ def amplitude_spectrum(x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray
     return np.fft.rfftfreq(n, dt), amp
 
 
-@dataclass
-class ImpactResult:
-    """Outcome of :func:`simulate`.
+@dataclass(repr=False)
+class ImpactResult(Result):
+    """Outcome of :func:`simulate`: one trajectory, i.e. one sample of a chaotic motion (for
+    numbers to read, use the ensemble statistics of :func:`impact.ensemble_statistics`).
 
     Event arrays (one entry per impact, time-ordered):
 
@@ -596,7 +599,21 @@ class ImpactResult:
             "sticking_phases": len(self.stick),
         }
 
-    def to_json_dict(self) -> dict:
+    def _headline(self) -> str:
+        p = self.params
+        return (f"one sample, {p.m_free * 1e3:g} g free mass, A0 {p.A0 * 1e6:.3g} um, {p.t_end * 1e3:g} ms: "
+                f"{self.tool_impacts} tool and {self.horn_impacts} horn impacts, "
+                f"mean tool KE after impact {self.mean_tool_ke_after_impact_j * 1e3:.3g} mJ")
+
+    def _arrays(self) -> dict:
+        out = {k: getattr(self, k) for k in ("t", "x", "w_before", "w_after", "v_before", "v_after", "energy",
+                                             "horn_work")}
+        out["is_tool"] = self.is_tool
+        if self.t_grid is not None:
+            out.update(t_grid=self.t_grid, u=self.u, w=self.w, tool_face=self.tool_face)
+        return out
+
+    def _record(self) -> dict:
         """The CLI's JSON document: params, counts, rates, mean tool KE, events."""
         out = {"params": self.params.to_dict()}
         out.update(self.summary())

@@ -1,31 +1,33 @@
-"""Figures (PNG, matplotlib Agg): displacement histories (Fig. 6/7), tool kinetic energy
-against free-mass weight (Fig. 8) and the free-mass spectrum (Fig. 12 analogue).
+"""Figures: displacement histories (article Fig. 6/7), tool kinetic energy against free-mass
+weight (Fig. 8) and the free-mass spectrum (Fig. 12 analogue).
 
-matplotlib is imported inside the functions only, so ``import impact`` stays light.
-Positions are shown in mm, times in ms (SI inside).
+Each function draws on the caller's Axes (``ax=``) or on a new figure and returns the Axes, so
+the figures compose in a notebook; save one with :func:`rpud_common.save_figure`. matplotlib is
+imported on first use, so ``import impact`` stays light. Positions in mm, times in ms, energies
+in mJ, masses in g (SI inside).
 """
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from rpud_common.figures import subplots
-from rpud_common import save_figure
+from rpud_common.figures import axes_or_new
 
-__all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass"]
-
+__all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass", "plot_tool_ke_history", "ke_errorbars"]
 
 
-def plot_history(result, path, t_max: float | None = None, title: str = "") -> Path:
-    """Horn tip, free mass and tool face positions (mm) against time (ms) up to ``t_max`` (s)."""
+def plot_history(result, t_max: float | None = None, title: str = "", *, ax=None):
+    """Horn tip, free mass and tool face positions (mm) against time (ms) up to ``t_max`` (s).
+
+    ``result`` is an :class:`impact.ImpactResult` with its time series (``simulate(...,
+    series=True)``). Returns the Axes.
+    """
     if result.t_grid is None:
         raise ValueError("the result holds no time series (simulate(..., series=True))")
     t_max = result.params.t_end if t_max is None else t_max
     sel = result.t_grid <= t_max * (1 + 1e-12)
     t = result.t_grid[sel] * 1e3
-    fig, ax = subplots(figsize=(9, 4.5), dpi=120)
+    ax = axes_or_new(ax, figsize=(9, 4.5), dpi=120)
     ax.plot(t, result.tool_face[sel] * 1e3, color="tab:green", lw=1.0, label="drill tool face L0 + v(t)")
     ax.plot(t, result.w[sel] * 1e3, color="tab:blue", lw=1.0, label="free mass w(t)")
     ax.plot(t, result.u[sel] * 1e3, color="tab:red", lw=0.5, label="horn tip u(t)")
@@ -37,45 +39,49 @@ def plot_history(result, path, t_max: float | None = None, title: str = "") -> P
     ax.set_title(title or f"First {t_max * 1e3:.0f} ms of the percussive system")
     ax.legend(loc="upper left", fontsize=8)
     ax.grid(alpha=0.3)
-    return save_figure(fig, path)
+    return ax
 
 
-def plot_spectrum(result, path, f_max: float = 2000.0) -> Path:
-    """Amplitude spectrum of the free-mass displacement (mm) up to ``f_max`` (Hz)."""
+def plot_spectrum(result, f_max: float = 2000.0, *, ax=None):
+    """Amplitude spectrum of the free-mass displacement (mm) up to ``f_max`` (Hz). Returns the Axes."""
     f, amp = result.spectrum()
     sel = f <= f_max
-    fig, ax = subplots(figsize=(8, 4), dpi=120)
+    ax = axes_or_new(ax, figsize=(8, 4), dpi=120)
     ax.plot(f[sel], amp[sel] * 1e3, lw=0.8)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("amplitude (mm)")
     ax.set_title(f"Free-mass displacement spectrum ({result.params.t_end:g} s run)")
     ax.grid(alpha=0.3)
-    return save_figure(fig, path)
+    return ax
 
 
-def plot_ke_vs_mass(sweep_result, path, histories: dict | None = None) -> Path:
+def plot_tool_ke_history(histories: dict, *, ax=None):
+    """Tool KE after each impact (mJ) vs time (ms), one sample trajectory per free mass
+    (``histories``: mass in kg -> ImpactResult). One trajectory is one sample of a chaotic
+    motion, and the title says so. Returns the Axes."""
+    ax = axes_or_new(ax, figsize=(6, 4.5), dpi=120)
+    for m, r in sorted(histories.items()):
+        it = r.is_tool
+        ax.plot(r.t[it] * 1e3, r.tool_ke_after * 1e3, ".", ms=3, label=f"{m * 1e3:g} g")
+    ax.set_title("one sample trajectory per mass (chaotic)", fontsize=9)
+    ax.set_xlabel("time (ms)")
+    ax.set_ylabel("tool kinetic energy after impact (mJ)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return ax
+
+
+def plot_ke_vs_mass(sweep_result, *, ax=None, label: str = "model", fmt: str = "o", zero: bool = False):
     """Fig. 8 analogue: mean tool KE after impact (mJ) vs free mass (g), error bars the 95 %
-    confidence intervals, with the linear fit; optionally, left panel: tool KE after each impact
-    vs time for one sample trajectory per mass (``histories``: mass kg -> ImpactResult)."""
-    ncol = 2 if histories else 1
-    fig, axes = subplots(1, ncol, figsize=(6 * ncol, 4.5), dpi=120, squeeze=False)
-    if histories:
-        ax = axes[0, 0]
-        for m, r in sorted(histories.items()):
-            it = r.is_tool
-            ax.plot(r.t[it] * 1e3, r.tool_ke_after * 1e3, ".", ms=3, label=f"{m * 1e3:g} g")
-        ax.set_title("one sample trajectory per mass (chaotic)", fontsize=9)
-        ax.set_xlabel("time (ms)")
-        ax.set_ylabel("tool kinetic energy after impact (mJ)")
-        ax.legend(fontsize=8)
-        ax.grid(alpha=0.3)
-    ax = axes[0, -1]
-    ke_errorbars(ax, sweep_result, "o", "model")
+    confidence intervals, with the linear fit. Call it again on the same ``ax`` to compare
+    sweeps. Returns the Axes."""
+    ax = axes_or_new(ax, figsize=(6, 4.5), dpi=120)
+    ke_errorbars(ax, sweep_result, fmt, label, zero=zero)
     ax.set_xlabel("free mass (g)")
     ax.set_ylabel("mean tool kinetic energy after impact (mJ)")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
-    return save_figure(fig, path)
+    return ax
 
 
 def ke_errorbars(ax, sweep_result, fmt: str = "o", label: str = "model", zero: bool = False):

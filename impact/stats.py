@@ -59,6 +59,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rpud_common import ParameterError, check_integer, check_range
+from rpud_common.result import Result
 
 from .params import ImpactParams
 
@@ -328,8 +329,8 @@ def member_stats(members: list[ImpactParams], t_from: float, t_end: float) -> np
 # --------------------------------------------------------------------------- results
 
 
-@dataclass
-class EnsembleStats:
+@dataclass(repr=False)
+class EnsembleStats(Result):
     """Statistics of one case (one free mass, one amplitude) under one scenario.
 
     Attributes
@@ -363,7 +364,17 @@ class EnsembleStats:
     def __getitem__(self, name: str) -> Estimate:
         return self.estimates[name]
 
-    def to_dict(self) -> dict:
+    def _headline(self) -> str:
+        state = "converged" if self.converged else "NOT converged"
+        return (f"{self.scenario.name}, {self.params.m_free * 1e3:g} g, A0 {self.params.A0 * 1e6:.3g} um: "
+                f"tool rate {self['tool_impact_rate_hz']} Hz, "
+                f"tool KE after impact {self['mean_tool_ke_after_j'].scaled(1e3)} mJ, "
+                f"tool power {self['tool_power_w']} W; {self.members} members, {state} (95 % CI)")
+
+    def _arrays(self) -> dict:
+        return {"members": self.raw} if self.raw is not None else {}
+
+    def _record(self) -> dict:
         return {"scenario": self.scenario.name, "m_free_kg": self.params.m_free, "A0_m": self.params.A0,
                 "freq_hz": self.params.freq, "members": self.members, "failed_members": self.failed,
                 "converged": self.converged, "rel_tol": self.settings.rel_tol, "note": self.note,

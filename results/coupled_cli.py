@@ -140,13 +140,15 @@ def main(argv=None) -> int:
         atomic_write_text(ns.history_csv, history_csv(hist["result"]))
     if ns.plots:
         from impact.plots import plot_history
+        from rpud_common import save_figure
 
         from .coupled_figures import tip_envelope
 
         d = Path(ns.plots)
-        tip_envelope(hist["result"], d / "tip_envelope.png", fe.tip_amplitude_m)
-        plot_history(hist["result"].impact, d / "displacement.png",
-                     title=f"coupled model, {fe.reduced.n_modes} modes, {ns.voltage:g} V: one sample (chaotic)")
+        save_figure(tip_envelope(hist["result"], fe.tip_amplitude_m), d / "tip_envelope.png")
+        save_figure(plot_history(hist["result"].impact,
+                                 title=f"coupled model, {fe.reduced.n_modes} modes, {ns.voltage:g} V: one sample "
+                                       f"(chaotic)"), d / "displacement.png")
     if not math.isfinite(st.estimates["tool_impact_rate_hz"].mean):
         return 1
     return 0

@@ -1,23 +1,21 @@
 """Figures of the coupled model (transducer in the impact loop): tip amplitude envelope with the
 impacts marked, tool kinetic energy vs free mass for the three horn models, drive power vs free
-mass. PNG, written atomically; axes in um, mJ, g, W (SI inside)."""
+mass. Each function draws on the caller's Axes (``ax=``) or on a new figure and returns the Axes
+(save one with :func:`rpud_common.save_figure`); axes in um, mJ, g, W (SI inside)."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 
-from rpud_common import save_figure
-from rpud_common.figures import subplots
+from rpud_common.figures import axes_or_new
 
 __all__ = ["tip_envelope", "ke_three_models", "drive_power"]
 
 
-def tip_envelope(res, path, unloaded_m: float | None = None) -> Path:
+def tip_envelope(res, unloaded_m: float | None = None, *, ax=None):
     """Tip displacement (um) and its running amplitude (fundamental over 4 cycles) vs time (ms),
-    horn and tool impacts marked."""
-    fig, ax = subplots(figsize=(9, 4.5), dpi=120)
+    horn and tool impacts marked. ``res``: an :class:`impact.coupled.CoupledResult` with series."""
+    ax = axes_or_new(ax, figsize=(9, 4.5), dpi=120)
     ax.plot(res.t_grid * 1e3, res.u * 1e6, color="0.75", lw=0.3, label="tip displacement u(t)")
     tc, env = res.envelope(4)
     ax.plot(tc * 1e3, env * 1e6, color="tab:red", lw=1.2, label="running amplitude (4-cycle fundamental)")
@@ -35,7 +33,7 @@ def tip_envelope(res, path, unloaded_m: float | None = None) -> Path:
                  f"({res.horn.n_modes} modes, {res.horn.voltage:g} V): one sample of a chaotic motion")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="lower right")
-    return save_figure(fig, path)
+    return ax
 
 
 def _errorbar(ax, stats_list, key, scale, fmt, label):
@@ -45,11 +43,11 @@ def _errorbar(ax, stats_list, key, scale, fmt, label):
     ax.errorbar(m, mean, yerr=hw, fmt=fmt, capsize=3, ms=4, label=label)
 
 
-def ke_three_models(kinematic, damper, coupled, path) -> Path:
+def ke_three_models(kinematic, damper, coupled, *, ax=None):
     """Mean tool KE after impact (mJ) vs free mass (g), 95 % CI error bars: kinematic horn at the
     unloaded FE amplitude, kinematic horn at the damper-corrected amplitude, coupled model.
     Each argument: list of :class:`impact.stats.EnsembleStats`, one per free mass."""
-    fig, ax = subplots(figsize=(8, 5), dpi=120)
+    ax = axes_or_new(ax, figsize=(8, 5), dpi=120)
     _errorbar(ax, kinematic, "mean_tool_ke_after_j", 1e3, "k^:", "kinematic horn, unloaded FE amplitude")
     _errorbar(ax, damper, "mean_tool_ke_after_j", 1e3, "s--", "kinematic horn, damper-corrected amplitude")
     _errorbar(ax, coupled, "mean_tool_ke_after_j", 1e3, "o-", "coupled model (FE modes in the loop)")
@@ -58,12 +56,13 @@ def ke_three_models(kinematic, damper, coupled, path) -> Path:
     ax.set_title("Tool kinetic energy vs free mass, three horn models (device scenario, 95 % CI)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return save_figure(fig, path)
+    return ax
 
 
-def drive_power(coupled, path, unloaded_w: float | None = None) -> Path:
-    """Electrical power drawn and modal damping loss (W) vs free mass (g), coupled model, 95 % CI."""
-    fig, ax = subplots(figsize=(7, 4), dpi=120)
+def drive_power(coupled, unloaded_w: float | None = None, *, ax=None):
+    """Electrical power drawn, modal damping loss and the horn's work on the free mass (W) vs free
+    mass (g), coupled model, 95 % CI."""
+    ax = axes_or_new(ax, figsize=(7, 4), dpi=120)
     _errorbar(ax, coupled, "drive_power_w", 1.0, "o-", "electrical power drawn (mean V I)")
     _errorbar(ax, coupled, "damping_power_w", 1.0, "s--", "modal damping loss")
     _errorbar(ax, coupled, "horn_power_w", 1.0, "^:", "work of the horn on the free mass")
@@ -74,4 +73,4 @@ def drive_power(coupled, path, unloaded_w: float | None = None) -> Path:
     ax.set_title("Drive power vs free mass (coupled model, device scenario)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return save_figure(fig, path)
+    return ax

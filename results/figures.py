@@ -1,25 +1,29 @@
-"""Figures of the end-to-end run that join the FE model and the impacts (matplotlib PNG,
-written atomically; axes in um, mJ, g). The harmonic and ring-up figures are
-:mod:`fem.plots`'."""
+"""Figures of the end-to-end run that join the FE model and the impacts (matplotlib; axes in
+um, mJ, g). The harmonic and ring-up figures are :mod:`fem.plots`'.
+
+Each function draws on the caller's Axes (``ax=``) or on a new figure and returns the Axes;
+:func:`rpud_common.save_figure` writes one.
+"""
 
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 
 from fem.plots import admittance, ring_up, tip_response  # noqa: F401  (re-exported)
-from rpud_common.figures import subplots
-from rpud_common import save_figure as _save
+from rpud_common.figures import axes_or_new
+
+__all__ = ["impact_history", "kinetic_energy", "a0_coupling", "admittance", "ring_up", "tip_response",
+           "SWEEP_LABELS"]
 
 
-def impact_history(result, path) -> Path:
+def impact_history(result, *, ax=None):
     """Horn, free mass and tool displacements of one sample run (article Fig. 6 with the FE A0)."""
     from impact.plots import plot_history
 
-    return plot_history(result, path, result.params.t_end,
-                        title=f"A0 = {result.params.A0 * 1e6:.1f} um (FE), f = {result.params.freq / 1e3:.3f} kHz, "
-                              f"free mass {result.params.m_free * 1e3:g} g, spring {result.params.spring_force:g} N: "
+    p = result.params
+    return plot_history(result, p.t_end, ax=ax,
+                        title=f"A0 = {p.A0 * 1e6:.1f} um (FE), f = {p.freq / 1e3:.3f} kHz, "
+                              f"free mass {p.m_free * 1e3:g} g, spring {p.spring_force:g} N: "
                               f"one sample of a chaotic motion")
 
 
@@ -30,10 +34,12 @@ SWEEP_LABELS = {
 }
 
 
-def kinetic_energy(sweeps: dict, with_zero: bool, path) -> Path:
-    """Mean tool kinetic energy after impact vs free mass, each sweep with 95 % CI error bars."""
+def kinetic_energy(sweeps: dict, with_zero: bool = False, *, ax=None):
+    """Mean tool kinetic energy after impact vs free mass, each sweep (name -> SweepResult)
+    with 95 % CI error bars and its line fit; ``with_zero`` adds the (0 g, 0 mJ) point."""
     from impact.plots import ke_errorbars
-    fig, ax = subplots(figsize=(8, 5), dpi=120)
+
+    ax = axes_or_new(ax, figsize=(8, 5), dpi=120)
     for key, sw in sweeps.items():
         label, fmt = SWEEP_LABELS.get(key, (key, "o-"))
         ke_errorbars(ax, sw, fmt, label, zero=with_zero)
@@ -42,12 +48,13 @@ def kinetic_energy(sweeps: dict, with_zero: bool, path) -> Path:
     ax.set_title("Drill-tool kinetic energy vs free-mass weight (article Fig. 8 / 13)")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7)
-    return _save(fig, path)
+    return ax
 
 
-def a0_coupling(coupled, path) -> Path:
-    """Horn-tip amplitude with and without the impact load, per free mass."""
-    fig, ax = subplots(figsize=(7, 4), dpi=120)
+def a0_coupling(coupled, *, ax=None):
+    """Horn-tip amplitude (um) with and without the impact load, per free mass (g)
+    (``coupled``: mass in kg -> :class:`results.pipeline.CoupledAmplitude`)."""
+    ax = axes_or_new(ax, figsize=(7, 4), dpi=120)
     m = np.array(sorted(coupled))
     ax.plot(m * 1e3, [coupled[k].A0 * 1e6 for k in m], "o-", label="loaded by the free-mass impacts")
     ax.plot(m * 1e3, [coupled[k].A0_unloaded * 1e6 for k in m], "k--", label="no impact load")
@@ -57,4 +64,4 @@ def a0_coupling(coupled, path) -> Path:
     ax.set_title("A0 from the geometry, coupled with the impacts it drives")
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
-    return _save(fig, path)
+    return ax

@@ -45,11 +45,12 @@ from typing import Callable
 import numpy as np
 
 from impact.stats import MAX_MEMBERS
-from rpud_common import ParameterError, check_integer, check_positive, check_range, write_json
+from rpud_common import ParameterError, check_integer, check_positive, check_range, save_figure, write_json
+from rpud_common.result import Result
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PipelineSettings", "run_pipeline", "coupled_amplitudes"]
+__all__ = ["PipelineSettings", "PipelineResult", "run_pipeline", "coupled_amplitudes"]
 
 ARTICLE_A0 = 15e-6
 """The article's assumed horn-tip amplitude (Table 1), m."""
@@ -113,6 +114,8 @@ class PipelineSettings:
         check_integer("impact_max_members", self.impact_max_members, 2, MAX_MEMBERS)
         check_integer("seed", self.seed, 0)
         check_integer("handoff_digits", self.handoff_digits, 2, 12)
+        check_range("band", self.band, 0.0, 0.5, lo_open=True)
+        check_integer("n_points", self.n_points, 3)
         if self.coupled_modes is not None:
             check_integer("coupled_modes", self.coupled_modes, 1, 64)
         check_range("coupled_history_s", self.coupled_history_s, 1e-3, 1.0, "s")
@@ -123,8 +126,6 @@ class PipelineSettings:
 
         return StatsSettings(rel_tol=self.impact_rel_tol, n_start=min(64, self.impact_max_members),
                              n_max=self.impact_max_members, seed=self.seed)
-        check_range("band", self.band, 0.0, 0.5, lo_open=True)
-        check_integer("n_points", self.n_points, 3)
 
 
 # --------------------------------------------------------------------------- A0 <-> impacts
@@ -142,6 +143,53 @@ class CoupledAmplitude:
     history: list = field(default_factory=list)
     converged: bool = True
     note: str = ""
+
+
+@dataclass(repr=False)
+class PipelineResult(Result):
+    """What :func:`run_pipeline` wrote, and its summary.
+
+    ``repr`` shows the headline (working mode, A0, the headline sweep's slope and its heaviest
+    free mass); :meth:`to_dict` is ``summary.json``; :meth:`save` copies the whole results
+    folder (report, figures, renders, VTU) to another place, whole or not at all.
+    """
+
+    folder: Path
+    summary: dict
+
+    def _headline(self) -> str:
+        from impact.stats import Estimate
+
+        def est(d, scale=1.0):     # None (no statistics) shows as n/a
+            mean, hw = (float("nan") if v is None else v * scale for v in (d["mean"], d["ci95_half_width"]))
+            return Estimate(mean, hw, d.get("members", 0))
+
+        s = self.summary
+        wm, a0 = s["working_mode"], s["A0"]
+        key = s["impacts"]["headline"]
+        last = s["kinetic_energy_table"][-1]
+        fit = s["impacts"][key]["fit_ke_vs_mass"]
+        slope = "" if fit.get("slope") is None else (
+            f", slope {Estimate(fit['slope'], fit.get('slope_ci95_half_width') or float('nan'), 0)} J/kg")
+        return (f"{self.folder}: f_r {wm['f_r_hz']:.1f} Hz ({wm['label']}), A0 {a0['used_m'] * 1e6:.3g} um "
+                f"at {a0['reference_m_free_kg'] * 1e3:g} g; {key}: tool KE "
+                f"{est(last[key]['mean_tool_ke_after_j'], 1e3)} mJ at {last['m_free_kg'] * 1e3:g} g "
+                f"(95 % CI){slope}")
+
+    def _record(self) -> dict:
+        return self.summary
+
+    def save(self, folder, name=None) -> Path:
+        """Copy the results folder to ``folder`` (replaced whole, or left as it was on failure).
+        ``name`` is not used (the folder keeps its file names). Returns the new folder."""
+        import shutil
+
+        from rpud_common import atomic_folder
+
+        folder = Path(folder)
+        with atomic_folder(folder) as tmp:
+            shutil.copytree(self.folder, tmp, dirs_exist_ok=True)
+        return folder
 
 
 def round_sig(x: float, digits: int) -> float:
@@ -229,8 +277,10 @@ def ke_rows(sweeps: dict, with_zero: bool, coupled: dict | None = None) -> list[
 
 
 
-def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Callable[[str], None] | None = None) -> dict:
-    """Run every stage and write the results into ``out_dir``; returns the summary dict.
+def run_pipeline(design, settings: PipelineSettings, out_dir, *,
+                 progress: Callable[[str], None] | None = None) -> PipelineResult:
+    """Run every stage and write the results into ``out_dir`` (created; the command line builds
+    it under a temporary name and swaps it in whole). Returns a :class:`PipelineResult`.
 
     Files: ``summary.json``, ``report.md``, ``figures/*.png``, ``renders/*.png``, ``modes.vtu``.
     """
@@ -243,7 +293,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
     from impact.model import simulate
     from impact.params import ImpactParams
     from impact.stats import SCENARIOS
-    from impact.sweep import sweep
+    from impact.sweeps import sweep
 
     from . import figures
     from .report import write_report
@@ -273,7 +323,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
 
         m = match(design, MatchSettings(target_hz=target, mesh_size=settings.mesh_size), mesh=mesh, progress=show)
         design, mesh, system, modal, w = m.design, m.mesh, m.system, m.modal, m.working_index
-        match_json = m.to_json()
+        match_json = m.to_dict()
     else:
         from fem.assembly import assemble
 
@@ -374,25 +424,27 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
 
     # 7. figures, summary, report
     t0 = stage("figures and report", 7)
-    figs = {
-        "admittance": figures.admittance(sweep_h, f_w, f_a, out / "figures" / "admittance.png"),
-        "tip_response": figures.tip_response(sweep_h, f_w, out / "figures" / "tip_response.png"),
-        "ring_up": figures.ring_up(ring, wp.tip_amplitude_m, out / "figures" / "ring_up.png"),
-        "impact_history": figures.impact_history(hist_ref, out / "figures" / "impact_history_50ms.png"),
-        "kinetic_energy": figures.kinetic_energy(sweeps, 0.0 in settings.m_free_values,
-                                                 out / "figures" / "kinetic_energy_vs_free_mass.png"),
-        "a0_coupling": figures.a0_coupling(coupled, out / "figures" / "a0_vs_free_mass.png"),
+    fig_dir = out / "figures"
+    drawn = {
+        "admittance": (figures.admittance(sweep_h, f_w, f_a), "admittance.png"),
+        "tip_response": (figures.tip_response(sweep_h, f_w), "tip_response.png"),
+        "ring_up": (figures.ring_up(ring, wp.tip_amplitude_m), "ring_up.png"),
+        "impact_history": (figures.impact_history(hist_ref), "impact_history_50ms.png"),
+        "kinetic_energy": (figures.kinetic_energy(sweeps, 0.0 in settings.m_free_values),
+                           "kinetic_energy_vs_free_mass.png"),
+        "a0_coupling": (figures.a0_coupling(coupled), "a0_vs_free_mass.png"),
     }
     if coupled_model is not None:
         from . import coupled_figures as cf
 
-        figs["coupled_tip_envelope"] = cf.tip_envelope(coupled_model["history"]["result"],
-                                                       out / "figures" / "coupled_tip_envelope.png", wp.tip_amplitude_m)
-        figs["ke_three_horn_models"] = cf.ke_three_models(coupled_model["kinematic"], sweeps["device_fe"].rows,
-                                                          coupled_model["stats"],
-                                                          out / "figures" / "ke_vs_free_mass_three_horn_models.png")
-        figs["coupled_drive_power"] = cf.drive_power(coupled_model["stats"], out / "figures" / "drive_power_vs_free_mass.png",
-                                                     wp.power_w)
+        drawn["coupled_tip_envelope"] = (cf.tip_envelope(coupled_model["history"]["result"], wp.tip_amplitude_m),
+                                         "coupled_tip_envelope.png")
+        drawn["ke_three_horn_models"] = (cf.ke_three_models(coupled_model["kinematic"], sweeps["device_fe"].rows,
+                                                            coupled_model["stats"]),
+                                         "ke_vs_free_mass_three_horn_models.png")
+        drawn["coupled_drive_power"] = (cf.drive_power(coupled_model["stats"], wp.power_w),
+                                        "drive_power_vs_free_mass.png")
+    figs = {key: save_figure(axes, fig_dir / name) for key, (axes, name) in drawn.items()}
     ke_table = ke_rows(sweeps, 0.0 in settings.m_free_values, coupled)
     timings["figures_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_all
@@ -425,7 +477,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
                     "headline_why": "the device scenario is the drill as built and run: restoring spring on the "
                                     "free mass, steady operation, A0 from the FE model loaded by the impacts",
                     "handoff": {"A0_digits": digits, "freq_hz": f_imp, "m_horn_kg": base.m_horn},
-                    **{k: sw.to_json_dict() for k, sw in sweeps.items()},
+                    **{k: sw.to_dict() for k, sw in sweeps.items()},
                     "sample_run_50ms": {"note": "one sample trajectory (device scenario, chaotic)",
                                         **hist_ref.summary()}},
         "kinetic_energy_table": ke_table,
@@ -438,4 +490,4 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *, progress: Calla
     write_json(out / "summary.json", summary)
     write_report(summary, out / "report.md")
     say(f"done in {timings['total_s']:.1f} s")
-    return summary
+    return PipelineResult(folder=out, summary=summary)

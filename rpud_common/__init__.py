@@ -17,7 +17,8 @@ _WHERE = {
                 "to_mapping", "to_jsonable"),
     "files": ("atomic_output", "atomic_write_text", "json_text", "write_json", "NAME_MAX", "PATH_MAX",
               "check_output_paths", "atomic_folder"),
-    "figures": ("subplots", "save_figure"),
+    "figures": ("subplots", "save_figure", "axes_or_new"),
+    "result": ("Result",),
     "cli": ("CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running"),
     "launch": ("Terminated",),
 }

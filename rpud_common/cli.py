@@ -25,7 +25,17 @@ __all__ = ["CliParser", "run_cli", "library_error", "setup_logging", "abandon_na
 
 
 class CliParser(argparse.ArgumentParser):
-    """An ``ArgumentParser`` whose usage errors are one line on stderr and exit code 2."""
+    """An ``ArgumentParser`` whose usage errors are one line on stderr and exit code 2.
+
+    Started as a console script (``rpud-impact``), usage and errors name that command rather
+    than its ``python -m`` twin given as ``prog``.
+    """
+
+    def __init__(self, *args, **kwargs):
+        script = os.path.basename(sys.argv[0]) if sys.argv and sys.argv[0] else ""
+        if script.startswith("rpud-") and "prog" in kwargs:
+            kwargs["prog"] = script
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str) -> typing.NoReturn:  # noqa: D401 - argparse API
         sys.stderr.write(_one_line(f"{self.prog}: error: {message}") + "\n")

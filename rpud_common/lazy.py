@@ -17,7 +17,8 @@ def exports(package: str, where: dict[str, str]):
         The package's ``__name__``.
     where : dict
         Public name -> the module that defines it: a submodule of ``package`` (``"stats"``) or,
-        with a dot, an absolute module (``"rpud_common.errors"``).
+        with a dot, an absolute module (``"rpud_common.errors"``); ``"plots:admittance"`` exports
+        that module's ``admittance`` under the public name.
 
     Returns
     -------
@@ -27,8 +28,8 @@ def exports(package: str, where: dict[str, str]):
     def __getattr__(name):
         if name not in where:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
-        mod = where[name]
-        value = getattr(import_module(mod) if "." in mod else import_module(f".{mod}", package), name)
+        mod, _, attr = where[name].partition(":")
+        value = getattr(import_module(mod) if "." in mod else import_module(f".{mod}", package), attr or name)
         setattr(sys.modules[package], name, value)     # later lookups skip this function
         return value
 

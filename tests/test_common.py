@@ -70,3 +70,23 @@ def test_cli_parser_usage_error_is_one_line(capsys):
         p.parse_args(["--n", "abc"])
     assert exc.value.code == 2
     assert capsys.readouterr().err.count("\n") == 1
+
+
+def test_results_written_with_umask_022_are_readable_by_others(tmp_path):
+    """A colleague on a shared machine can read a results folder: 0755 folders, 0644 files
+    (temporary files are created 0600 and would keep that mode through the rename)."""
+    import os
+    import stat
+    import subprocess
+    import sys
+
+    out = tmp_path / "shared"
+    out.mkdir()
+    cmd = [sys.executable, "-m", "impact", "--m-free", "0.008", "--members", "8", "--t-end", "0.01",
+           "--json", str(out / "run.json"), "--plots", str(out / "figs")]
+    subprocess.run(cmd, check=True, capture_output=True, preexec_fn=lambda: os.umask(0o022), timeout=300)
+    paths = list(out.rglob("*"))             # what the command created
+    assert len([p for p in paths if p.is_file()]) >= 4
+    for p in paths:
+        mode = stat.S_IMODE(p.stat().st_mode)
+        assert mode == (0o755 if p.is_dir() else 0o644), (p, oct(mode))

@@ -107,6 +107,13 @@ def test_peak_amplitude_scales_with_q_and_is_unbounded_without_loss(system, mode
     assert amp[1] / amp[0] == pytest.approx(10.0, rel=2e-2)
     assert amp[2] / amp[1] == pytest.approx(10.0, rel=2e-2)
     assert amp[2] > 100 * peaks[200.0]
+    # exactly on the resonance a lossless model has no finite answer: refused, resonance named
+    f_exact = f_r
+    with pytest.raises(ParameterError, match=r"resonance .* lossless model: the response is unbounded"):
+        working_point(system, f_exact, 1.0, loss=lossless, surfaces=TIP)
+    basis = modal_basis(system, f_r, 8, loss=lossless, modes=modes)
+    with pytest.raises(ParameterError, match="unbounded"):
+        harmonic_sweep(system, [0.99 * f_exact, f_exact], 1.0, loss=lossless, surfaces=TIP, basis=basis)
 
 
 def test_ring_up_settles_on_the_harmonic_amplitude(system, modes):
@@ -203,3 +210,72 @@ def test_basis_reusing_another_basis_factorisation_is_the_same_basis(system, mod
     a = working_point(system, f_r * 1.001, 1.0, surfaces=TIP, basis=fresh)
     b = working_point(system, f_r * 1.001, 1.0, surfaces=TIP, basis=reused)
     assert b.tip_amplitude_m == pytest.approx(a.tip_amplitude_m, rel=1e-10)
+
+
+# --------------------------------------------------------------------------- wide bands
+
+
+@pytest.fixture(scope="module")
+def k33():
+    from test_fem_util import rod
+
+    return assemble(rod(0.04, 0.001, n_r=1, n_z=20, material="PZT-4", poling=(0, 0, 1), electrodes=True))
+
+
+def test_modal_sweep_over_three_resonances_equals_direct(k33):
+    """20-280 kHz spans the k33 rod's 1st, 3rd and 5th longitudinal resonances: the basis grows
+    until it represents the band, and every probe (peaks and dips included) is within 1 %."""
+    from scipy.signal import find_peaks
+
+    loss = LossModel(100.0, 0.01)
+    f = np.linspace(20e3, 280e3, 521)
+    modal = harmonic_sweep(k33, f, 1.0, loss=loss, surfaces=("top",))
+    y = np.abs(modal.admittance)
+    peaks, dips = find_peaks(y)[0], find_peaks(-y)[0]
+    assert len(peaks) == 3 and len(dips) == 3
+    assert modal.basis_modes > 12 and modal.check_error <= 0.01
+    probe = np.unique(np.r_[peaks, dips, np.linspace(0, len(f) - 1, 6).astype(int)])
+    direct = harmonic_sweep(k33, f[probe], 1.0, loss=loss, surfaces=("top",), method="direct")
+    np.testing.assert_allclose(modal.admittance[probe], direct.admittance, rtol=1e-2)
+    top_m, top_d = modal.surfaces["top"]["axial"][probe], direct.surfaces["top"]["axial"]
+    assert np.max(np.abs(top_m - top_d)) <= 1e-2 * np.max(np.abs(top_d))
+
+
+def test_a_basis_that_cannot_represent_the_band_is_refused(k33):
+    loss = LossModel(100.0, 0.01)
+    narrow = modal_basis(k33, 40e3, 6, loss=loss)
+    with pytest.raises(ParameterError, match=r"freqs.*misses the direct solution.*narrower band"):
+        harmonic_sweep(k33, np.linspace(20e3, 280e3, 53), 1.0, loss=loss, surfaces=("top",), basis=narrow)
+
+
+def test_anti_resonance_with_dielectric_loss_equals_direct(k33):
+    """At the anti-resonance |Y| is of the order of the losses: the loss coupling to the
+    truncated modes must be kept beyond first order (first order: 9 % off with tan delta 0.01)."""
+    loss = LossModel(100.0, 0.01)
+    basis = modal_basis(k33, 45e3, 12, loss=loss)
+    probe = np.array([45e3, 48e3, 50e3, 50.5e3, 51e3])
+    modal = harmonic_sweep(k33, probe, 1.0, loss=loss, surfaces=(), basis=basis, check=False)
+    direct = harmonic_sweep(k33, probe, 1.0, loss=loss, surfaces=(), method="direct")
+    np.testing.assert_allclose(modal.admittance, direct.admittance, rtol=3e-3)
+
+
+def test_harmonic_cli_drives_the_coupled_mode_and_says_what_it_drives(tmp_path, capsys):
+    """Near a k33 rod's resonance several modes lie within 40 %; the drive excites the one with
+    the electromechanical coupling, and an off-resonance --freq is shown as the drive, next to
+    that mode's own f_r and f_a."""
+    import json
+
+    from geometry.examples import k33_rod
+    from fem.harmonic_cli import main
+
+    design = tmp_path / "rod.toml"
+    k33_rod().save(design)
+    out = tmp_path / "h.json"
+    argv = ["--design", str(design), "--surface", "electrode_top", "--points", "11", "--mesh-size", "0.004", "--modes", "4",
+            "--json", str(out)]
+    assert main(argv) == 0
+    first = json.loads(out.read_text())["working_mode"]
+    assert first["k_eff"] > 0.5 and "drive" not in capsys.readouterr().out.splitlines()[0]
+    assert main(argv + ["--freq", "41000"]) == 0
+    line = capsys.readouterr().out.splitlines()[0]
+    assert line.startswith("drive 41000.0 Hz; working mode") and f"f_r {first['f_r_hz']:.1f} Hz" in line

@@ -71,3 +71,42 @@ def test_bad_inputs():
         piezo_matrices("steel_45")
     with pytest.raises(ParameterError, match="unknown"):
         elastic_matrix("unobtainium")
+
+
+def test_a_record_without_q_mech_is_lossless(tmp_path):
+    """q_mech omitted: lossless (the documented default); nonsense still names the field."""
+    import math
+
+    import pytest
+
+    from geometry.materials import load_library
+    from rpud_common import ParameterError
+
+    lib = tmp_path / "m.toml"
+    lib.write_text('[glass]\nkind = "isotropic"\ndensity = 2500.0\nyoungs_modulus = 70e9\npoisson_ratio = 0.22\n')
+    assert math.isinf(load_library(lib)["glass"].q_mech)
+    for bad in ("0.0", "-5.0", "nan", '"high"'):
+        lib.write_text(f'[glass]\nkind = "isotropic"\ndensity = 2500.0\nyoungs_modulus = 70e9\n'
+                       f'poisson_ratio = 0.22\nq_mech = {bad}\n')
+        with pytest.raises(ParameterError, match=r"materials\.glass\.q_mech"):
+            load_library(lib)
+
+
+def test_labels_of_a_user_material_come_from_the_assembled_system(tmp_path):
+    """A material that only the user's library knows: assembly, shares and labels all use the
+    system's own densities (the built-in library is never asked)."""
+    from geometry.materials import load_library
+    from fem.assembly import assemble
+    from fem.modal import modal_analysis
+    from fem.modeshape import classify, energy_shares
+    from test_fem_util import rod
+
+    lib = tmp_path / "m.toml"
+    lib.write_text('[my_steel]\nkind = "isotropic"\ndensity = 7800.0\nyoungs_modulus = 200e9\npoisson_ratio = 0.3\n')
+    system = assemble(rod(0.1, 0.005, n_r=2, n_z=10, material="my_steel"), library=load_library(lib))
+    res = modal_analysis(system, 25e3, 4)
+    assert sorted(res.labels) == ["bending", "bending", "longitudinal", "torsional"]
+    assert classify(energy_shares(system, res.shapes)) == res.labels
+    # free-free rod, first longitudinal mode: c / 2L with c = sqrt(E / rho), within 0.5 %
+    f_long = res.f_r_hz[res.labels.index("longitudinal")]
+    assert abs(f_long / ((200e9 / 7800.0) ** 0.5 / 0.2) - 1) < 5e-3

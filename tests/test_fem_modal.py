@@ -106,7 +106,7 @@ def test_k31_bar_against_ieee176():
     assert res.f_a_hz[i] == pytest.approx(fp, rel=0.005)
     assert res.f_r_hz[i] == pytest.approx(41155, rel=0.01)
     assert res.f_a_hz[i] == pytest.approx(43059, rel=0.01)
-    js = res.to_json()
+    js = res.to_dict()
     assert js["ndof"] == s.ndof and len(js["modes"]) == 4 and "eigen_s" in js["timings"]
 
 
@@ -120,3 +120,18 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path, capsys):
     assert run_cli(main, ["--design", str(tmp_path / "none.toml"), "--near", "20000",
                           "--json", str(out)]) == 2
     assert not out.exists()
+
+
+def test_blas_threads_limits_openblas_only_inside_the_block():
+    from threadpoolctl import threadpool_info
+
+    from fem.solvers import blas_threads
+
+    def openblas():
+        return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "openblas"]
+
+    before = openblas()
+    assert before, "numpy/scipy bundle OpenBLAS on every supported platform"
+    with blas_threads(1):
+        assert openblas() == [1] * len(before)
+    assert openblas() == before

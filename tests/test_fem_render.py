@@ -96,3 +96,16 @@ def test_bad_input(tm, tmp_path):
     with pytest.raises(ParameterError, match="modes"):
         render_modes(tm, f["axial"], tmp_path, modes=[3])
     assert not any(tmp_path.iterdir())
+
+
+def test_rendering_leaves_no_global_state(tm, tmp_path, monkeypatch):
+    # a notebook user's pyvista flag and environment must survive a render from the library
+    import os
+
+    import pyvista as pv
+
+    monkeypatch.setattr(pv, "OFF_SCREEN", False)
+    env = dict(os.environ)
+    render_mode(tm, fields(tm)["bending"], tmp_path / "b.png", window_size=(160, 100))
+    assert pv.OFF_SCREEN is False
+    assert dict(os.environ) == env

@@ -16,7 +16,7 @@ from impact.params import ImpactParams
 from impact.stats import (
     Scenario, StatsSettings, ensemble_members, ensemble_statistics, mean_ci, ratio_ci,
 )
-from impact.sweep import linear_fit, sweep
+from impact.sweeps import linear_fit, sweep
 
 # --------------------------------------------------------------------------- estimators
 
@@ -116,7 +116,7 @@ def test_device_scenario_never_rests_on_the_tool():
 
 def test_sweep_of_one_mass_and_one_member_writes_clean_json():
     sw = sweep(None, [0.004], settings=StatsSettings(n_start=1, n_max=1))
-    doc = json.dumps(sw.to_json_dict(), allow_nan=False)
+    doc = json.dumps(sw.to_dict(), allow_nan=False)
     assert '"reason"' in doc and sw.fit.n == 1
     assert sw.csv().count("\n") == 2
 

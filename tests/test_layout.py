@@ -162,3 +162,20 @@ def test_every_public_name_resolves(package):
     for name in mod.__all__:
         assert getattr(mod, name) is not None, name
     assert set(mod.__all__) <= set(dir(mod))
+
+
+@pytest.mark.parametrize("package", ["rpud_common", "geometry", "fem", "impact", "results"])
+def test_no_public_name_is_shadowed_by_a_submodule(package):
+    """Importing a submodule binds its name on the package: a public function named like a
+    submodule (``impact.sweep`` when the module was ``impact/sweep.py``) would turn into that
+    module as soon as anything imported it."""
+    import importlib
+    import pkgutil
+    import types
+
+    mod = importlib.import_module(package)
+    subs = {m.name for m in pkgutil.iter_modules(mod.__path__)}
+    clash = sorted(n for n in mod.__all__ if n in subs)
+    assert not clash, f"{package}: public names that are also submodules: {clash}"
+    for name in mod.__all__:
+        assert not isinstance(getattr(mod, name), types.ModuleType), name

@@ -17,10 +17,24 @@ SETTINGS = PipelineSettings(mesh_size=0.008, m_free_values=(0.0, 0.002, 0.008), 
 
 
 @pytest.fixture(scope="module")
-def run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("run")
-    summary = run_pipeline(DESIGN, SETTINGS, out)
-    return out, summary
+def result(tmp_path_factory):
+    return run_pipeline(DESIGN, SETTINGS, tmp_path_factory.mktemp("run"))
+
+
+@pytest.fixture(scope="module")
+def run(result):
+    return result.folder, result.summary
+
+
+def test_pipeline_result_shows_the_headline_and_saves_the_folder(result, tmp_path):
+    s = result.summary
+    text = repr(result)
+    assert text.startswith("PipelineResult(") and len(text) < 400
+    assert f"{s['working_mode']['f_r_hz']:.1f} Hz" in text and "95 % CI" in text
+    assert result.to_dict() == json.loads((result.folder / "summary.json").read_text())
+    copy = result.save(tmp_path / "copy")
+    assert sorted(p.relative_to(copy) for p in copy.rglob("*")) == sorted(
+        p.relative_to(result.folder) for p in result.folder.rglob("*"))
 
 
 def test_pipeline_writes_every_promised_file(run):
@@ -52,7 +66,9 @@ def test_pipeline_numbers_are_consistent(run):
     # handed to the impacts rounded to 4 significant digits (reproducibility): within 5e-4
     assert a0["unloaded_m"] == pytest.approx(h["tip_amplitude_m"], rel=5e-4)
     assert a0["unloaded_m"] == float(f"{a0['unloaded_m']:.3e}")
-    assert a0["frequency_hz"] == pytest.approx(wm["f_r_hz"])
+    # the impacts run at the working resonance, handed over to 6 significant digits
+    f_imp = s["impacts"]["handoff"]["freq_hz"]
+    assert s["impacts"]["params"]["freq"] == f_imp == float(f"{wm['f_r_hz']:.5e}")
 
 
 def test_kinetic_energy_grows_with_free_mass(run):
@@ -87,7 +103,7 @@ def test_coupled_model_beside_the_kinematic_results(run):
 def test_rerun_gives_identical_json(run, tmp_path):
     """Same command, same machine: every number identical (timings aside)."""
     out, first = run
-    second = run_pipeline(DESIGN, SETTINGS, tmp_path / "again")
+    second = run_pipeline(DESIGN, SETTINGS, tmp_path / "again").summary
     a = _without_timings(json.loads((out / "summary.json").read_text()))
     b = _without_timings(json.loads((tmp_path / "again" / "summary.json").read_text()))
     assert a == b and second["A0"]["used_m"] == first["A0"]["used_m"]

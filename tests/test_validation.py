@@ -400,3 +400,12 @@ def test_atomic_folder_needs_an_existing_parent(tmp_path):
         with atomic_folder(tmp_path / "nodir" / "res"):
             pass
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("field, value", [("band", 0.7), ("band", 0.0), ("band", math.nan), ("n_points", 2),
+                                          ("n_points", 10.5), ("voltage", -1.0), ("handoff_digits", 13)])
+def test_pipeline_settings_name_the_bad_field(field, value):
+    from results.pipeline import PipelineSettings
+
+    with pytest.raises(ParameterError, match=field):
+        PipelineSettings(**{field: value})

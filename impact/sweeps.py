@@ -16,9 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from rpud_common import ParameterError, check_positive
+from rpud_common.result import Result
 
 from .params import ImpactParams
-from .stats import QUANTITIES, EnsembleStats, Scenario, StatsSettings, ensemble_batch, get_scenario
+from .stats import QUANTITIES, EnsembleStats, Estimate, Scenario, StatsSettings, ensemble_batch, get_scenario
 
 __all__ = ["sweep", "SweepResult", "linear_fit", "LineFit"]
 
@@ -74,8 +75,8 @@ def linear_fit(x, y) -> LineFit:
     return LineFit(float(res.slope), float(res.intercept), r2, float(t.ppf(0.975, n - 2) * res.stderr), n)
 
 
-@dataclass
-class SweepResult:
+@dataclass(repr=False)
+class SweepResult(Result):
     """Ensemble statistics per free mass, and the line of mean tool KE against mass.
 
     Attributes
@@ -131,7 +132,14 @@ class SweepResult:
             lines.append(",".join(vals))
         return "\n".join(lines) + "\n"
 
-    def to_json_dict(self) -> dict:
+    def _headline(self) -> str:
+        m = self.m_free * 1e3
+        f = self.fit
+        slope = f"{Estimate(f.slope, f.slope_ci95, f.n)} J/kg"
+        return (f"{self.scenario.name}, {len(self.rows)} masses {m.min():g}-{m.max():g} g: tool KE slope {slope}, "
+                f"{'converged' if self.converged else 'NOT converged'} (95 % CI)")
+
+    def _record(self) -> dict:
         return {"params": self.base.to_dict(), "scenario": self.scenario.to_dict(),
                 "statistics": {"rel_tol": self.settings.rel_tol, "n_start": self.settings.n_start,
                                "n_max": self.settings.n_max, "seed": self.settings.seed,
