@@ -6,12 +6,12 @@ STAMP  := $(VENV)/.installed-stamp
 
 .PHONY: run test bench install clean
 
-$(STAMP): pyproject.toml impact/kernel.py
+$(STAMP): pyproject.toml impact/kernel.py impact/kernel_modal.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 	$(PY) -m pip install --quiet -e '.[test]'
 	# compile the impact kernel now (numba caches it beside the source): runs start at once
-	$(PY) -c "from impact.kernel import warmup; warmup()"
+	$(PY) -c "from impact.kernel import warmup; warmup(); from impact.kernel_modal import warmup as w; w()"
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -10,7 +10,9 @@ Public API (loaded on first use, so ``import impact`` stays light)::
     sw = sweep(p, [0.002, 0.004, 0.008], scenario="article")   # tool KE against free mass
 
 See :mod:`impact.model` (the model and its corrections to the article), :mod:`impact.stats`
-(ensembles, confidence intervals, scenarios) and :mod:`impact.sweeps`.
+(ensembles, confidence intervals, scenarios) and :mod:`impact.sweeps`; :mod:`impact.coupled`
+runs the model with a modal horn (:class:`impact.horn.ModalHorn`, e.g. the FE transducer reduced
+by ``fem.reduced``) in place of the kinematic tip.
 """
 
 from rpud_common.lazy import exports
@@ -19,6 +21,7 @@ _WHERE = {"ImpactParams": "params", "simulate": "model", "ImpactResult": "model"
           "ensemble_statistics": "stats", "EnsembleStats": "stats", "Estimate": "stats", "Scenario": "stats",
           "SCENARIOS": "stats", "StatsSettings": "stats", "sweep": "sweeps", "SweepResult": "sweeps",
           "reproduce": "article", "plot_history": "plots", "plot_spectrum": "plots", "plot_ke_vs_mass": "plots",
-          "plot_tool_ke_history": "plots"}
+          "plot_tool_ke_history": "plots", "ModalHorn": "horn", "simulate_coupled": "coupled",
+          "CoupledResult": "coupled", "coupled_batch": "coupled", "HuntCrossley": "contact"}
 __all__ = list(_WHERE)
 __getattr__, __dir__ = exports(__name__, _WHERE)

@@ -38,6 +38,10 @@ def build_parser() -> CliParser:
     p.add_argument("--max-members", type=int, default=4096, metavar="N",
                    help="impact statistics: cap of the members per free mass (default 4096)")
     p.add_argument("--seed", type=int, default=20260, metavar="N", help="seed of the ensemble members (default 20260)")
+    p.add_argument("--no-coupled-model", action="store_true",
+                   help="skip the coupled model (FE transducer in the impact loop); kinematic-horn results only")
+    p.add_argument("--coupled-modes", type=int, default=None, metavar="N",
+                   help="modes of the reduced transducer in the coupled model (default: tip-participation rule)")
     p.add_argument("--no-render", action="store_true", help="skip the mode-shape PNGs and the VTU")
     p.add_argument("--allow-large", action="store_true",
                    help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
@@ -57,6 +61,8 @@ def check_options(args) -> None:
 
     check_integer("--max-members", args.max_members, 1, MAX_MEMBERS)
     check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
+    if args.coupled_modes is not None:
+        check_integer("--coupled-modes", args.coupled_modes, 1, 12)
 
 
 def main(argv=None) -> int:
@@ -71,7 +77,8 @@ def main(argv=None) -> int:
     settings = PipelineSettings(voltage=args.voltage, q_mech=None if args.q_mech == 0 else args.q_mech,
                                 mesh_size=args.mesh_size, match=not args.no_match,
                                 couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
-                                impact_max_members=args.max_members, seed=args.seed, render=not args.no_render)
+                                impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
+                                coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes)
     design = geometry.load_design(args.design) if args.design is not None else geometry.default_design()
     if args.out is not None:
         out = Path(args.out)

@@ -76,6 +76,9 @@ class PipelineSettings:
     band : half-width of the admittance band around [f_r, f_a], relative
     n_points : frequencies in the admittance sweep
     render : write mode-shape PNGs and the VTU
+    coupled_model : run the coupled model (FE transducer in the impact loop) beside the kinematic horn
+    coupled_modes : modes of the reduced transducer (None: the tip-participation rule of fem.reduced)
+    coupled_history_s : length of the coupled ring-up history with the reference free mass, s
     """
 
     voltage: float = 225.0
@@ -92,6 +95,9 @@ class PipelineSettings:
     band: float = 0.03
     n_points: int = 200
     render: bool = True
+    coupled_model: bool = True
+    coupled_modes: int | None = None
+    coupled_history_s: float = 0.05
 
     def __post_init__(self):
         check_positive("voltage", self.voltage, "V")
@@ -110,6 +116,9 @@ class PipelineSettings:
         check_integer("handoff_digits", self.handoff_digits, 2, 12)
         check_range("band", self.band, 0.0, 0.5, lo_open=True)
         check_integer("n_points", self.n_points, 3)
+        if self.coupled_modes is not None:
+            check_integer("coupled_modes", self.coupled_modes, 1, 64)
+        check_range("coupled_history_s", self.coupled_history_s, 1e-3, 1.0, "s")
 
     def impact_settings(self):
         """The ensemble rule of the impact statistics."""
@@ -385,6 +394,18 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
                               settings=stats_settings),
     }
     timings["impacts_s"] = time.perf_counter() - t0
+    # 5b. the coupled model: the FE transducer in the impact loop, beside the kinematic horn
+    t0 = time.perf_counter()
+    coupled_model = None
+    if settings.coupled_model:
+        from .coupled import coupled_stage
+
+        coupled_model = coupled_stage(
+            system, basis, f_imp, w, settings.voltage, base, masses, stats_settings, sweeps["device_fe"].rows,
+            {m: coupled[m].A0 for m in masses}, wp.tip_amplitude_m, wp.power_w, f_w, f_a,
+            n_modes=settings.coupled_modes, history_s=settings.coupled_history_s,
+            reference_m_free=settings.reference_m_free, say=say)
+    timings["coupled_s"] = time.perf_counter() - t0
     top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in sweeps.items()}
     say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']}, "
         f"article scenario {top['article_fe']} (FE A0), {top['article_15um']} (A0 = 15 um)")
@@ -413,6 +434,16 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
                            "kinetic_energy_vs_free_mass.png"),
         "a0_coupling": (figures.a0_coupling(coupled), "a0_vs_free_mass.png"),
     }
+    if coupled_model is not None:
+        from . import coupled_figures as cf
+
+        drawn["coupled_tip_envelope"] = (cf.tip_envelope(coupled_model["history"]["result"], wp.tip_amplitude_m),
+                                         "coupled_tip_envelope.png")
+        drawn["ke_three_horn_models"] = (cf.ke_three_models(coupled_model["kinematic"], sweeps["device_fe"].rows,
+                                                            coupled_model["stats"]),
+                                         "ke_vs_free_mass_three_horn_models.png")
+        drawn["coupled_drive_power"] = (cf.drive_power(coupled_model["stats"], wp.power_w),
+                                        "drive_power_vs_free_mass.png")
     figs = {key: save_figure(axes, fig_dir / name) for key, (axes, name) in drawn.items()}
     ke_table = ke_rows(sweeps, 0.0 in settings.m_free_values, coupled)
     timings["figures_s"] = time.perf_counter() - t0
@@ -450,6 +481,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
                     "sample_run_50ms": {"note": "one sample trajectory (device scenario, chaotic)",
                                         **hist_ref.summary()}},
         "kinetic_energy_table": ke_table,
+        "coupled_model": coupled_model["json"] if coupled_model is not None else None,
         "files": {"figures": {k: str(Path(v).relative_to(out)) for k, v in figs.items()},
                   "renders": [str(Path(p).relative_to(out)) for p in renders],
                   "vtu": str(Path(vtu).relative_to(out)) if vtu else None},

@@ -83,6 +83,23 @@ def test_kinetic_energy_grows_with_free_mass(run):
         assert table[0.008][key]["converged"]
 
 
+def test_coupled_model_beside_the_kinematic_results(run):
+    """The coupled model (issue 12): its figures are written, the impacts lower the tip amplitude
+    below the unloaded harmonic one and the loading grows with the free mass, the ring-up history
+    closes its energy balance, and the power drawn stays below the unloaded drive's."""
+    out, s = run
+    cm = s["coupled_model"]
+    assert {"coupled_tip_envelope", "ke_three_horn_models", "coupled_drive_power"} <= set(s["files"]["figures"])
+    rows = {r["m_free_kg"]: r for r in cm["rows"]}
+    unloaded = s["harmonic"]["tip_amplitude_m"]
+    amp = {m: r["coupled"]["tip_amplitude_m"] for m, r in rows.items()}
+    assert amp[0.008]["ci95"][1] < amp[0.002]["ci95"][0] < amp[0.002]["ci95"][1] < unloaded
+    assert rows[0.008]["coupled"]["drive_power_w"]["mean"] < s["harmonic"]["power_w"]
+    for r in cm["history"]["energy_balance"]:
+        assert abs(r["residual_j"]) <= 1e-6 * r["drive_j"]
+    assert cm["reduced_transducer"]["mode_index"][cm["reduced_transducer"]["working"]] == s["working_mode"]["index"]
+
+
 def test_rerun_gives_identical_json(run, tmp_path):
     """Same command, same machine: every number identical (timings aside)."""
     out, first = run

@@ -1,0 +1,303 @@
+"""Wiring of the coupled model: the FE reduced transducer (``fem.reduced``) as the impact model's
+modal horn (``impact.horn.ModalHorn``), and the coupled ensemble statistics.
+
+``fem`` and ``impact`` do not know each other; this module (allowed to import both) converts
+one into the other.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from impact.horn import ModalHorn
+
+log = logging.getLogger(__name__)
+
+__all__ = ["horn_from_reduced", "build_transducer", "FeTransducer", "rounded"]
+
+
+def horn_from_reduced(reduced, voltage: float, start: str = "rest") -> ModalHorn:
+    """The impact model's modal horn from a :class:`fem.reduced.ReducedTransducer`.
+
+    Parameters
+    ----------
+    reduced : fem.reduced.ReducedTransducer
+        Modes kept, losses (viscous at the drive), couplings, tip participations, residual.
+    voltage : float
+        Drive amplitude, V.
+    start : {"rest", "steady"}
+        Modal state at t = 0.
+
+    Returns
+    -------
+    ModalHorn
+        Its drive frequency is ``reduced.freq_hz`` (pass it as ``ImpactParams.freq``).
+    """
+    return ModalHorn(omega=reduced.omega, zeta=reduced.zeta, modal_mass=reduced.modal_mass, tip=reduced.tip,
+                     coupling_re=reduced.coupling_re, coupling_im=reduced.coupling_im, voltage=float(voltage),
+                     residual_re=float(reduced.residual_re), residual_im=float(reduced.residual_im),
+                     blocked_charge_re=float(reduced.blocked_charge_re),
+                     blocked_charge_im=float(reduced.blocked_charge_im), start=start)
+
+
+def round_sig(x: float, digits: int) -> float:
+    """``x`` rounded to ``digits`` significant digits (the hand-off to the chaotic stage)."""
+    if x == 0 or not np.isfinite(x):
+        return float(x)
+    return float(f"{x:.{digits - 1}e}")
+
+
+def rounded(reduced, digits: int = 6):
+    """The reduced transducer with every number rounded to ``digits`` significant digits: the
+    chaotic impact stage must not see the last-bit scatter of threaded FE solvers (reruns give
+    identical numbers; 1e-6 is far below the FE discretisation error)."""
+    from fem.reduced import ReducedTransducer
+
+    d = reduced.to_dict()
+    for k, v in d.items():
+        if k in ("mode_index", "working", "tip_surface", "rule"):
+            continue
+        d[k] = [round_sig(x, digits) for x in v] if isinstance(v, list) else round_sig(v, digits)
+    return ReducedTransducer.from_dict(d)
+
+
+@dataclass
+class FeTransducer:
+    """The FE side of a coupled run: the reduced transducer and what it came from.
+
+    Attributes
+    ----------
+    reduced : fem.reduced.ReducedTransducer
+    f_r_hz, f_a_hz : float
+        Resonance / anti-resonance of the working mode, Hz.
+    freq_hz : float
+        Drive frequency, Hz.
+    tip_amplitude_m : float
+        Unloaded steady tip amplitude at the drive (direct modal-basis working point), m.
+    power_w : float
+        Unloaded electrical input power at the drive, W.
+    info : dict
+        Mesh size, modes, timings (JSON-ready).
+    """
+
+    reduced: object
+    f_r_hz: float
+    f_a_hz: float
+    freq_hz: float
+    tip_amplitude_m: float
+    power_w: float
+    info: dict = field(default_factory=dict)
+
+
+def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, freq_hz: float | None = None,
+                     n_modes: int | None = None, match: bool = False, mesh_size: float | None = None,
+                     progress=None) -> FeTransducer:
+    """Mesh, (match,) modal analysis, harmonic basis and the reduced transducer of a design.
+
+    Parameters
+    ----------
+    design : geometry design
+    voltage : float
+        Drive amplitude, V.
+    q_mech : float or None
+        Assembled-transducer quality factor (None: datasheet losses), as the pipeline.
+    freq_hz : float, optional
+        Drive frequency, Hz; default: the working mode's resonance (6 significant digits). Must lie
+        within 10 % of it (the modal basis covers the band around the working mode).
+    n_modes : int, optional
+        Modes kept (default: the tip-participation rule of :mod:`fem.reduced`).
+    match : bool
+        Run the resonance matching first (about 35 s) instead of analysing the design as it is.
+    mesh_size : float, optional
+        Mesh size override, m.
+    """
+    import time
+
+    import geometry
+    from fem.harmonic import LossModel, modal_basis, working_point
+    from fem.matching import MatchSettings, match as run_match, working_mode
+    from fem.modal import modal_analysis
+    from fem.reduced import reduce_transducer
+    from rpud_common import ParameterError
+
+    say = progress or (lambda msg: log.info("%s", msg))
+    t0 = time.perf_counter()
+    target = float(design.target_frequency)
+    mesh = geometry.build_mesh(design, mesh_size=mesh_size)
+    if match:
+        m = run_match(design, MatchSettings(target_hz=target, mesh_size=mesh_size), mesh=mesh)
+        mesh, system, modal, w = m.mesh, m.system, m.modal, m.working_index
+    else:
+        from fem.assembly import assemble
+
+        system = assemble(mesh)
+        modal = modal_analysis(system, target, 12)
+        w = working_mode(system, modal.f_r_hz, modal.vectors, target)
+    f_r, f_a = float(modal.f_r_hz[w]), float(modal.f_a_hz[w])
+    say(f"      working mode {w + 1}: f_r = {f_r:.1f} Hz, f_a = {f_a:.1f} Hz ({time.perf_counter() - t0:.1f} s)")
+    f = round_sig(f_r, 6) if freq_hz is None else float(freq_hz)
+    if not abs(f / f_r - 1.0) <= 0.1:
+        raise ParameterError("freq", f, f"must lie within 10 % of the working resonance {f_r:.1f} Hz")
+    loss = LossModel(q_mech=q_mech)
+    basis = modal_basis(system, f_r, loss=loss, modes=modal)
+    if n_modes is not None and n_modes > len(basis.lam):
+        raise ParameterError("modes", n_modes, f"must be at most {len(basis.lam)} (the modal basis)")
+    red = rounded(reduce_transducer(system, basis, f, n_modes=n_modes, working=int(w)))
+    wp = working_point(system, f, voltage, loss=loss, surfaces=("horn_tip",), basis=basis)
+    say(f"      reduced transducer: {red.rule}; modes at " + ", ".join(f"{x / 2e3 / np.pi:.2f}" for x in red.omega)
+        + f" kHz; tip mass {1 / np.sum(red.tip ** 2 / red.modal_mass) * 1e3:.1f} g; unloaded tip "
+          f"{wp.tip_amplitude_m * 1e6:.2f} um at {voltage:g} V, {f:.1f} Hz")
+    info = {"mesh": {"tetrahedra": mesh.n_cells, "nodes": mesh.n_points, "ndof": system.ndof},
+            "matched": bool(match), "working_mode": int(w), "modal_f_r_hz": [float(x) for x in modal.f_r_hz],
+            "q_mech": q_mech, "fe_seconds": time.perf_counter() - t0}
+    return FeTransducer(red, f_r, f_a, f, wp.tip_amplitude_m, float(wp.power_w), info)
+
+
+def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, intervals: int = 5) -> dict:
+    """Ring-up from rest with the free mass in place: one coupled run of ``t_end`` s.
+
+    Returns a dict: ``result`` (:class:`impact.coupled.CoupledResult`, with series), ``lines``
+    (terminal summary), ``json`` (envelope, energy balance per interval, drive power and current,
+    impact counts; JSON-ready).
+    """
+    from impact.coupled import simulate_coupled
+
+    horn = horn_from_reduced(fe.reduced, voltage, start="rest")
+    p = params.with_(t_end=t_end, freq=fe.freq_hz)
+    res = simulate_coupled(p, horn, series=True)
+    tc, env = res.envelope(4)
+    edges = np.linspace(0.0, t_end, intervals + 1)
+    rows = res.energy_balance(edges)
+    tail = (0.8 * t_end, t_end)
+    power, i_rms = res.drive_power(*tail)
+    amp_tail = res.mean_amplitude(*tail)
+    imp = res.impact
+    lines = [f"      {imp.tool_impacts} tool and {imp.horn_impacts} horn impacts; tip amplitude over the last "
+             f"{(tail[1] - tail[0]) * 1e3:.0f} ms {amp_tail * 1e6:.3f} um (unloaded {fe.tip_amplitude_m * 1e6:.3f} um); "
+             f"drive {power:.2f} W, {i_rms:.3f} A rms (unloaded {fe.power_w:.2f} W)",
+             "      energy per interval (mJ): " + "  ".join(
+                 ["electrical", "to modes", "damping", "stored", "to free mass", "to tool", "restitution",
+                  "riding", "balance"])]
+    for r in rows:
+        lines.append(f"      {r['t_from_s'] * 1e3:5.1f}-{r['t_to_s'] * 1e3:5.1f} ms: " + "  ".join(
+            f"{1e3 * r[k]:.4g}" for k in ("electric_j", "drive_j", "damping_j", "stored_change_j", "to_free_mass_j",
+                                          "to_tool_j")) + f"  {1e3 * (r['restitution_horn_j'] + r['restitution_tool_j']):.4g}"
+            f"  {1e3 * r['riding_j']:.3g}  {r['residual_j']:.1e} J")
+    doc = {"t_end_s": t_end, "horn_start": "rest", "modes": fe.reduced.n_modes,
+           "tool_impacts": imp.tool_impacts, "horn_impacts": imp.horn_impacts,
+           "envelope": {"t_s": tc.tolist(), "amplitude_m": env.tolist(), "window_cycles": 4},
+           "energy_balance": rows,
+           "tail": {"t_from_s": tail[0], "t_to_s": tail[1], "tip_amplitude_m": amp_tail, "drive_power_w": power,
+                    "drive_current_rms_a": i_rms},
+           "horn_impact_times_s": imp.t[~imp.is_tool].tolist(), "tool_impact_times_s": imp.t[imp.is_tool].tolist()}
+    return {"result": res, "lines": lines, "json": doc}
+
+
+def coupled_stage(system, basis, freq_hz: float, working: int, voltage: float, base, masses, stats_settings,
+                  damper_stats: list, damper_amplitudes: dict, unloaded_m: float, unloaded_power_w: float,
+                  f_r_hz: float, f_a_hz: float, *, n_modes: int | None = None, history_s: float = 0.05,
+                  reference_m_free: float = 0.008, say=None) -> dict:
+    """The pipeline's coupled-model stage: the FE transducer in the impact loop, next to the
+    kinematic horn (unloaded FE amplitude) and the damper-corrected amplitude.
+
+    Parameters
+    ----------
+    system, basis : the FE system and the harmonic modal basis of the run
+    freq_hz : drive frequency handed to the impacts, Hz
+    working : index of the working mode in the basis
+    voltage : drive amplitude, V
+    base : impact.params.ImpactParams of the run (``m_free`` and ``A0`` replaced per case)
+    masses : free masses, kg
+    stats_settings : impact.stats.StatsSettings
+    damper_stats : EnsembleStats per mass of the kinematic horn at the damper-corrected amplitude
+        (device scenario)
+    damper_amplitudes : mass -> damper-corrected amplitude, m
+    unloaded_m, unloaded_power_w : unloaded harmonic tip amplitude (m) and power (W)
+    n_modes : modes kept (default: the tip-participation rule)
+    history_s : ring-up history length, s
+
+    Returns
+    -------
+    dict with ``json`` (summary part), ``stats`` (coupled EnsembleStats per mass), ``kinematic``
+    (EnsembleStats per mass, kinematic horn at the unloaded amplitude), ``history``
+    (coupled_history output), ``reduced``.
+    """
+    from fem.reduced import reduce_transducer
+    from impact.coupled import coupled_batch
+    from impact.stats import ensemble_batch
+
+    say = say or (lambda msg: log.info("%s", msg))
+    red = rounded(reduce_transducer(system, basis, freq_hz, n_modes=n_modes, working=int(working)))
+    fe = FeTransducer(red, f_r_hz, f_a_hz, freq_hz, unloaded_m, unloaded_power_w, {})
+    horn = horn_from_reduced(red, voltage, start="steady")
+    cases = [base.with_(m_free=m, freq=freq_hz) for m in masses]
+    stats = coupled_batch(cases, horn, "device", stats_settings)
+    kin = ensemble_batch([c.with_(A0=round_sig(unloaded_m, 4)) for c in cases], "device", stats_settings)
+    hist = coupled_history(fe, base.with_(m_free=reference_m_free, freq=freq_hz, spring_force=5.0), voltage,
+                           history_s)
+    rows = []
+    for m, c, k, d in zip(masses, stats, kin, damper_stats):
+        amp = c.estimates["tip_amplitude_m"]
+        a_d = damper_amplitudes[m]
+        rows.append({
+            "m_free_kg": m, "members": c.members, "converged": c.converged, "note": c.note,
+            "coupled": {q: c.estimates[q].to_dict() for q in ("tip_amplitude_m", "mean_tool_ke_after_j",
+                                                               "tool_impact_rate_hz", "tool_power_w", "horn_power_w",
+                                                               "drive_power_w", "damping_power_w", "frac_on_horn")},
+            "kinematic_unloaded": {"A0_m": round_sig(unloaded_m, 4),
+                                   "mean_tool_ke_after_j": k.estimates["mean_tool_ke_after_j"].to_dict()},
+            "damper": {"A0_m": a_d, "mean_tool_ke_after_j": d.estimates["mean_tool_ke_after_j"].to_dict()},
+            "amplitude_damper_minus_coupled_m": a_d - amp.mean,
+            "amplitude_within_ci": bool(abs(a_d - amp.mean) <= amp.half_width),
+        })
+    r8 = rows[-1]
+    say(f"      coupled model ({red.n_modes} modes: {red.rule}): at {masses[-1] * 1e3:g} g tip "
+        f"{r8['coupled']['tip_amplitude_m']['mean'] * 1e6:.2f} um (damper {r8['damper']['A0_m'] * 1e6:.2f} um), tool KE "
+        f"{r8['coupled']['mean_tool_ke_after_j']['mean'] * 1e3:.2f} mJ (damper "
+        f"{r8['damper']['mean_tool_ke_after_j']['mean'] * 1e3:.2f}, kinematic unloaded "
+        f"{r8['kinematic_unloaded']['mean_tool_ke_after_j']['mean'] * 1e3:.2f}), drive "
+        f"{r8['coupled']['drive_power_w']['mean']:.1f} W")
+    doc = {"reduced_transducer": red.to_dict(), "tip_mass_kg": horn.tip_mass, "scenario": "device",
+           "horn_start_for_statistics": "steady", "rows": rows, "history": hist["json"]}
+    return {"json": doc, "stats": stats, "kinematic": kin, "history": hist, "reduced": red}
+
+
+def history_csv(res) -> str:
+    """The sampled history of a coupled run as CSV text: time (s), tip displacement (m) and velocity
+    (m/s), free mass and tool face positions (m), drive voltage (V) and current (A)."""
+    import io
+
+    from impact.coupled import _states_on
+
+    t = res.t_grid
+    _, qd, qdd = _states_on(res, t)
+    W = 2 * np.pi * res.freq_hz
+    V = res.horn.voltage * np.sin(W * t)
+    current = res.horn.drive_current(res.freq_hz, t, qd, qdd)
+    cols = np.column_stack([t, res.u, res.tip_velocity, res.impact.w, res.impact.tool_face, V, current])
+    buf = io.StringIO()
+    buf.write("t_s,tip_m,tip_velocity_m_per_s,free_mass_m,tool_face_m,voltage_v,current_a\n")
+    np.savetxt(buf, cols, delimiter=",", fmt="%.10g")
+    return buf.getvalue()
+
+
+def contact_from_design(design, m_free: float, restitution: float, free_mass_material: str = "steel_45"):
+    """Hunt-Crossley horn contact from the design: the horn tip's material (``design.horn.material``)
+    against a free mass taken as a sphere of ``free_mass_material`` with the mass ``m_free`` (its
+    radius is the contact radius; the tip face is flat).
+
+    Returns
+    -------
+    impact.contact.HuntCrossley
+    """
+    from geometry.materials import get_material
+    from impact.contact import HuntCrossley, hertz_stiffness
+
+    horn = get_material(design.horn.material)
+    ball = get_material(free_mass_material)
+    radius = (3.0 * m_free / (4.0 * np.pi * ball.density)) ** (1.0 / 3.0)
+    k = hertz_stiffness(horn.youngs_modulus, horn.poisson_ratio, ball.youngs_modulus, ball.poisson_ratio, radius)
+    return HuntCrossley(k, restitution)

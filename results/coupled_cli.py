@@ -1,0 +1,154 @@
+"""``python -m impact --horn fem``: the impact model with the FE transducer in the loop.
+
+``impact`` may not import ``fem``; its entry point hands ``--horn fem`` to this module (by name),
+which builds the reduced transducer from the design (:func:`results.coupled.build_transducer`)
+and runs the coupled model (:mod:`impact.coupled`). Outputs:
+
+* the ring-up from rest with the free mass in place (``--history`` s): tip displacement history,
+  running amplitude envelope (fundamental over 4-cycle windows), energy balance per interval,
+  drive power and current;
+* drill-tool statistics as in the statistics issue (converged ensemble means with 95 % CIs),
+  with the tip amplitude, electrical power drawn and damping loss, in steady operation (modes
+  started on their steady response; the scenario's window).
+
+All options SI. Bad input: one line on stderr, exit 2, nothing written.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from rpud_common import (CliParser, ParameterError, atomic_write_text, check_integer, check_output_paths, check_range,
+                         setup_logging, write_json)
+
+
+def _parser() -> CliParser:
+    from impact.cli import _add_params, _real
+
+    ap = CliParser(prog="python -m impact --horn fem",
+                   description="Impact model with the FE transducer in the loop: the design's modes that carry "
+                               "tip motion, driven at V sin(2 pi f t), exchange impulses with the free mass (exact "
+                               "event-driven coupling). Tool statistics as ensemble means with 95 % CIs.")
+    ap.add_argument("--horn", choices=["fem"], required=True, help="fem: the reduced FE transducer (this command)")
+    ap.add_argument("--design", metavar="TOML", help="design file (default: the built-in RPUD design)")
+    ap.add_argument("--voltage", type=_real, default=225.0, metavar="V", help="drive amplitude, V (default 225)")
+    ap.add_argument("--freq", type=_real, default=None, metavar="HZ",
+                    help="drive frequency, Hz (default: the working mode's resonance)")
+    ap.add_argument("--q-mech", type=_real, default=100.0, metavar="Q",
+                    help="assembled-transducer quality factor (default 100; 0 = datasheet losses)")
+    ap.add_argument("--modes", type=int, default=None, metavar="N",
+                    help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
+    ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
+    ap.add_argument("--mesh-size", type=_real, default=None, metavar="M", help="mesh size, m")
+    ap.add_argument("--contact", choices=["newton", "hunt-crossley"], default="newton",
+                    help="horn contact: newton = instantaneous impact with restitution e2 (default); hunt-crossley = "
+                         "Hertz contact (horn material vs a steel sphere of the free mass) with Hunt-Crossley damping "
+                         "matching e2, integrated through each contact (statistics only: no history)")
+    ap.add_argument("--history", type=_real, default=0.05, metavar="S",
+                    help="length of the ring-up history from rest with the free mass in place, s (default 0.05)")
+    _add_params(ap, skip=("A0", "freq", "m_horn"))
+    ap.add_argument("--json", metavar="PATH", help="write the reduced transducer, history summary, energy balance "
+                                                   "and statistics as JSON")
+    ap.add_argument("--history-csv", dest="history_csv", metavar="PATH",
+                    help="write the ring-up history sampled every --sample-dt (tip, free mass, tool face, drive "
+                         "voltage and current) as CSV")
+    ap.add_argument("--sample-dt", dest="sample_dt", type=_real, default=None, metavar="S",
+                    help="sample spacing of the history, s (default 2.5e-6)")
+    ap.add_argument("--plots", metavar="DIR", help="write tip_envelope.png and displacement.png here")
+    return ap
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    setup_logging(-1)
+    ns = _parser().parse_args(argv)
+    from impact.cli import _params, _print_stats, _progress, _scenario, _settings, _threads
+
+    check_range("--voltage", ns.voltage, 1e-3, 1e4, "V")
+    if ns.q_mech != 0:
+        check_range("--q-mech", ns.q_mech, 1.0, 1e6, "(0 = datasheet values)")
+    if ns.freq is not None:
+        check_range("--freq", ns.freq, 1.0, 1e6, "Hz")
+    if ns.modes is not None:
+        check_integer("--modes", ns.modes, 1, 12)
+    if ns.mesh_size is not None:
+        check_range("--mesh-size", ns.mesh_size, 1e-5, 1.0, "m")
+    check_range("--history", ns.history, 1e-4, 1.0, "s")
+    if ns.horn_law not in (None, "kinematic"):
+        raise ParameterError("--horn-law", ns.horn_law, "must be kinematic with --horn fem (the modes carry the mass)")
+    p = _params(ns)
+    sc = _scenario(ns, p)
+    settings = _settings(ns)
+    if ns.sample_dt is not None:
+        check_range("--sample-dt", ns.sample_dt, 1e-8, 1e-4, "s")
+        p = p.with_(sample_dt=ns.sample_dt)
+    p.with_(t_end=ns.history)                  # at most 2e7 history samples (ImpactParams checks it)
+    if ns.contact == "hunt-crossley":
+        for opt, val in (("--plots", ns.plots), ("--history-csv", ns.history_csv)):
+            if val is not None:
+                raise ParameterError(opt, val, "not available with --contact hunt-crossley (its contact phases are "
+                                     "integrated numerically, not closed-form segments): statistics only")
+    check_output_paths(inputs={"--config": ns.config, "--design": ns.design}, folders=("plots",), json=ns.json,
+                       plots=ns.plots, history_csv=ns.history_csv)
+    _threads(ns.threads)
+    import geometry
+    from geometry.guard import check_budget
+
+    from impact.coupled import COUPLED_QUANTITIES, coupled_batch
+
+    from .coupled import build_transducer, contact_from_design, coupled_history, history_csv, horn_from_reduced
+
+    design = geometry.load_design(ns.design) if ns.design is not None else geometry.default_design()
+    check_budget(design, ns.mesh_size)
+    say = _progress(ns) or (lambda msg: None)
+    say("[1/3] FE transducer")
+    fe = build_transducer(design, voltage=ns.voltage, q_mech=None if ns.q_mech == 0 else ns.q_mech,
+                          freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say)
+    p = p.with_(freq=fe.freq_hz)
+    contact = None
+    hist = None
+    if ns.contact == "hunt-crossley":
+        contact = contact_from_design(design, p.m_free, p.e2)
+        say(f"[2/3] compliant contact: Hertz k = {contact.stiffness:.4g} N/m^1.5, Hunt-Crossley chi = "
+            f"{contact.chi:.4f} (e2 = {p.e2:g}); no history (contact phases are integrated numerically)")
+    else:
+        say(f"[2/3] ring-up from rest with the {p.m_free * 1e3:g} g free mass in place, {ns.history * 1e3:g} ms")
+        hist = coupled_history(fe, p.with_(spring_force=sc.spring_force), ns.voltage, ns.history)
+        for line in hist["lines"]:
+            print(line)
+    say(f"[3/3] statistics, {sc.name} scenario, steady operation")
+    horn = horn_from_reduced(fe.reduced, ns.voltage, start="steady")
+    st = coupled_batch([p], horn, sc, settings, progress=_progress(ns), contact=contact)[0]
+    if st.failed:
+        raise ParameterError("gap", p.gap, st.note)
+    _print_stats(st)
+    for name, unit, text in COUPLED_QUANTITIES:
+        scale, u = {"m": (1e6, "um"), "W": (1.0, "W")}[unit]
+        print(f"  {text:<66} {st.estimates[name].scaled(scale)} {u}")
+    print(f"  unloaded (harmonic working point): tip {fe.tip_amplitude_m * 1e6:.3f} um, power {fe.power_w:.2f} W")
+    if ns.json:
+        doc = {"reduced_transducer": fe.reduced.to_dict(), "fe": fe.info, "drive": {"voltage_v": ns.voltage,
+               "freq_hz": fe.freq_hz, "f_r_hz": fe.f_r_hz, "f_a_hz": fe.f_a_hz,
+               "unloaded_tip_amplitude_m": fe.tip_amplitude_m, "unloaded_power_w": fe.power_w},
+               "params": p.to_dict(), "history": hist["json"] if hist else None, "statistics": st.to_dict(),
+               "contact": ({"law": "hunt-crossley", "stiffness_n_per_m1p5": contact.stiffness, "chi": contact.chi,
+                            "restitution": contact.restitution} if contact else {"law": "newton"})}
+        write_json(ns.json, doc)
+    if ns.history_csv:
+        atomic_write_text(ns.history_csv, history_csv(hist["result"]))
+    if ns.plots:
+        from impact.plots import plot_history
+        from rpud_common import save_figure
+
+        from .coupled_figures import tip_envelope
+
+        d = Path(ns.plots)
+        save_figure(tip_envelope(hist["result"], fe.tip_amplitude_m), d / "tip_envelope.png")
+        save_figure(plot_history(hist["result"].impact,
+                                 title=f"coupled model, {fe.reduced.n_modes} modes, {ns.voltage:g} V: one sample "
+                                       f"(chaotic)"), d / "displacement.png")
+    if not math.isfinite(st.estimates["tool_impact_rate_hz"].mean):
+        return 1
+    return 0
