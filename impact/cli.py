@@ -163,7 +163,7 @@ def _print_stats(st) -> None:
 
 def _run(argv):
     ap = CliParser(prog="python -m impact", description="Impact model of the RPUD percussive system (horn -> free "
-                   "mass -> drill tool), reported as ensemble means with 95 %% confidence intervals. "
+                   "mass -> drill tool), reported as ensemble means with 95 % confidence intervals. "
                    "Subcommands: 'sweep', 'article' (see their --help).")
     _add_params(ap)
     ap.add_argument("--horn", choices=["kinematic", "fem"], default="kinematic",
@@ -220,7 +220,7 @@ def _floats(text: str, name: str) -> list[float]:
 
 def _sweep(argv):
     ap = CliParser(prog="python -m impact sweep", description="Drill-tool kinetic energy and impact rates against "
-                   "free mass: converged ensemble means with 95 %% confidence intervals, and the line of mean tool "
+                   "free mass: converged ensemble means with 95 % confidence intervals, and the line of mean tool "
                    "KE against mass (slope J/kg).")
     ap.add_argument("--m-free", dest="m_list", required=True, metavar="M1,M2,...", help="free masses, kg (e.g. 0.002,0.004,0.006,0.008)")
     _add_params(ap, skip=("m_free",))
