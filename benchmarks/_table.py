@@ -1,4 +1,17 @@
-"""Markdown table printing shared by the benchmark scripts (they paste into the README)."""
+"""Shared by the benchmark scripts: Markdown tables (they paste into the README) and timing."""
+
+import math
+import time
+
+
+def best_of(fn, n: int) -> float:
+    """Shortest of n timed calls, s (the least disturbed by other processes)."""
+    best = math.inf
+    for _ in range(n):
+        t0 = time.perf_counter()
+        fn()
+        best = min(best, time.perf_counter() - t0)
+    return best
 
 
 def print_table(rows, headers=("benchmark", "time", "note")) -> None:

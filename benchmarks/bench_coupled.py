@@ -13,16 +13,7 @@ import time
 
 import numba
 import numpy as np
-from _table import print_table
-
-
-def best_of(fn, n):
-    best = math.inf
-    for _ in range(n):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
+from _table import best_of, print_table
 
 
 def main():

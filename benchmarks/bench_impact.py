@@ -7,22 +7,12 @@ import time
 
 import numba
 import numpy as np
-from _table import print_table
+from _table import best_of, print_table
 
 from impact import kernel
 from impact.model import simulate
 from impact.params import ImpactParams
 from impact.reference import simulate_ivp
-
-
-def best_of(fn, n):
-    """Shortest of n timed calls, s (the least disturbed by other processes)."""
-    best = math.inf
-    for _ in range(n):
-        t0 = time.perf_counter()
-        fn()
-        best = min(best, time.perf_counter() - t0)
-    return best
 
 
 def main():

@@ -381,6 +381,37 @@ def _grid_step(B, t_end, fscale):
 
 
 @njit(cache=True)
+def _plan_flight(t0, w0, wd0, a, L0, b_horn, b_tool, skip_h, skip_t, Bh, Bt, t_end,
+                 fkind, fB, fh, fstart, fend, nf):
+    """The contact functions to search during a free flight from (t0, w0, wd0) under the constant
+    acceleration ``a``: horn and tool, each from where the parabola can first reach its band
+    (``b_horn``, ``b_tool``: the bodies' displacement bounds, m) to where it leaves it for good,
+    with the excursion out of the band and back skipped. Appended from row ``nf`` of the
+    ``f*`` arrays; returns the new count. Shared by both compiled engines."""
+    zone_h = t0 + _parabola_reach(w0 - b_horn - 1e-9, wd0, a)
+    zone_t = t0 + _parabola_reach(L0 - b_tool - 1e-9 - w0, -wd0, -a)
+    # a flight that leaves a contact's band and comes back cannot touch in between
+    xh1, xh2 = _parabola_excursion(w0 - b_horn - 1e-9, wd0, a)
+    xt1, xt2 = _parabola_excursion(L0 - b_tool - 1e-9 - w0, -wd0, -a)
+    for kind, zone, skip, B, lead, vel, acc, x1, x2 in (
+            (_FN_HORN, zone_h, skip_h, Bh, w0 - b_horn - 1e-9, wd0, a, xh1, xh2),
+            (_FN_TOOL, zone_t, skip_t, Bt, L0 - b_tool - 1e-9 - w0, -wd0, -a, xt1, xt2)):
+        if zone < math.inf:
+            start = max(t0, skip, zone)
+            end = t0 + _parabola_leave(lead, vel, acc)
+            for part in range(2 if x2 < math.inf else 1):
+                fkind[nf], fB[nf] = kind, B
+                fh[nf] = _grid_step(B, t_end, 1e-7)
+                if x2 < math.inf:
+                    fstart[nf] = start if part == 0 else max(start, t0 + x2)
+                    fend[nf] = min(end, t0 + x1) if part == 0 else end
+                else:
+                    fstart[nf], fend[nf] = start, end
+                nf += 1
+    return nf
+
+
+@njit(cache=True)
 def _next_cross(t0, up, A0, om, om2, a):
     if A0 == 0.0:
         return math.inf
@@ -486,26 +517,8 @@ def _core(pv, t_end, max_events, record, t_from, stats):
         t_rel = math.inf
         if mode == FREE:
             Bt = Bv + abs(a)
-            zone_h = t0 + _parabola_reach(w0 - A0 - 1e-9, wd0, a)
-            zone_t = t0 + _parabola_reach(L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a)
-            # a flight that leaves a contact's band and comes back cannot touch in between
-            xh1, xh2 = _parabola_excursion(w0 - A0 - 1e-9, wd0, a)
-            xt1, xt2 = _parabola_excursion(L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a)
-            for kind, zone, skip, B, lead, vel, acc, x1, x2 in (
-                    (_FN_HORN, zone_h, skip_h, Bh, w0 - A0 - 1e-9, wd0, a, xh1, xh2),
-                    (_FN_TOOL, zone_t, skip_t, Bt, L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a, xt1, xt2)):
-                if zone < math.inf:
-                    start = max(t0, skip, zone)
-                    end = t0 + _parabola_leave(lead, vel, acc)
-                    for part in range(2 if x2 < math.inf else 1):
-                        fkind[nf], fB[nf] = kind, B
-                        fh[nf] = _grid_step(B, t_end, 1e-7)
-                        if x2 < math.inf:
-                            fstart[nf] = start if part == 0 else max(start, t0 + x2)
-                            fend[nf] = min(end, t0 + x1) if part == 0 else end
-                        else:
-                            fstart[nf], fend[nf] = start, end
-                        nf += 1
+            nf = _plan_flight(t0, w0, wd0, a, L0, A0, o[_O_B0], skip_h, skip_t, Bh, Bt, t_end,
+                              fkind, fB, fh, fstart, fend, nf)
         elif mode == ON_HORN:
             B = Bv + A0 * om2
             if L0 - o[_O_B0] - A0 <= 0.0:

@@ -30,7 +30,7 @@ from .kernel import (_O_B0, _O_B2, _O_B4, _O_DELTA, _O_N, CONTACT_TOL, _H_MIN, _
                      P_K0, P_M_FREE, P_M_TOOL, P_V0, P_V_STICK, P_G, P_SPRING_FORCE, ON_HORN, S_HORN_WORK, S_KE_AFTER,
                      S_KE_GAIN, S_N_EVENTS, S_N_HORN, S_N_TOOL, S_STATUS, S_T_ON_HORN, S_T_ON_TOOL, STATUS_MAX_EVENTS, STATUS_OK,
                      STATUS_PINCHED, _E_N, _grid_step, _grow1, _grow2, _osc_eval, _osc_make, _osc_pv,
-                     _parabola_excursion, _parabola_leave, _parabola_reach, _safe, _sticks, pack)
+                     _plan_flight, _safe, _sticks, pack)
 from .params import ImpactParams
 
 __all__ = ["run_events", "ensemble_coupled", "N_CSTATS", "STATUS_CONTACT"]
@@ -393,6 +393,20 @@ def _pen(t, y, tab, xs, n):
 
 
 @njit(cache=True)
+def _accept_step(t, hh, y, y5, j0, t_from, stats):
+    """Take the step y -> y5 of length hh from t: the window integrals (their increments over the
+    step, inside the statistics window) go into ``stats``. Returns the new time."""
+    if t >= t_from:
+        stats[C_DRIVE] += y5[j0 + 2] - y[j0 + 2] + y5[j0 + 7] - y[j0 + 7]
+        stats[C_DAMP] += y5[j0 + 3] - y[j0 + 3]
+        stats[C_FUND_RE] += y5[j0 + 4] - y[j0 + 4]
+        stats[C_FUND_IM] += y5[j0 + 5] - y[j0 + 5]
+        stats[C_ELEC] += y5[j0 + 6] - y[j0 + 6]
+    y[:] = y5
+    return t + hh
+
+
+@njit(cache=True)
 def _hc_contact(t0, w, wd, q, qd, tab, xs, n, k, chi, m_free, a, v_in, t_end, t_from, stats):
     """Integrate a Hunt-Crossley contact from first touch at t0 until the penetration returns to
     zero (or t_end). Updates q, qd in place and the window integrals in ``stats``; returns
@@ -453,27 +467,10 @@ def _hc_contact(t0, w, wd, q, qd, tab, xs, n, k, chi, m_free, a, v_in, t_end, t_
                 else:
                     hi = mid
             _dp_step(t, y, hi, tab, xs, n, k, chi, v_in, m_free, a, K, y5, y4)
-            hh = hi
-            if t >= t_from:
-                stats[C_DRIVE] += y5[j0 + 2] - y[j0 + 2] + y5[j0 + 7] - y[j0 + 7]
-                stats[C_DAMP] += y5[j0 + 3] - y[j0 + 3]
-                stats[C_FUND_RE] += y5[j0 + 4] - y[j0 + 4]
-                stats[C_FUND_IM] += y5[j0 + 5] - y[j0 + 5]
-                stats[C_ELEC] += y5[j0 + 6] - y[j0 + 6]
-            t = t + hh
-            for j in range(m):
-                y[j] = y5[j]
+            t = _accept_step(t, hi, y, y5, j0, t_from, stats)
             ok = True
             break
-        if t >= t_from:
-            stats[C_DRIVE] += y5[j0 + 2] - y[j0 + 2] + y5[j0 + 7] - y[j0 + 7]
-            stats[C_DAMP] += y5[j0 + 3] - y[j0 + 3]
-            stats[C_FUND_RE] += y5[j0 + 4] - y[j0 + 4]
-            stats[C_FUND_IM] += y5[j0 + 5] - y[j0 + 5]
-            stats[C_ELEC] += y5[j0 + 6] - y[j0 + 6]
-        t = t + hh
-        for j in range(m):
-            y[j] = y5[j]
+        t = _accept_step(t, hh, y, y5, j0, t_from, stats)
         h = hh * min(5.0, max(0.2, 0.9 * (err if err > 1e-300 else 1e-300) ** -0.2))
     for i in range(n):
         q[i] = y[2 + i]
@@ -610,25 +607,8 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats):
         nf = 0
         if mode == FREE:
             Bt = Bv + abs(a)
-            zone_h = t0 + _parabola_reach(w0 - B0 - 1e-9, wd0, a)
-            zone_t = t0 + _parabola_reach(L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a)
-            xh1, xh2 = _parabola_excursion(w0 - B0 - 1e-9, wd0, a)
-            xt1, xt2 = _parabola_excursion(L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a)
-            for kind, zone, skip, B, lead, vel, acc, x1, x2 in (
-                    (_FN_HORN, zone_h, skip_h, Bh, w0 - B0 - 1e-9, wd0, a, xh1, xh2),
-                    (_FN_TOOL, zone_t, skip_t, Bt, L0 - o[_O_B0] - 1e-9 - w0, -wd0, -a, xt1, xt2)):
-                if zone < math.inf:
-                    start = max(t0, skip, zone)
-                    end = t0 + _parabola_leave(lead, vel, acc)
-                    for part in range(2 if x2 < math.inf else 1):
-                        fkind[nf], fB[nf] = kind, B
-                        fh[nf] = _grid_step(B, t_end, 1e-7)
-                        if x2 < math.inf:
-                            fstart[nf] = start if part == 0 else max(start, t0 + x2)
-                            fend[nf] = min(end, t0 + x1) if part == 0 else end
-                        else:
-                            fstart[nf], fend[nf] = start, end
-                        nf += 1
+            nf = _plan_flight(t0, w0, wd0, a, L0, B0, o[_O_B0], skip_h, skip_t, Bh, Bt, t_end,
+                              fkind, fB, fh, fstart, fend, nf)
         elif mode == ON_HORN:
             B = Bv + B2
             if L0 - o[_O_B0] - B0 <= 0.0:
