@@ -87,12 +87,7 @@ def ring_up(res, harmonic_amplitude: float = float("nan"), *, axes=None):
     -------
     (Axes, Axes)
     """
-    if axes is None:
-        from rpud_common.figures import subplots
-
-        _, (a1, a2) = subplots(1, 2, figsize=(10, 4), dpi=120)
-    else:
-        a1, a2 = axes_or_new(axes, 2)
+    a1, a2 = axes_or_new(axes, 2, side_by_side=True, figsize=(10, 4), dpi=120)
     surface = next(iter(res.surfaces))
     y = res.surfaces[surface]["axial"]
     step = max(1, len(y) // 20000)

@@ -26,15 +26,17 @@ def subplots(nrows: int = 1, ncols: int = 1, **kwargs):
     return fig, fig.subplots(nrows, ncols, **kwargs)
 
 
-def axes_or_new(ax=None, n: int = 1, **kwargs):
-    """The caller's Axes, or new ones on a new figure (``n`` panels stacked vertically).
+def axes_or_new(ax=None, n: int = 1, *, side_by_side: bool = False, **kwargs):
+    """The caller's Axes, or new ones on a new figure (``n`` panels stacked vertically, or
+    side by side).
 
     The plot functions of the packages take an optional ``ax`` (one Axes) or ``axes`` (a
     sequence of ``n``); ``None`` makes a figure with :func:`subplots` (``kwargs`` go there).
     Returns one Axes for ``n == 1``, else a tuple of ``n``.
     """
     if ax is None:
-        _, made = subplots(n, 1, **kwargs) if n > 1 else subplots(**kwargs)
+        shape = (1, n) if side_by_side else (n, 1)
+        _, made = subplots(*shape, **kwargs) if n > 1 else subplots(**kwargs)
         return tuple(made) if n > 1 else made
     if n == 1:
         if not hasattr(ax, "figure") or not hasattr(ax, "plot"):
