@@ -21,7 +21,9 @@ def build_parser() -> CliParser:
                   description="End-to-end RPUD run: mesh -> resonance matching -> harmonic response at the "
                               "drive voltage -> horn-tip amplitude A0 (coupled with the free-mass impacts) -> "
                               "drill-tool kinetic energy vs free-mass weight. Writes summary.json, report.md, "
-                              "figures/, renders/ and modes.vtu into the output folder.")
+                              "figures/, renders/ and modes.vtu into the output folder. "
+                              "'python -m results explore STUDY.toml' runs a design study instead "
+                              "(--help after 'explore' for its options).")
     p.add_argument("--design", metavar="FILE", help="design TOML (default: the built-in RPUD design)")
     p.add_argument("--voltage", type=float, default=225.0, metavar="V",
                    help="drive voltage amplitude on the hot electrodes, V (default 225, the article's)")
@@ -66,6 +68,11 @@ def check_options(args) -> None:
 
 
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["explore"]:
+        from .explore_cli import main as explore_main
+
+        return explore_main(argv[1:])
     import geometry
     from geometry.guard import check_budget
 
