@@ -119,6 +119,16 @@ def format_table(report: dict) -> str:
         lines.append(f"{name:<12} {p['z0_m'] * 1e3:8.2f} {p['z1_m'] * 1e3:8.2f} {p['volume_m3'] * 1e6:11.4f} "
                      f"{p['volume_closed_form_m3'] * 1e6:11.4f} {p['volume_error'] * 100:8.4f} {p['mass_kg'] * 1e3:8.2f}")
     lines.append(f"{'total':<12} {'':>8} {'':>8} {'':>11} {'':>11} {'':>8} {report['total_mass_kg'] * 1e3:8.2f}")
-    if report.get("f1_1d_hz"):
-        lines.append(f"1-D first longitudinal mode (short circuit): {report['f1_1d_hz']:.0f} Hz")
+    lines += _onedim_lines(report.get("onedim"))
     return "\n".join(lines)
+
+
+def _onedim_lines(od: dict | None) -> list[str]:
+    """The 1-D reference: its number with what it is and its estimated error, or why it is left out."""
+    if not od:
+        return []
+    if not od["valid"]:
+        return [f"1-D reference left out ({od['meaning']}), it does not apply here: " + "; ".join(od["reasons"])]
+    notes = [f"estimated 3-D corrections: lateral inertia {100 * od['rayleigh_love_rel']:+.1f} %, "
+             f"electrode stiffening {100 * od['electrode_stiffening_rel']:+.1f} %"] + od["caveats"]
+    return [f"1-D first longitudinal mode: {od['f1_hz']:.0f} Hz ({od['meaning']}; " + "; ".join(notes) + ")"]
