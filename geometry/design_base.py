@@ -6,7 +6,6 @@ Concrete kinds live in :mod:`geometry.design` (RPUD composition, generic coaxial
 
 from __future__ import annotations
 
-import dataclasses
 import os
 from collections.abc import Mapping
 from typing import Any, ClassVar
@@ -59,8 +58,8 @@ class DesignBase:
     def to_mapping(self) -> dict:
         """Plain dict (TOML/JSON friendly); ``kind`` first; the own material records (if any)
         last, as a ``materials`` table in the layout of ``materials.toml``."""
-        data = to_mapping(dataclasses.replace(self, materials={}))
-        data.pop("materials", None)
+        data = to_mapping(self)
+        data.pop("materials", None)            # the records in their file layout, below
         if self.materials:
             data["materials"] = {n: m.to_record() for n, m in self.materials.items()}
         return {"kind": data.pop("kind"), **data}
