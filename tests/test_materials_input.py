@@ -266,3 +266,15 @@ def test_materials_file_overrides_a_builtin_name_for_the_default_design(tmp_path
     d = design_from_options(ns)
     assert d.used_materials()["PZT-8"].density == 7700.0
     assert d.stack.material == "PZT-8" and "PZT-8" in d.to_mapping()["materials"]
+
+
+def test_the_worked_example_design_loads_with_its_own_materials():
+    """results/examples/own_material.toml (README worked example): its datasheet PZT-8 is the
+    built-in record within the datasheet's rounding, its aluminium is lossless (no q_mech)."""
+    from pathlib import Path
+
+    from geometry.design import load_design
+
+    d = load_design(Path(__file__).parents[1] / "results" / "examples" / "own_material.toml")
+    _close(d.materials["pzt8_datasheet"], builtin_library()["PZT-8"], 0.005)
+    assert math.isinf(d.materials["al6061"].q_mech) and d.used_materials().keys() == {"al6061", "pzt8_datasheet"}
