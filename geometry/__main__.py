@@ -34,7 +34,7 @@ def _parser() -> CliParser:
         "(metres) in files and options; mm in the picture and the printed table."))
     p.add_argument("--design", metavar="FILE", help="design TOML (default: the built-in RPUD design)")
     p.add_argument("--select", metavar="NAME", help="pick one design from a TOML file holding several "
-                   "(e.g. geometry/examples.toml: k33_rod, k31_bar, langevin, slender_rod, rpud)")
+                   "(e.g. geometry/examples.toml: k33_rod, k31_bar, langevin, slender_rod, bonded_sandwich, rpud)")
     p.add_argument("--write-default", metavar="FILE", help="write the default RPUD design as TOML and exit")
     p.add_argument("--mesh", metavar="OUT.msh", help="write the tagged mesh (Gmsh 2.2 format, physical names)")
     p.add_argument("--vtu", metavar="OUT.vtu", help="write the mesh for ParaView (region/material/poling data)")
@@ -119,6 +119,10 @@ def format_table(report: dict) -> str:
         lines.append(f"{name:<12} {p['z0_m'] * 1e3:8.2f} {p['z1_m'] * 1e3:8.2f} {p['volume_m3'] * 1e6:11.4f} "
                      f"{p['volume_closed_form_m3'] * 1e6:11.4f} {p['volume_error'] * 100:8.4f} {p['mass_kg'] * 1e3:8.2f}")
     lines.append(f"{'total':<12} {'':>8} {'':>8} {'':>11} {'':>11} {'':>8} {report['total_mass_kg'] * 1e3:8.2f}")
+    q = report["quality"]
+    if q.get("layer_elements"):
+        lines.append(f"thin layers meshed as structured extrusions: {q['layer_elements']} of the tetrahedra, "
+                     f"min SICN {q['layer_min_sicn']:.3f} (flat by design; the min SICN above is of the rest)")
     if report.get("f1_1d_hz"):
         lines.append(f"1-D first longitudinal mode (short circuit): {report['f1_1d_hz']:.0f} Hz")
     return "\n".join(lines)

@@ -27,10 +27,11 @@ import numpy as np
 from rpud_common import cli as common
 from rpud_common import ParameterError, check_choice, check_positive, check_range
 from .design import DesignBase, RPUDDesign, StackDesign
+from .layers import Layer, layer_plan, make_layer, rim_fields
 from .materials import get_material
 from .mesh import Electrode, Region, TaggedMesh
 
-__all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "ALGORITHMS",
+__all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "mesh_layers", "ALGORITHMS",
            "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT", "GMSH_TIME_RANGE"]
 
 log = logging.getLogger(__name__)
@@ -106,12 +107,31 @@ class BuildReport:
 
 
 def region_sizes(design: DesignBase, mesh_size: float | None = None,
-                 elements_per_wavelength: float | None = None) -> dict[str, float]:
+                 elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> dict[str, float]:
     """Target element size (m) per region, and the feature sizes (keys starting with ``@``).
 
     ``mesh_size`` replaces the wavelength rule as the base size of every region; the
     feature caps (ring and shim thickness, slot width and depth, tooth height) still apply.
+    A thin layer (:mod:`geometry.layers`) gets its in-plane size, not a thickness cap.
+    ``size_factor`` scales every size, caps included (a uniform refinement: 1 / 1.5 is one
+    refinement step of a convergence study).
     """
+    check_range("size_factor", size_factor, 0.1, 10.0)
+    own, capped = _free_sizes(design, mesh_size, elements_per_wavelength)
+    sizes = {k: v * size_factor for k, v in capped.items()}
+    for name, layer in layer_plan(design, own, capped, size_factor).items():
+        sizes[name] = layer.size
+    return sizes
+
+
+def mesh_layers(design: DesignBase, mesh_size: float | None = None,
+                elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> dict[str, Layer]:
+    """The segments meshed as structured layers, by name (see :mod:`geometry.layers`)."""
+    return layer_plan(design, *_free_sizes(design, mesh_size, elements_per_wavelength), size_factor)
+
+
+def _free_sizes(design, mesh_size, elements_per_wavelength):
+    """(size of each region's own material, size after the thin-feature caps), m."""
     epw = design.elements_per_wavelength if elements_per_wavelength is None else elements_per_wavelength
     check_range("elements_per_wavelength", epw, 1.0, 200.0)
     if mesh_size is not None:
@@ -123,6 +143,7 @@ def region_sizes(design: DesignBase, mesh_size: float | None = None,
     sizes: dict[str, float] = {}
     for region, part, material, _vol in design.region_table():
         sizes[region] = base(material)
+    own = dict(sizes)
     if isinstance(design, RPUDDesign):
         s, c = design.stack, design.coupler
         for region, kind, z0, z1 in design.stack_layers():
@@ -140,7 +161,7 @@ def region_sizes(design: DesignBase, mesh_size: float | None = None,
                 dims += [seg.thickness, seg.width]
             # at least ~2 elements across the smallest dimension of a thin piece
             sizes[seg.name] = min(sizes[seg.name], max(min(dims) / 2, 0.25 * max(dims) / 20))
-    return sizes
+    return own, sizes
 
 
 # ============================================================================ OCC helpers
@@ -288,12 +309,14 @@ def _make_rpud(occ, d: RPUDDesign):
     return pieces
 
 
-def _make_stack(occ, d: StackDesign):
+def _make_stack(occ, d: StackDesign, layers: dict[str, Layer]):
     pieces = []
     ext = d.segment_extents()
     for seg in d.segments:
         z0, z1 = ext[seg.name]
-        if seg.kind == "box":
+        if seg.name in layers:
+            vols = make_layer(occ, d, layers[seg.name])
+        elif seg.kind == "box":
             vols = [(3, occ.addBox(-seg.thickness / 2, -seg.width / 2, z0, seg.thickness, seg.width, seg.length))]
         elif seg.kind == "cone":
             vols = [(3, occ.addCone(0, 0, z0, 0, 0, seg.length, seg.outer_diameter / 2, seg.end_diameter / 2))]
@@ -368,7 +391,7 @@ def build_mesh(design: DesignBase, mesh_size: float | None = None, order: int = 
 def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
           verbose: bool = False, msh_path: str | None = None,
-          time_limit: float | None = None) -> tuple[TaggedMesh, BuildReport]:
+          time_limit: float | None = None, size_factor: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
 
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
@@ -414,7 +437,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path)
+                                   msh_path, size_factor)
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -447,7 +470,8 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
 
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
            elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
-           verbose: bool = False, msh_path: str | None = None) -> tuple[TaggedMesh, BuildReport]:
+           verbose: bool = False, msh_path: str | None = None,
+           size_factor: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -467,6 +491,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     msh_path : str, optional
         Also write Gmsh's native ``.msh`` (4.1) of the model to this path (caller handles
         atomicity).
+    size_factor : float
+        Every element size times this, thin-feature caps and layers included (uniform
+        refinement for convergence studies; see :func:`region_sizes`).
 
     Returns
     -------
@@ -479,7 +506,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     check_choice("algorithm", algorithm, tuple(ALGORITHMS))
     if not isinstance(design, (RPUDDesign, StackDesign)):
         raise ParameterError("design", type(design).__name__, "must be an RPUDDesign or a StackDesign")
-    sizes = region_sizes(design, mesh_size, elements_per_wavelength)
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength, size_factor)
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
@@ -497,7 +524,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
 
         # ---- solids
         t0 = time.perf_counter()
-        pieces = _make_rpud(occ, design) if isinstance(design, RPUDDesign) else _make_stack(occ, design)
+        layers = mesh_layers(design, mesh_size, elements_per_wavelength, size_factor)
+        pieces = _make_rpud(occ, design) if isinstance(design, RPUDDesign) else _make_stack(occ, design, layers)
         all_tags = [dt for p in pieces for dt in p[4]]
         if len(all_tags) > 1:
             _out, out_map = occ.fragment(all_tags, [])
@@ -568,6 +596,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
                                      ("Thickness", 2.0 * sizes[key])):
                         gmsh.model.mesh.field.setNumber(fid, opt, val)
                     fields.append(fid)
+        if layers:
+            fields += rim_fields(gmsh, layers, region_vols)
         fmin = gmsh.model.mesh.field.add("Min")
         gmsh.model.mesh.field.setNumbers(fmin, "FieldsList", fields)
         gmsh.model.mesh.field.setAsBackgroundMesh(fmin)
@@ -585,26 +615,29 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         gmsh.model.mesh.generate(3)
         report.timings["mesh_linear"] = time.perf_counter() - t0
         # Slivers the default optimiser left (seen at some sizes near the slot ends): one
-        # Netgen pass, only when needed, keeps the default run fast.
+        # Netgen pass, only when needed, keeps the default run fast. Layers are flat by design
+        # and structured: the checks and optimisers see the freely meshed volumes only.
         t0 = time.perf_counter()
-        etypes, etags, _ = gmsh.model.mesh.getElements(3)
-        gamma = np.asarray(gmsh.model.mesh.getElementQualities(np.concatenate(etags).tolist(), "gamma"))
-        if gamma.min() < OPTIMISE_BELOW:
+        layer_vols = {v for name in layers for v in region_vols[name]}
+        free = [(3, v) for vs in region_vols.values() for v in vs if v not in layer_vols]
+        free_tags = _element_tags(gmsh, free)
+        gamma = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "gamma"))
+        if len(gamma) and gamma.min() < OPTIMISE_BELOW:
             log.info("min gamma %.3g < %.3g: Netgen optimisation pass", gamma.min(), OPTIMISE_BELOW)
-            gmsh.model.mesh.optimize("Netgen")
-            gmsh.model.mesh.optimize("")
+            gmsh.model.mesh.optimize("Netgen", dimTags=free)
+            gmsh.model.mesh.optimize("", dimTags=free)
+            free_tags = _element_tags(gmsh, free)
         report.timings["optimise"] = time.perf_counter() - t0
         if order == 2:
             t0 = time.perf_counter()
             gmsh.model.mesh.setOrder(2)
             # Curving the edges onto the geometry can fold an element near the slots at some
             # lengths (seen: SICN 4e-4); gmsh's high-order optimiser repairs it, run when needed.
-            etypes, etags, _ = gmsh.model.mesh.getElements(3)
-            sicn = np.asarray(gmsh.model.mesh.getElementQualities(np.concatenate(etags).tolist(), "minSICN"))
-            if sicn.min() < MIN_SICN_DEFAULT:
+            sicn = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "minSICN"))
+            if len(sicn) and sicn.min() < MIN_SICN_DEFAULT:
                 log.info("min SICN %.3g < %.3g after curving: high-order optimisation", sicn.min(),
                          MIN_SICN_DEFAULT)
-                gmsh.model.mesh.optimize("HighOrder")
+                gmsh.model.mesh.optimize("HighOrder", dimTags=free)
             report.timings["order_2"] = time.perf_counter() - t0
         if msh_path is not None:
             gmsh.write(str(msh_path))
@@ -614,7 +647,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         tm, qual_tags = _extract(gmsh, design, region_vols, region_meta, facet_surfs, order)
         report.timings["extract"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        report.quality = _quality(gmsh, qual_tags)
+        report.quality = _quality(gmsh, qual_tags, _element_tags(gmsh, [(3, v) for v in sorted(layer_vols)]))
         report.timings["quality"] = time.perf_counter() - t0
         for name, vols in region_vols.items():
             report.physical_groups[name] = {"dim": 3, "entities": len(vols),
@@ -679,13 +712,26 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
     return tm, np.concatenate(elem_tags)
 
 
-def _quality(gmsh, elem_tags) -> dict[str, float]:
-    """min / median of SICN (curvature aware) and gamma (straight corners); inverted count."""
+def _element_tags(gmsh, dimtags) -> np.ndarray:
+    """Tags of the 3-D elements of the given volumes."""
+    tags = [np.asarray(t, dtype=np.int64) for dim, v in dimtags for t in gmsh.model.mesh.getElements(dim, v)[1]]
+    return np.concatenate(tags) if tags else np.zeros(0, dtype=np.int64)
+
+
+def _quality(gmsh, elem_tags, layer_tags) -> dict[str, float]:
+    """min / median of SICN (curvature aware) and gamma (straight corners) of the freely meshed
+    elements (of all elements if there are only layers); inverted count of all; the layers' own
+    minima and element count (``layer_*``: flat by design, gamma ~ thickness / in-plane size)."""
     out: dict[str, float] = {}
+    layer = np.isin(elem_tags, layer_tags)
+    free = ~layer if (~layer).any() else np.ones_like(layer)
     for key, name in (("sicn", "minSICN"), ("gamma", "gamma")):
         q = np.asarray(gmsh.model.mesh.getElementQualities(elem_tags.tolist(), name))
-        out[f"min_{key}"] = float(q.min())
-        out[f"median_{key}"] = float(np.median(q))
+        out[f"min_{key}"] = float(q[free].min())
+        out[f"median_{key}"] = float(np.median(q[free]))
         if key == "sicn":
             out["n_inverted"] = int(np.sum(q <= 0))
+        if layer.any():
+            out[f"layer_min_{key}"] = float(q[layer].min())
+    out["layer_elements"] = int(layer.sum())
     return out
