@@ -16,8 +16,11 @@ ends, so that its bottom and top faces have the same edges and the conformal fra
 whole model leaves the extruded volumes unchanged (Gmsh refuses an extrusion whose top face
 was split afterwards).
 
-Accuracy (``tests/test_thin_layers.py``): the first longitudinal resonance of a small disc
-sandwich with a 0.275 mm bond agrees with a fully refined free tetrahedral mesh within 0.2 %.
+Accuracy (``tests/test_thin_layers.py``): the coupled longitudinal mode of a 3 mm aluminium /
+0.25 mm epoxy / PZT-4 rod is within 0.06 % of a free mesh with two elements through the bond
+(5x the elements); the thickness mode of the 55 mm sandwich with two 0.275 mm bonds moves by
+0.01 % under one uniform refinement; a 50 um epoxy layer in a steel rod lowers its longitudinal
+mode as the constrained-layer spring k = M A / t predicts, within 0.03 %.
 
 Everything here is plain geometry bookkeeping except :func:`make_layer`, which takes Gmsh's
 OpenCASCADE kernel as an argument (gmsh is never imported here).
@@ -31,7 +34,8 @@ from dataclasses import dataclass
 from .design import DesignBase, Segment, StackDesign
 
 __all__ = ["Layer", "layer_plan", "make_layer", "rim_fields", "edge_fraction", "layer_element_estimate",
-           "LAYER_RATIO", "LAYER_ELEMENTS", "LAYER_ELEMENTS_EDGE", "LAYER_KINDS", "RIM_SIZE", "RIM_GROWTH", "RIM_FRACTION"]
+           "LAYER_RATIO", "LAYER_ELEMENTS", "LAYER_ELEMENTS_EDGE", "LAYER_KINDS", "RIM_SIZE", "RIM_GROWTH",
+           "RIM_FRACTION"]
 
 LAYER_RATIO = 0.5
 """A cylinder or box segment shorter (along z) than this fraction of its in-plane element size
