@@ -99,8 +99,22 @@ class RegionData:
     eps: np.ndarray | None
 
 
+def _library(tm: TaggedMesh, library) -> dict:
+    """Where the mesh's material names resolve: its own records (``tm.library``: built-in
+    overlaid with the records the design resolved), overlaid with an explicit ``library``."""
+    lib = tm.library
+    if library is None:
+        return lib
+    for name, rec in tm.materials.items():
+        if name in library and library[name] != rec:
+            log.warning("material %s: the library given to assemble differs from the mesh's record; "
+                        "the given one is used", name)
+    return {**lib, **library}
+
+
 def _region_data(tm: TaggedMesh, library) -> list[RegionData]:
     out = []
+    library = _library(tm, library)
     for r in tm.regions:
         m = resolve(r.material, library)
         if m.is_piezo:
@@ -232,6 +246,12 @@ class PiezoSystem:
     intorder: tuple[int, int]
     timings: dict = field(default_factory=dict)
     _basis_u: object = None
+    materials: dict = field(default_factory=dict)
+    """name -> :class:`geometry.materials.Material`: the records assembled (JSON: ``materials_block``)."""
+
+    def materials_block(self) -> dict:
+        """``{name: record}`` of the constants assembled (layout of ``materials.toml``)."""
+        return {n: m.to_record() for n, m in sorted(self.materials.items())}
 
     @property
     def basis_u(self):
@@ -424,7 +444,8 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     order : 1 or 2
         Polynomial order of the displacement and potential fields.
     library : mapping of material records, optional
-        Default: the built-in library (``fem.materials.load_materials``).
+        Default: the mesh's own records (``mesh.library``: what the design resolved, built-in
+        records for names it does not carry); a given library overrides them by name.
     intorder : (stiffness, mass) quadrature orders, optional
         ``"skfem"`` (with ``reference=True``): scikit-fem's own default rules.
     reference : bool
@@ -436,6 +457,8 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
         raise ParameterError("order", order, "must be 1 or 2")
     t0 = time.perf_counter()
     rdata = _region_data(mesh, library)
+    lib = _library(mesh, library)
+    used = {r.material: resolve(r.material, lib) for r in mesh.regions}
     skmesh = mesh.to_skfem()
     elem = ElementTetP2() if order == 2 else ElementTetP1()
     if intorder == "skfem":      # scikit-fem's default rules (plain-assembly baseline only)
@@ -509,4 +532,4 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
         mesh=mesh, skmesh=skmesh, basis=bk, nodes=bk.doflocs.T.copy(),
         K=K, M=M, K_loss=L, n_u=n_u, n_phi=n_phi, hot_dof=(n_u + n_phi) if has_hot else None,
         phi_scale=phi_scale, phi_nodes=interior, hot_nodes=hot, ground_nodes=ground,
-        regions=rdata, order=order, intorder=(qk, qm), timings=timings)
+        regions=rdata, order=order, intorder=(qk, qm), timings=timings, materials=used)

@@ -427,6 +427,8 @@ class HarmonicResult(Result):
     """Modes in the modal basis (0 for the direct method)."""
     check_error: float = float("nan")
     """Worst relative difference to the direct check solves (NaN: not checked)."""
+    materials: dict = field(default_factory=dict)
+    """The material constants assembled, name -> record (``PiezoSystem.materials_block``)."""
 
     @property
     def f_r_hz(self) -> float:
@@ -462,6 +464,7 @@ class HarmonicResult(Result):
             "surfaces": {s: {c: {"abs_m": np.abs(v).tolist(), "phase_deg": np.degrees(np.angle(v)).tolist()}
                              for c, v in comps.items()} for s, comps in self.surfaces.items()},
             "timings": self.timings,
+            "materials": self.materials,
         }
 
 
@@ -644,7 +647,8 @@ def harmonic_sweep(system: PiezoSystem, freqs_hz: Sequence[float], voltage: floa
     Y = current / voltage
     power = 0.5 * np.real(voltage * np.conj(current))
     timings = {"sweep_s": time.perf_counter() - t0, **timings}
-    return HarmonicResult(f, voltage, Y, current, power, out_s, method, loss, timings, basis_modes, check_error)
+    return HarmonicResult(f, voltage, Y, current, power, out_s, method, loss, timings, basis_modes, check_error,
+                          system.materials_block())
 
 
 # --------------------------------------------------------------------------- working point

@@ -18,7 +18,9 @@ def build_parser():
                   description="Harmonic response of a design driven by a voltage: horn-tip amplitude per volt, "
                               "admittance over a band with resonance/anti-resonance, input power, and the "
                               "ring-up under a sine switched on at t = 0.")
-    p.add_argument("--design", metavar="FILE", help="design TOML (default: the built-in RPUD design)")
+    from geometry.options import add_design_options
+
+    add_design_options(p, include=("design", "materials"))
     p.add_argument("--voltage", type=float, default=225.0, metavar="V",
                    help="drive voltage amplitude, V (default 225)")
     p.add_argument("--freq", type=float, metavar="HZ",
@@ -31,7 +33,7 @@ def build_parser():
     p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
-    p.add_argument("--mesh-size", type=float, metavar="M", help="mesh size, m")
+    add_design_options(p, include=("mesh_size",), mesh_size_help="mesh size, m")
     p.add_argument("--modes", type=int, default=8, metavar="N",
                    help="modes in the superposition basis (default 8; a wide --band grows it as needed)")
     p.add_argument("--mode", type=int, metavar="K",
@@ -57,6 +59,7 @@ MAX_RING_UP = 1.0
 def _check_options(args) -> None:
     """Every option finite and inside its stated range, outputs usable, before meshing."""
     from rpud_common import check_integer, check_output_paths
+    from geometry.options import check_design_options, design_inputs
     from geometry.validate import FREQUENCY_BAND
 
     check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
@@ -70,13 +73,12 @@ def _check_options(args) -> None:
         check_range("--q-mech", args.q_mech, 1.0, 1e6)
     if args.tan_delta is not None:
         check_range("--tan-delta", args.tan_delta, 0.0, 1.0)
-    if args.mesh_size is not None:
-        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    check_design_options(args)
     if args.ring_up is not None:
         check_range("--ring-up", args.ring_up, 0.0, MAX_RING_UP, "s (0: six time constants)")
     if args.json is not None and not args.json.endswith(".json"):
         raise ParameterError("--json", args.json, "must end in .json")
-    check_output_paths(inputs={"--design": args.design}, folders=("plots",), json=args.json, plots=args.plots)
+    check_output_paths(inputs=design_inputs(args), folders=("plots",), json=args.json, plots=args.plots)
 
 
 def driven_mode(modal, near_hz: float) -> int:
@@ -107,6 +109,7 @@ def main(argv=None) -> int:
     import geometry
     from rpud_common import atomic_write_text, json_text, setup_logging
     from geometry.guard import check_budget
+    from geometry.options import design_from_options
 
     from .assembly import assemble
     from .modal import modal_analysis
@@ -118,7 +121,7 @@ def main(argv=None) -> int:
     if band and args.freq is not None and not band[0] <= args.freq <= band[1]:
         raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
     loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
-    design = geometry.load_design(args.design) if args.design is not None else geometry.default_design()
+    design = design_from_options(args)
     check_budget(design, args.mesh_size, allow_large=args.allow_large)
     mesh = geometry.build_mesh(design, mesh_size=args.mesh_size)
     surfaces = tuple(args.surface) if args.surface else tuple(

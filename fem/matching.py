@@ -242,6 +242,7 @@ class MatchResult(Result):
             "flange_to_tip_axial_ratio": self.node_ratio,
             "modes": modes, "ndof": self.system.ndof, "backend": self.modal.backend,
             "design": self.design.to_mapping(), "timings": self.timings,
+            "materials": self.system.materials_block(),
         })
 
 

@@ -33,6 +33,7 @@ from typing import Mapping
 import numpy as np
 
 from rpud_common import ParameterError
+from geometry import piezo_forms
 from geometry.materials import EPS0, Material, get_material, load_library
 
 __all__ = ["PiezoConstants", "elastic_matrix", "piezo_matrices", "strain_charge",
@@ -135,7 +136,4 @@ def piezo_matrices(material: Material | str, poling=(0.0, 0.0, 1.0), library=Non
 
 def strain_charge(pc: PiezoConstants) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Strain-charge form ``(s_E (6,6) 1/Pa, d (3,6) C/N, eps_T (3,3) F/m)`` of ``pc``."""
-    s_E = np.linalg.inv(pc.c_E)
-    d = pc.e @ s_E
-    eps_T = pc.eps_S + d @ pc.e.T
-    return s_E, d, eps_T
+    return piezo_forms.strain_charge(pc.c_E, pc.e, pc.eps_S)

@@ -148,7 +148,8 @@ class ModalResult(Result):
         return {"near_hz": self.near_hz, "sigma": self.sigma, "clamp": list(self.clamp),
                 "modes": modes, "rigid_hz": [float(f) for f in self.rigid_hz],
                 "ndof": int(self.ndof), "backend": self.backend,
-                "timings": {k: float(v) for k, v in self.timings.items()}}
+                "timings": {k: float(v) for k, v in self.timings.items()},
+                "materials": self.system.materials_block() if self.system is not None else None}
 
 
 def working_mode(system: PiezoSystem, f_hz: np.ndarray, vectors: np.ndarray, near_hz: float,

@@ -38,12 +38,10 @@ def build_parser(prog="python -m fem.modal"):
     p = CliParser(prog=prog, description="Resonance (short-circuit) and anti-resonance (open-circuit) "
                   "modes of a design near a target frequency; with --match, tune the horn and coupler "
                   "lengths until both resonate together at the target.")
+    from geometry.options import add_design_options
+
     g = p.add_argument_group("design")
-    g.add_argument("--design", default="default",
-                   help="design TOML file (geometry package layout), or 'default' for the built-in design "
-                        "(default)")
-    g.add_argument("--select", metavar="NAME", help="design to pick from a file holding several")
-    g.add_argument("--mesh-size", type=float, metavar="M", help="characteristic mesh size in m")
+    add_design_options(g, design_default="default", mesh_size_help="characteristic mesh size in m")
     g.add_argument("--order", type=int, default=2, choices=(1, 2), help="field order (default 2)")
     g = p.add_argument_group("modal analysis")
     g.add_argument("--near", type=float, metavar="HZ",
@@ -92,14 +90,13 @@ MATCH_TOL_RANGE = (1e-6, 0.2)
 def _check_options(args) -> dict:
     """Validate every option before the design is meshed; returns the checked output paths."""
     from rpud_common import check_integer, check_output_paths, check_range
+    from geometry.options import check_design_options, design_inputs
     from geometry.validate import FREQUENCY_BAND
 
     if args.near is not None and args.near != 0:
         check_range("--near", args.near, *FREQUENCY_BAND, "Hz")
     if args.modes is not None:
         check_integer("--modes", args.modes, 1, MAX_MODES)
-    if args.mesh_size is not None:
-        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
     if args.target is not None:
         check_range("--target", args.target, *FREQUENCY_BAND, "Hz")
     if args.tol is not None:
@@ -109,8 +106,7 @@ def _check_options(args) -> dict:
         val = getattr(args, opt)
         if val is not None and not str(val).endswith(suffix):
             raise ParameterError("--" + opt.replace("_", "-"), val, f"must end in {suffix}")
-    if args.select is not None and str(args.design) == "default":
-        raise ParameterError("--select", args.select, "needs --design FILE")
+    check_design_options(args)
     if not args.match:
         for opt in ("target", "tune", "out_design", "tol"):
             if getattr(args, opt) is not None:
@@ -130,8 +126,7 @@ def _check_options(args) -> dict:
     tuned = None
     if args.match and args.out_design is None and args.json is not None:
         tuned = "beside --json"
-    outputs = check_output_paths(inputs={"--design": None if str(args.design) == "default" else args.design},
-                                 folders=("render",), json=args.json, vtu=args.vtu, out_design=args.out_design,
+    outputs = check_output_paths(inputs=design_inputs(args), folders=("render",), json=args.json, vtu=args.vtu, out_design=args.out_design,
                                  render=args.render)
     outputs["tuned"] = tuned
     return outputs
@@ -165,6 +160,7 @@ def main(argv=None) -> int:
     import geometry
     from rpud_common import atomic_write_text, check_output_paths, json_text, setup_logging
     from geometry.guard import check_budget
+    from geometry.options import design_from_options, design_inputs
 
     from .assembly import assemble
 
@@ -174,8 +170,7 @@ def main(argv=None) -> int:
         logging.getLogger("skfem").setLevel(logging.WARNING)
     outputs = _check_options(args)
     bracket = _factors(args.bracket, "--bracket") if args.match else None
-    design = geometry.default_design() if str(args.design) == "default" else geometry.load_design(args.design,
-                                                                                                  args.select)
+    design = design_from_options(args)
     check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large)
     if args.match:
         from .matching import MatchSettings, match
@@ -188,8 +183,7 @@ def main(argv=None) -> int:
         out_design = args.out_design
         if out_design is None and outputs["tuned"]:
             out_design = str(Path(args.json).parent / f"{design.name}-tuned.toml")
-            check_output_paths(inputs={"--design": None if str(args.design) == "default" else args.design,
-                                       "--json": args.json}, out_design=out_design)
+            check_output_paths(inputs={**design_inputs(args), "--json": args.json}, out_design=out_design)
         print(f"matching {', '.join(settings.tune)} to {settings.target_hz:.1f} Hz", flush=True)
 
         def show(rec):

@@ -32,17 +32,16 @@ def _parser() -> CliParser:
         "Build the Gmsh/OpenCASCADE geometry of a design (default: the RPUD composition), mesh it "
         "conformally with named regions and surfaces, and write mesh, report and picture. Units: SI "
         "(metres) in files and options; mm in the picture and the printed table."))
-    p.add_argument("--design", metavar="FILE", help="design TOML (default: the built-in RPUD design)")
-    p.add_argument("--select", metavar="NAME", help="pick one design from a TOML file holding several "
-                   "(e.g. geometry/examples.toml: k33_rod, k31_bar, langevin, slender_rod, bonded_sandwich, rpud)")
+    from .options import add_design_options
+
+    add_design_options(p, include=("design", "select", "materials"))
     p.add_argument("--write-default", metavar="FILE", help="write the default RPUD design as TOML and exit")
     p.add_argument("--mesh", metavar="OUT.msh", help="write the tagged mesh (Gmsh 2.2 format, physical names)")
     p.add_argument("--vtu", metavar="OUT.vtu", help="write the mesh for ParaView (region/material/poling data)")
     p.add_argument("--json", metavar="OUT.json", help="write the report: parts (mesh volume, mass), groups, "
                    "counts, quality, timings")
     p.add_argument("--png", metavar="OUT.png", help="render the parts off screen (pyvista)")
-    p.add_argument("--mesh-size", type=float, metavar="M", help="base element size in m (replaces the "
-                   "elements-per-wavelength rule; feature caps still apply)")
+    add_design_options(p, include=("mesh_size",))
     p.add_argument("--epw", type=float, metavar="N", help="elements per shear wavelength at the target frequency")
     p.add_argument("--order", type=int, choices=(1, 2), default=2, help="tetrahedron order (default 2, curved)")
     p.add_argument("--algorithm", choices=("delaunay", "frontal", "hxt"), default="delaunay",
@@ -61,22 +60,21 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     # warnings only by default, as every rpud CLI: stderr carries the one line of a failed run
     setup_logging(-1 if args.quiet else args.verbose - 1)
-    from .design import default_design, load_design
+    from .design import default_design
+    from .options import design_from_options, design_inputs
 
     for key, suffix in _SUFFIX.items():
         value = getattr(args, key)
         if value is not None and Path(value).suffix.lower() != suffix:
             raise ParameterError(f"--{key.replace('_', '-')}", value, f"must end in {suffix}")
     check_options(args)
-    check_output_paths(inputs={"--design": args.design}, mesh=args.mesh, vtu=args.vtu, json=args.json,
+    check_output_paths(inputs=design_inputs(args), mesh=args.mesh, vtu=args.vtu, json=args.json,
                                  png=args.png, write_default=args.write_default)
     if args.write_default:
         default_design().save(args.write_default)
         log.info("wrote %s", args.write_default)
         return 0
-    if args.select is not None and args.design is None:
-        raise ParameterError("--select", args.select, "needs --design FILE")
-    design = load_design(args.design, args.select) if args.design is not None else default_design()
+    design = design_from_options(args)
 
     from .guard import check_budget
     from .report import build_report
@@ -102,7 +100,9 @@ def main(argv: list[str] | None = None) -> int:
 def check_options(args) -> None:
     """Numeric options: finite and inside their stated ranges (before anything is built)."""
     if args.mesh_size is not None:
-        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+        from .options import MESH_SIZE_RANGE
+
+        check_range("--mesh-size", args.mesh_size, *MESH_SIZE_RANGE, "m")
     if args.epw is not None:
         check_range("--epw", args.epw, 1.0, 200.0)
     if args.gmsh_timeout is not None:
@@ -123,6 +123,16 @@ def format_table(report: dict) -> str:
     if q.get("layer_elements"):
         lines.append(f"thin layers meshed as structured extrusions: {q['layer_elements']} of the tetrahedra, "
                      f"min SICN {q['layer_min_sicn']:.3f} (flat by design; the min SICN above is of the rest)")
-    if report.get("f1_1d_hz"):
-        lines.append(f"1-D first longitudinal mode (short circuit): {report['f1_1d_hz']:.0f} Hz")
+    lines += _onedim_lines(report.get("onedim"))
     return "\n".join(lines)
+
+
+def _onedim_lines(od: dict | None) -> list[str]:
+    """The 1-D reference: its number with what it is and its estimated error, or why it is left out."""
+    if not od:
+        return []
+    if not od["valid"]:
+        return [f"1-D reference left out ({od['meaning']}), it does not apply here: " + "; ".join(od["reasons"])]
+    notes = [f"estimated 3-D corrections: lateral inertia {100 * od['rayleigh_love_rel']:+.1f} %, "
+             f"electrode stiffening {100 * od['electrode_stiffening_rel']:+.1f} %"] + od["caveats"]
+    return [f"1-D first longitudinal mode: {od['f1_hz']:.0f} Hz ({od['meaning']}; " + "; ".join(notes) + ")"]

@@ -30,8 +30,8 @@ from rpud_common import cli as common
 from rpud_common import ParameterError, check_choice, check_positive, check_range
 from .design import DesignBase, RPUDDesign, StackDesign
 from .layers import Layer, layer_plan, rim_fields
+from .materials import Material, get_material
 from .solids import make_rpud, make_stack
-from .materials import get_material
 from .mesh import Electrode, Region, TaggedMesh
 
 __all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "mesh_layers", "ALGORITHMS",
@@ -69,15 +69,16 @@ _GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 """Gmsh's 10-node tetrahedron lists edge (2,3) before (1,3); meshio/VTK the other way round."""
 
 
-def shear_wavelength(material: str, frequency: float) -> float:
-    """Shear wavelength (m) of ``material`` at ``frequency`` (Hz).
+def shear_wavelength(material: str | Material, frequency: float, library=None) -> float:
+    """Shear wavelength (m) of ``material`` (a record, or a name in ``library``, default the
+    built-in one) at ``frequency`` (Hz).
 
-    Isotropic: sqrt(G / rho) / f; piezoceramic: sqrt(min(c44, c66) / rho) / f (the slowest
-    shear wave).
+    Isotropic: sqrt(G / rho) / f; piezoceramic: sqrt(min(c44, c55, c66) / rho) / f (the slowest
+    shear wave along the material axes).
     """
-    m = get_material(material)
+    m = material if isinstance(material, Material) else get_material(material, library)
     if m.is_piezo:
-        G = min(m.c_E["c44"], m.c_E["c66"])
+        G = float(np.diag(m.voigt_matrices()[0])[3:].min())
     else:
         G = m.youngs_modulus / (2 * (1 + m.poisson_ratio))
     return math.sqrt(G / m.density) / frequency
@@ -141,8 +142,9 @@ def _free_sizes(design, mesh_size, elements_per_wavelength):
         check_positive("mesh_size", mesh_size, "m")
 
     def base(material: str) -> float:
-        return mesh_size if mesh_size is not None else shear_wavelength(material, design.target_frequency) / epw
+        return mesh_size if mesh_size is not None else shear_wavelength(lib[material], design.target_frequency) / epw
 
+    lib = design.library
     sizes: dict[str, float] = {}
     for region, part, material, _vol in design.region_table():
         sizes[region] = base(material)
@@ -546,7 +548,8 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
     else:
         electrodes = tuple(Electrode(e.name, e.role) for e in design.electrodes)
     tm = TaggedMesh(points=coords[used], cells=renum[cells], cell_region=cell_region, regions=tuple(regions),
-                    facet_sets={k: renum[v] for k, v in facet_sets.items()}, electrodes=electrodes)
+                    facet_sets={k: renum[v] for k, v in facet_sets.items()}, electrodes=electrodes,
+                    materials=design.used_materials())
     return tm, np.concatenate(elem_tags)
 
 

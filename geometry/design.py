@@ -32,12 +32,12 @@ from typing import Any, ClassVar, Literal
 
 import numpy as np
 
-from rpud_common import (ParameterError, check_choice, check_range, dump_toml, from_mapping, load_toml,
-                     to_mapping, atomic_write_text)
-from .dotted import _child, _radial_signature, _replace_path
-from .materials import get_material
-from .validate import (MIN_LAYER, check_bore, check_count, check_frequency, check_length, check_material,
-                       check_name, design_table, finite_or_none)
+from rpud_common import ParameterError, check_choice, check_range, from_mapping, load_toml
+from .design_base import DesignBase
+from .design_materials import check_material_name, own_records
+from .materials import Material
+from .validate import (MIN_LAYER, check_bore, check_count, check_frequency, check_length, check_name,
+                       design_table, finite_or_none)
 
 __all__ = [
     "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign", "RPUDDesign",
@@ -59,151 +59,11 @@ _MIN_WALL = 0.5e-3
 """Smallest metal wall (m) left by a bore, a slot or a tooth gap: below it Gmsh needs sliver elements."""
 
 
-_material = check_material
+_material = check_material_name
 
 
 def _annulus(d_out: float, d_in: float) -> float:
     return math.pi / 4.0 * (d_out ** 2 - d_in ** 2)
-
-
-# ============================================================================ shared interface
-
-
-class DesignBase:
-    """Shared behaviour of design kinds: dotted paths, TOML, volumes, extents, morphing."""
-
-    kind: str
-
-    # ------------------------------------------------------------------ dotted paths
-    def get(self, path: str) -> Any:
-        """Value at a dotted path, e.g. ``"horn.length"`` or ``"segments.rod.length"`` (m)."""
-        obj: Any = self
-        for key in path.split("."):
-            obj = _child(obj, key, path)
-        return obj
-
-    def replace(self, changes: Mapping[str, Any] | None = None, **kw: Any):
-        """A new, validated design with the values at the given dotted paths replaced.
-
-        Parameters
-        ----------
-        changes : mapping of str to value
-            ``{"horn.length": 0.062, "coupler.slot_angle_deg": 0.0}``.
-        """
-        changes = dict(changes or {}, **kw)
-        new = self
-        for path, value in changes.items():
-            new = _replace_path(new, path.split("."), value, path)
-        return new
-
-    def tunable_lengths(self) -> tuple[str, ...]:
-        """Dotted paths of the axial lengths (m) that :meth:`morph_points` maps exactly."""
-        raise NotImplementedError
-
-    default_tuned: ClassVar[tuple[str, ...]] = ()
-    """Lengths tuned by resonance matching unless the user names others."""
-
-    # ------------------------------------------------------------------ TOML
-    def to_mapping(self) -> dict:
-        """Plain dict (TOML/JSON friendly); ``kind`` first."""
-        data = to_mapping(self)
-        return {"kind": data.pop("kind"), **data}
-
-    def to_toml(self) -> str:
-        return dump_toml(self.to_mapping())
-
-    def save(self, path: str | os.PathLike) -> None:
-        """Write the design as TOML, atomically."""
-        atomic_write_text(path, self.to_toml())
-
-    # ------------------------------------------------------------------ geometry summaries
-    def part_volumes(self) -> dict[str, float]:
-        """Closed-form volume of every part in m^3 (slots and notches subtracted)."""
-        out: dict[str, float] = {}
-        for region, part, _mat, vol in self.region_table():
-            out[part] = out.get(part, 0.0) + vol
-        return out
-
-    def part_masses(self) -> dict[str, float]:
-        """Closed-form mass of every part in kg."""
-        out: dict[str, float] = {}
-        for region, part, mat, vol in self.region_table():
-            out[part] = out.get(part, 0.0) + vol * get_material(mat).density
-        return out
-
-    def region_table(self) -> list[tuple[str, str, str, float]]:
-        """``(region, part, material, closed-form volume m^3)`` for every region."""
-        raise NotImplementedError
-
-    def total_mass(self) -> float:
-        """Closed-form mass of the whole design in kg."""
-        return float(sum(self.part_masses().values()))
-
-    def part_extents(self) -> dict[str, tuple[float, float]]:
-        """Axial extent ``(z0, z1)`` in m of every part."""
-        out: dict[str, tuple[float, float]] = {}
-        for label, part, z0, z1 in self._zones():
-            if part in out:
-                out[part] = (min(out[part][0], z0), max(out[part][1], z1))
-            else:
-                out[part] = (z0, z1)
-        return out
-
-    def axial_breakpoints(self) -> list[tuple[str, float]]:
-        """Ordered ``(label, z)`` boundaries of the axial zones (m).
-
-        Inside each zone the geometry is an affine function of z, so a piecewise-linear map
-        of z between the breakpoints of two designs of the same structure maps one mesh onto
-        the other exactly (see :meth:`morph_points`).
-        """
-        zones = self._zones()
-        pts = [(f"{zones[0][0]}:start", zones[0][2])]
-        pts += [(f"{label}:end", z1) for label, _p, _z0, z1 in zones]
-        return pts
-
-    def _zones(self) -> list[tuple[str, str, float, float]]:
-        """``(label, part, z0, z1)`` of the axial zones, ordered along z."""
-        raise NotImplementedError
-
-    def morph_points(self, points: np.ndarray, new: "DesignBase") -> np.ndarray:
-        """Move mesh points of this design onto the geometry of ``new`` by an axial map.
-
-        Exact when ``new`` differs from this design only in lengths listed by
-        :meth:`tunable_lengths` (radial data, angles and counts unchanged): z is mapped
-        piecewise linearly between :meth:`axial_breakpoints`; x and y are kept.
-
-        Parameters
-        ----------
-        points : (n, 3) array, m
-        new : design of the same kind and structure
-
-        Returns
-        -------
-        (n, 3) array, m
-        """
-        if type(new) is not type(self):
-            raise ParameterError("design", type(new).__name__, f"must be a {type(self).__name__} to morph")
-        old_bp, new_bp = self.axial_breakpoints(), new.axial_breakpoints()
-        if [b[0] for b in old_bp] != [b[0] for b in new_bp]:
-            raise ParameterError("design", new.name, "has a different zone structure; re-mesh instead of morphing")
-        changed = _radial_signature(self) != _radial_signature(new)
-        if changed:
-            raise ParameterError("design", new.name, "differs in more than axial lengths; re-mesh instead of morphing")
-        zo = np.array([b[1] for b in old_bp])
-        zn = np.array([b[1] for b in new_bp])
-        out = np.array(points, dtype=float, copy=True)
-        z = out[:, 2]
-        # extrapolate linearly beyond the ends (points sit exactly on them up to round-off)
-        znew = np.interp(z, zo, zn)
-        below, above = z < zo[0], z > zo[-1]
-        znew[below] = zn[0] + (z[below] - zo[0])
-        znew[above] = zn[-1] + (z[above] - zo[-1])
-        out[:, 2] = znew
-        return out
-
-    def electrode_planes(self) -> dict[str, list[tuple[str, float]]]:
-        """Electrode name -> the planes ``(axis "x"/"y"/"z", coordinate m)`` of its ceramic faces."""
-        raise NotImplementedError
 
 
 # ============================================================================ RPUD parts
@@ -306,8 +166,6 @@ class StackRings:
     def __post_init__(self):
         p = self._prefix
         _material(f"{p}.material", self.material)
-        if not get_material(self.material).is_piezo:
-            raise ParameterError(f"{p}.material", self.material, "must be a piezoceramic (kind = 'piezo')")
         check_count(f"{p}.n_rings", self.n_rings, 2, even=True)
         check_length(f"{p}.outer_diameter", self.outer_diameter)
         check_bore(f"{p}.inner_diameter", self.inner_diameter)
@@ -511,6 +369,7 @@ class RPUDDesign(DesignBase):
     stack: StackRings = field(default_factory=StackRings)
     flange: FlangeDesign = field(default_factory=FlangeDesign)
     coupler: CouplerDesign = field(default_factory=CouplerDesign)
+    materials: Mapping[str, Material] = field(default_factory=dict, hash=False)
 
     default_tuned: ClassVar[tuple[str, ...]] = ("horn.length", "coupler.length")
 
@@ -544,6 +403,15 @@ class RPUDDesign(DesignBase):
         if f.outer_diameter <= biggest + 2 * _MIN_WALL:
             raise ParameterError("flange.outer_diameter", f.outer_diameter,
                                  f"must exceed the stack and horn diameters ({biggest:g} m) by >= {2 * _MIN_WALL:g} m")
+        self._check_materials()
+
+    def material_uses(self) -> list[tuple[str, str, Any]]:
+        s = self.stack
+        uses = [("horn.material", self.horn.material, None), ("stack.material", s.material, "piezo"),
+                ("flange.material", self.flange.material, None), ("coupler.material", self.coupler.material, None)]
+        if s.electrode_shims:
+            uses.append(("stack.shim_material", s.shim_material, None))
+        return uses
 
     # ------------------------------------------------------------------ layout
     def tunable_lengths(self) -> tuple[str, ...]:
@@ -729,11 +597,6 @@ class Segment:
         check_choice(f"{p}.kind", self.kind, ("cylinder", "cone", "box"))
         _material(f"{p}.material", self.material)
         check_choice(f"{p}.poling", self.poling, tuple(POLING_VECTORS))
-        piezo = get_material(self.material).is_piezo
-        if piezo and self.poling == "none":
-            raise ParameterError(f"{p}.poling", self.poling, f"a piezoceramic ({self.material}) needs a poling direction")
-        if not piezo and self.poling != "none":
-            raise ParameterError(f"{p}.poling", self.poling, f"must be 'none' for passive material {self.material}")
         if self.kind == "box":
             check_length(f"{p}.thickness", self.thickness)
             check_length(f"{p}.width", self.width)
@@ -832,6 +695,7 @@ class StackDesign(DesignBase):
     electrodes: tuple[ElectrodeSpec, ...] = ()
     target_frequency: float = 20000.0
     elements_per_wavelength: float = 14.0
+    materials: Mapping[str, Material] = field(default_factory=dict, hash=False)
 
     def __post_init__(self):
         check_choice("kind", self.kind, ("stack",))
@@ -848,6 +712,7 @@ class StackDesign(DesignBase):
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ParameterError(f"segments.{dup[0]}.name", dup[0], "segment names must be unique")
+        self._check_materials()
         end = None
         for seg, (z0, z1) in zip(self.segments, self.segment_extents().values()):
             if end is not None and z0 < end[1] - 1e-12:
@@ -879,6 +744,10 @@ class StackDesign(DesignBase):
         for seg in self.segments:
             if seg.poling != "none" and not any(e.segment == seg.name for e in self.electrodes):
                 log.info("piezo segment %s has no electrode (its potential floats)", seg.name)
+
+    def material_uses(self) -> list[tuple[str, str, Any]]:
+        return [(f"segments.{s.name}.material", s.material, ("poling", f"segments.{s.name}.poling", s.poling))
+                for s in self.segments]
 
     # ------------------------------------------------------------------ layout
     def segment_extents(self) -> dict[str, tuple[float, float]]:
@@ -948,28 +817,46 @@ class StackDesign(DesignBase):
 _KINDS = {"rpud": RPUDDesign, "stack": StackDesign}
 
 
-def design_from_mapping(data: Mapping[str, Any], where: str = "") -> DesignBase:
-    """Build a design from a mapping with a ``kind`` key ("rpud" or "stack")."""
+def design_from_mapping(data: Mapping[str, Any], where: str = "",
+                        materials: Mapping[str, Material] | None = None) -> DesignBase:
+    """Build a design from a mapping with a ``kind`` key ("rpud" or "stack").
+
+    ``materials``: extra records (a user's material file) the design's names may resolve in;
+    those it uses are added to its own table (see :mod:`geometry.design_materials`).
+    """
     if not isinstance(data, Mapping):
         raise ParameterError(where or "design", data, "must be a table")
     kind = data.get("kind", "rpud")
     check_choice(f"{where}.kind" if where else "kind", kind, tuple(_KINDS))
     try:
-        return from_mapping(_KINDS[kind], data)
+        own = own_records(data.get("materials"))
+        if materials:
+            for name, rec in materials.items():
+                if name in own and own[name] != rec:
+                    raise ParameterError(f"materials.{name}", name, "is defined differently in the design's "
+                                         "[materials] table and in the --materials file: rename one of them")
+            data = {**data, "materials": {**materials, **own}}
+        design = from_mapping(_KINDS[kind], data)
     except ParameterError as exc:
         if where:
             raise ParameterError(f"{where}: {exc.name}", exc.value, exc.allowed) from None
         raise
+    if materials:
+        keep = set(own) | {name for _p, name, _r in design.material_uses()}
+        design = dataclasses.replace(design, materials={k: v for k, v in design.materials.items() if k in keep})
+    return design
 
 
-def load_design(path: str | os.PathLike, select: str | None = None) -> DesignBase:
+def load_design(path: str | os.PathLike, select: str | None = None,
+                materials: Mapping[str, Material] | None = None) -> DesignBase:
     """Load a design from TOML.
 
     A file is either one design (top-level ``kind`` key, or RPUD tables ``[horn]``...) or a
     collection of designs, one table each (``[k33_rod]``, ``[k31_bar]``...) from which
-    ``select`` picks one.
+    ``select`` picks one. A design may carry its own ``[materials]`` table; ``materials`` adds
+    the records of a user's material file (``geometry.materials.load_library``).
     """
     data = load_toml(path, "design")
     known = {f.name for cls in _KINDS.values() for f in dataclasses.fields(cls)}
     table, where = design_table(data, str(path), select, known)
-    return design_from_mapping(table, where=where)
+    return design_from_mapping(table, where=where, materials=materials)

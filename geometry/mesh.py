@@ -12,11 +12,14 @@ import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Literal
+from typing import TYPE_CHECKING, Literal
 
 import numpy as np
 
 from rpud_common import ParameterError, atomic_output
+
+if TYPE_CHECKING:
+    from .materials import Material
 
 __all__ = ["Region", "Electrode", "TaggedMesh", "match_rows"]
 
@@ -98,6 +101,11 @@ class TaggedMesh:
         Named surfaces as triangles of corner-node indices.
     electrodes : tuple of Electrode
         Electrode surfaces (each is also a key of ``facet_sets``).
+    materials : mapping of str to Material
+        The records of the regions' materials as the design resolved them (its own library:
+        built-in records, its ``[materials]`` table, a ``--materials`` file). ``fem`` assembles,
+        sizes and labels with exactly these; a name missing here resolves in the built-in
+        library (:attr:`library`).
     """
 
     points: np.ndarray
@@ -106,6 +114,7 @@ class TaggedMesh:
     regions: tuple[Region, ...]
     facet_sets: Mapping[str, np.ndarray] = field(default_factory=dict)
     electrodes: tuple[Electrode, ...] = ()
+    materials: Mapping[str, "Material"] = field(default_factory=dict)
 
     def __post_init__(self):
         object.__setattr__(self, "points", np.ascontiguousarray(self.points, dtype=np.float64))
@@ -132,7 +141,24 @@ class TaggedMesh:
             if e.role not in ("hot", "ground"):
                 raise ParameterError(f"electrodes.{e.name}.role", e.role, "must be 'hot' or 'ground'")
 
+        for name, rec in self.materials.items():
+            if getattr(rec, "name", None) != name:
+                raise ParameterError(f"materials.{name}", rec, "must be the Material record of that name")
+
     # ------------------------------------------------------------------ queries
+    @property
+    def library(self) -> dict:
+        """Where region material names resolve: the built-in records overlaid with :attr:`materials`."""
+        from .materials import builtin_library
+
+        return {**builtin_library(), **self.materials}
+
+    def material(self, name: str) -> "Material":
+        """The record of material ``name`` (:attr:`library`; unknown names list the known ones)."""
+        from .materials import get_material
+
+        return get_material(name, self.library)
+
     @property
     def order(self) -> int:
         """Geometric order: 1 (straight tetrahedra) or 2 (curved, 10 nodes)."""
@@ -225,8 +251,11 @@ class TaggedMesh:
                 continue                  # e.g. an interface whose other side was cut away
             facet_sets[name] = new_index[tri]
         electrodes = tuple(e for e in self.electrodes if e.name in facet_sets)
+        regions = tuple(self.regions[i] for i in regions_used)
+        names = {r.material for r in regions}
         return TaggedMesh(self.points[used], new_index[cells], region_index[self.cell_region[keep]],
-                          tuple(self.regions[i] for i in regions_used), facet_sets, electrodes)
+                          regions, facet_sets, electrodes,
+                          {k: v for k, v in self.materials.items() if k in names})
 
     # ------------------------------------------------------------------ conversions
     def _corner_renumbering(self) -> tuple[np.ndarray, np.ndarray]:

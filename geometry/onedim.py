@@ -23,6 +23,7 @@ from scipy.optimize import brentq
 
 from rpud_common import ParameterError, check_positive
 from .materials import Material, get_material
+from .piezo_forms import strain_charge
 
 __all__ = ["Mode1D", "axial_modulus", "longitudinal_modes", "design_modes", "first_longitudinal"]
 
@@ -39,12 +40,9 @@ def axial_modulus(material: str | Material, electrical: Literal["short", "open"]
     m = get_material(material) if isinstance(material, str) else material
     if not m.is_piezo:
         return float(m.youngs_modulus)
-    C, e, eps = m.voigt_matrices()
-    s = np.linalg.inv(C)
+    s, d, epsT = strain_charge(*m.voigt_matrices())
     if electrical == "short":
         return float(1.0 / s[2, 2])
-    d = e @ s
-    epsT = eps + d @ e.T
     return float(1.0 / (s[2, 2] - d[2, 2] ** 2 / epsT[2, 2]))
 
 
@@ -93,7 +91,7 @@ def _chain(sections, omega):
 
 def longitudinal_modes(sections: Sequence[tuple[float, float, str | Material | tuple[float, float]]],
                        f_max: float = 60e3, z0: float = 0.0, electrical: Literal["short", "open"] = "short",
-                       n_scan: int = 4000, samples_per_section: int = 8) -> list[Mode1D]:
+                       n_scan: int = 4000, samples_per_section: int = 8, library=None) -> list[Mode1D]:
     """Free-free longitudinal modes of a chain of uniform slices, below ``f_max``.
 
     Parameters
@@ -106,6 +104,9 @@ def longitudinal_modes(sections: Sequence[tuple[float, float, str | Material | t
         z of the first slice's -z face, m.
     electrical : {"short", "open"}
         Electrode condition of piezoceramic slices.
+    library : mapping name -> Material, optional
+        Where material names resolve (default: the built-in library; a design's is
+        ``design.library``).
 
     Returns
     -------
@@ -119,7 +120,7 @@ def longitudinal_modes(sections: Sequence[tuple[float, float, str | Material | t
         if isinstance(mat, tuple):
             E, rho = mat
         else:
-            m = get_material(mat) if isinstance(mat, str) else mat
+            m = get_material(mat, library) if isinstance(mat, str) else mat
             E, rho = axial_modulus(m, electrical), m.density
         props.append((float(length), float(area), float(E), float(rho)))
 
@@ -161,7 +162,8 @@ def design_modes(design, f_max: float | None = None, electrical: Literal["short"
     :class:`~geometry.design.StackDesign`), searched up to ``f_max`` (default 3 x target)."""
     f_max = 3.0 * design.target_frequency if f_max is None else f_max
     z0 = design.axial_breakpoints()[0][1]
-    return longitudinal_modes(design.sections_1d(), f_max=f_max, z0=z0, electrical=electrical)
+    return longitudinal_modes(design.sections_1d(), f_max=f_max, z0=z0, electrical=electrical,
+                              library=design.library)
 
 
 def first_longitudinal(design, electrical: Literal["short", "open"] = "short") -> Mode1D:

@@ -10,7 +10,6 @@ import numpy as np
 
 from .builder import build
 from .design import DesignBase
-from .materials import get_material
 from .mesh import TaggedMesh
 
 __all__ = ["build_report", "mesh_part_volumes"]
@@ -26,13 +25,14 @@ def mesh_part_volumes(mesh: TaggedMesh) -> tuple[dict[str, float], dict[str, flo
     for i, r in enumerate(mesh.regions):
         v = float(vol[mesh.cell_region == i].sum())
         volumes[r.part] = volumes.get(r.part, 0.0) + v
-        masses[r.part] = masses.get(r.part, 0.0) + v * get_material(r.material).density
+        masses[r.part] = masses.get(r.part, 0.0) + v * mesh.material(r.material).density
     return volumes, masses
 
 
 def build_report(design: DesignBase, **build_kw: Any) -> tuple[TaggedMesh, dict]:
     """Mesh ``design`` (keywords as :func:`geometry.builder.build`) and report on it."""
     from .onedim import design_modes
+    from .onedim_check import check_1d
 
     tm, rep = build(design, **build_kw)
     volumes, masses = mesh_part_volumes(tm)
@@ -48,10 +48,15 @@ def build_report(design: DesignBase, **build_kw: Any) -> tuple[TaggedMesh, dict]
             "volume_error": volumes[part] / closed[part] - 1.0,
             "mass_kg": masses[part],
         }
+    onedim = None
     try:
         modes = design_modes(design)
         f1 = modes[0].frequency if modes else None
         nodes = list(modes[0].nodes) if modes else []
+        if modes:
+            onedim = {"f1_hz": f1, **check_1d(design, modes[0]).as_dict()}
+            if not onedim["valid"]:
+                f1, nodes = None, []     # not a reference for this design: said why in "onedim"
     except Exception as exc:  # the 1-D reference is informative only
         log.warning("1-D reference failed: %s", exc)
         f1, nodes = None, []
@@ -71,5 +76,7 @@ def build_report(design: DesignBase, **build_kw: Any) -> tuple[TaggedMesh, dict]
         "timings_s": d["timings_s"],
         "f1_1d_hz": f1,
         "nodal_planes_1d_m": nodes,
+        "onedim": onedim,
+        "materials": {n: tm.material(n).to_record() for n in sorted({r.material for r in tm.regions})},
     }
     return tm, report

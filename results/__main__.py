@@ -21,13 +21,17 @@ def build_parser() -> CliParser:
                   description="End-to-end RPUD run: mesh -> resonance matching -> harmonic response at the "
                               "drive voltage -> horn-tip amplitude A0 (coupled with the free-mass impacts) -> "
                               "drill-tool kinetic energy vs free-mass weight. Writes summary.json, report.md, "
-                              "figures/, renders/ and modes.vtu into the output folder.")
-    p.add_argument("--design", metavar="FILE", help="design TOML (default: the built-in RPUD design)")
+                              "figures/, renders/ and modes.vtu into the output folder. "
+                              "'python -m results explore STUDY.toml' runs a design study instead "
+                              "(--help after 'explore' for its options).")
+    from geometry.options import add_design_options
+
+    add_design_options(p, include=("design", "materials"))
     p.add_argument("--voltage", type=float, default=225.0, metavar="V",
                    help="drive voltage amplitude on the hot electrodes, V (default 225, the article's)")
     p.add_argument("--out", metavar="DIR",
                    help="output folder (default results/default for the built-in design, else results/<name>)")
-    p.add_argument("--mesh-size", type=float, metavar="M", help="mesh size, m (default: elements-per-wavelength rule)")
+    add_design_options(p, include=("mesh_size",), mesh_size_help="mesh size, m (default: elements-per-wavelength rule)")
     p.add_argument("--q-mech", type=float, default=100.0, metavar="Q",
                    help="mechanical quality factor of the assembled transducer (default 100); 0 = datasheet values")
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")
@@ -54,8 +58,9 @@ def check_options(args) -> None:
     check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
     if args.q_mech != 0:
         check_range("--q-mech", args.q_mech, 1.0, 1e6, "(0 = datasheet values)")
-    if args.mesh_size is not None:
-        check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    from geometry.options import check_design_options
+
+    check_design_options(args)
     check_range("--rel-tol", args.rel_tol, 0.0, 1.0, lo_open=True)
     from impact.stats import MAX_MEMBERS
 
@@ -66,8 +71,13 @@ def check_options(args) -> None:
 
 
 def main(argv=None) -> int:
-    import geometry
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["explore"]:
+        from .explore_cli import main as explore_main
+
+        return explore_main(argv[1:])
     from geometry.guard import check_budget
+    from geometry.options import design_from_options, design_inputs
 
     from .pipeline import PipelineSettings, run_pipeline
 
@@ -79,14 +89,14 @@ def main(argv=None) -> int:
                                 couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                                 impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
                                 coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes)
-    design = geometry.load_design(args.design) if args.design is not None else geometry.default_design()
+    design = design_from_options(args)
     if args.out is not None:
         out = Path(args.out)
     else:
         # the default location is ours to create; a user's --out must have an existing parent
         out = Path("results") / ("default" if args.design is None else design.name)
         out.parent.mkdir(exist_ok=True)
-    check_output_paths(inputs={"--design": args.design}, folders=("out",), out=out)
+    check_output_paths(inputs=design_inputs(args), folders=("out",), out=out)
     if args.design is not None and out.exists() and Path(args.design).resolve().is_relative_to(out.resolve()):
         raise ParameterError("--out", str(out), "holds the input --design; it would be replaced by the results")
     check_budget(design, args.mesh_size, allow_large=args.allow_large)

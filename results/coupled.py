@@ -152,7 +152,7 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, fr
           f"{wp.tip_amplitude_m * 1e6:.2f} um at {voltage:g} V, {f:.1f} Hz")
     info = {"mesh": {"tetrahedra": mesh.n_cells, "nodes": mesh.n_points, "ndof": system.ndof},
             "matched": bool(match), "working_mode": int(w), "modal_f_r_hz": [float(x) for x in modal.f_r_hz],
-            "q_mech": q_mech, "fe_seconds": time.perf_counter() - t0}
+            "q_mech": q_mech, "materials": system.materials_block(), "fe_seconds": time.perf_counter() - t0}
     return FeTransducer(red, f_r, f_a, f, wp.tip_amplitude_m, float(wp.power_w), info)
 
 
@@ -296,8 +296,8 @@ def contact_from_design(design, m_free: float, restitution: float, free_mass_mat
     from geometry.materials import get_material
     from impact.contact import HuntCrossley, hertz_stiffness
 
-    horn = get_material(design.horn.material)
-    ball = get_material(free_mass_material)
+    horn = get_material(design.horn.material, design.library)
+    ball = get_material(free_mass_material, design.library)
     radius = (3.0 * m_free / (4.0 * np.pi * ball.density)) ** (1.0 / 3.0)
     k = hertz_stiffness(horn.youngs_modulus, horn.poisson_ratio, ball.youngs_modulus, ball.poisson_ratio, radius)
     return HuntCrossley(k, restitution)

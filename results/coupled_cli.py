@@ -32,7 +32,9 @@ def _parser() -> CliParser:
                                "tip motion, driven at V sin(2 pi f t), exchange impulses with the free mass (exact "
                                "event-driven coupling). Tool statistics as ensemble means with 95 % CIs.")
     ap.add_argument("--horn", choices=["fem"], required=True, help="fem: the reduced FE transducer (this command)")
-    ap.add_argument("--design", metavar="TOML", help="design file (default: the built-in RPUD design)")
+    from geometry.options import add_design_options
+
+    add_design_options(ap, include=("design", "materials"), metavar="TOML")
     ap.add_argument("--voltage", type=_real, default=225.0, metavar="V", help="drive amplitude, V (default 225)")
     ap.add_argument("--freq", type=_real, default=None, metavar="HZ",
                     help="drive frequency, Hz (default: the working mode's resonance)")
@@ -41,7 +43,7 @@ def _parser() -> CliParser:
     ap.add_argument("--modes", type=int, default=None, metavar="N",
                     help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
     ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
-    ap.add_argument("--mesh-size", type=_real, default=None, metavar="M", help="mesh size, m")
+    add_design_options(ap, include=("mesh_size",), number_type=_real, mesh_size_help="mesh size, m")
     ap.add_argument("--contact", choices=["newton", "hunt-crossley"], default="newton",
                     help="horn contact: newton = instantaneous impact with restitution e2 (default); hunt-crossley = "
                          "Hertz contact (horn material vs a steel sphere of the free mass) with Hunt-Crossley damping "
@@ -73,8 +75,9 @@ def main(argv=None) -> int:
         check_range("--freq", ns.freq, 1.0, 1e6, "Hz")
     if ns.modes is not None:
         check_integer("--modes", ns.modes, 1, 12)
-    if ns.mesh_size is not None:
-        check_range("--mesh-size", ns.mesh_size, 1e-5, 1.0, "m")
+    from geometry.options import check_design_options, design_from_options, design_inputs
+
+    check_design_options(ns)
     check_range("--history", ns.history, 1e-4, 1.0, "s")
     if ns.horn_law not in (None, "kinematic"):
         raise ParameterError("--horn-law", ns.horn_law, "must be kinematic with --horn fem (the modes carry the mass)")
@@ -90,17 +93,16 @@ def main(argv=None) -> int:
             if val is not None:
                 raise ParameterError(opt, val, "not available with --contact hunt-crossley (its contact phases are "
                                      "integrated numerically, not closed-form segments): statistics only")
-    check_output_paths(inputs={"--config": ns.config, "--design": ns.design}, folders=("plots",), json=ns.json,
+    check_output_paths(inputs={"--config": ns.config, **design_inputs(ns)}, folders=("plots",), json=ns.json,
                        plots=ns.plots, history_csv=ns.history_csv)
     _threads(ns.threads)
-    import geometry
     from geometry.guard import check_budget
 
     from impact.coupled import COUPLED_QUANTITIES, coupled_batch
 
     from .coupled import build_transducer, contact_from_design, coupled_history, history_csv, horn_from_reduced
 
-    design = geometry.load_design(ns.design) if ns.design is not None else geometry.default_design()
+    design = design_from_options(ns)
     check_budget(design, ns.mesh_size)
     say = _progress(ns) or (lambda msg: None)
     say("[1/3] FE transducer")

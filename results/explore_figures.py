@@ -1,0 +1,158 @@
+"""Figures of a design study: main effects, a Pareto front, and a tolerance study.
+
+Error bars: impact outputs carry their 95 % confidence interval (ensemble statistics); a main
+effect's bar for them is the 95 % CI of the level mean (half-widths combined in quadrature). FE
+outputs are deterministic; their bars on a main-effect plot show the range over the other
+parameters at that level (the spread the other parameters cause), not an uncertainty.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from rpud_common import axes_or_new, save_figure
+
+from .study import OUTPUTS
+
+__all__ = ["main_effects", "pareto_front", "tolerance_spread", "study_figures", "pareto_mask", "tolerance_table"]
+
+_SCALE = {"m": (1e6, "um"), "m/V": (1e9, "nm/V"), "J": (1e3, "mJ"), "Hz": (1e-3, "kHz")}
+
+
+def _scale(name: str) -> tuple[float, str]:
+    unit = OUTPUTS[name][1] if name in OUTPUTS else ""
+    if name.startswith("tool_rate") or name.startswith("horn_rate"):
+        return 1.0, "Hz"
+    return _SCALE.get(unit, (1.0, unit))
+
+
+def _ok(rows):
+    return [r for r in rows if r.get("status") == "ok"]
+
+
+def _values(rows, name):
+    return np.array([r.get(name, math.nan) if r.get(name) is not None else math.nan for r in rows], dtype=float)
+
+
+def main_effects(result, outputs=None, axes=None):
+    """Mean of each output against each varied parameter (one panel per pair)."""
+    rows = _ok(result.rows)
+    params = [p.name for p in result.study.parameters]
+    outputs = list(outputs or result.study.outputs or [o for o in OUTPUTS if OUTPUTS[o][0] in result.study.stages][:3])
+    n = len(params) * len(outputs)
+    axes = np.atleast_1d(axes_or_new(axes, n, figsize=(6.4, 2.4 * n + 0.6))).ravel()
+    for k, (out, par) in enumerate((o, p) for o in outputs for p in params):
+        ax = axes[k]
+        x = _values(rows, f"in.{par}")
+        y = _values(rows, out)
+        hw = _values(rows, f"{out}_ci95")
+        s, unit = _scale(out)
+        levels = np.unique(x[np.isfinite(x)])
+        if 0 < len(levels) <= 12:
+            means, lo, hi = [], [], []
+            for lv in levels:
+                sel = (x == lv) & np.isfinite(y)
+                m = y[sel].mean() if sel.any() else math.nan
+                means.append(m)
+                if np.isfinite(hw[sel]).any():
+                    half = math.sqrt(np.nansum(hw[sel] ** 2)) / max(sel.sum(), 1)
+                    lo.append(half)
+                    hi.append(half)
+                else:
+                    lo.append(m - y[sel].min() if sel.any() else math.nan)
+                    hi.append(y[sel].max() - m if sel.any() else math.nan)
+            ax.errorbar(levels, np.array(means) * s, yerr=np.array([lo, hi]) * s, marker="o", capsize=3)
+        else:
+            ax.errorbar(x, y * s, yerr=np.where(np.isfinite(hw), hw, 0) * s, fmt="o", ms=3, capsize=2)
+        ax.set_xlabel(par)
+        ax.set_ylabel(f"{out} ({unit})")
+        ax.grid(alpha=0.3)
+    return tuple(axes)
+
+
+def pareto_mask(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Points not dominated when both ``a`` and ``b`` are maximised (NaN points never are)."""
+    ok = np.isfinite(a) & np.isfinite(b)
+    mask = np.zeros(len(a), dtype=bool)
+    for i in np.flatnonzero(ok):
+        dominated = ok & (a >= a[i]) & (b >= b[i]) & ((a > a[i]) | (b > b[i]))
+        mask[i] = not dominated.any()
+    return mask
+
+
+def pareto_front(result, first: str, second: str, ax=None):
+    """Both outputs maximised: every point, the non-dominated ones joined."""
+    ax = axes_or_new(ax, 1)
+    rows = _ok(result.rows)
+    a, b = _values(rows, first), _values(rows, second)
+    ea, eb = _values(rows, f"{first}_ci95"), _values(rows, f"{second}_ci95")
+    (sa, ua), (sb, ub) = _scale(first), _scale(second)
+    ax.errorbar(a * sa, b * sb, xerr=np.nan_to_num(ea) * sa, yerr=np.nan_to_num(eb) * sb, fmt="o", ms=4,
+                color="0.6", capsize=2, label="points (95 % CI where statistical)")
+    m = pareto_mask(a, b)
+    order = np.argsort(a[m])
+    ax.plot(a[m][order] * sa, b[m][order] * sb, "o-", color="C3", label="Pareto front (both maximised)")
+    ax.set_xlabel(f"{first} ({ua})")
+    ax.set_ylabel(f"{second} ({ub})")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+    return ax
+
+
+def tolerance_table(result) -> dict:
+    """Spread of each output over a tolerance study: nominal, mean, std, min, max, relative spread."""
+    rows = result.rows
+    out = {}
+    nominal = rows[0] if rows and rows[0].get("status") == "ok" else None
+    for name in OUTPUTS:
+        if OUTPUTS[name][0] not in result.study.stages:
+            continue
+        y = _values(_ok(rows), name)
+        y = y[np.isfinite(y)]
+        if len(y) < 2:
+            continue
+        nom = nominal.get(name) if nominal else math.nan
+        out[name] = {"nominal": nom, "mean": float(y.mean()), "std": float(y.std(ddof=1)), "min": float(y.min()),
+                     "max": float(y.max()),
+                     "rel_spread": float((y.max() - y.min()) / abs(nom)) if nom not in (None, 0) and np.isfinite(nom)
+                     else math.nan, "n": int(len(y))}
+    return out
+
+
+def tolerance_spread(result, outputs=None, axes=None):
+    """Each output over the tolerance points relative to the nominal design (box + points)."""
+    table = tolerance_table(result)
+    outputs = [o for o in (outputs or ("f_r_hz", "A0_m", "A0_unloaded_m", "tool_ke_j")) if o in table]
+    axes = np.atleast_1d(axes_or_new(axes, max(len(outputs), 1))).ravel()
+    rows = _ok(result.rows)
+    for ax, name in zip(axes, outputs):
+        y = _values(rows, name)
+        nom = table[name]["nominal"]
+        rel = (y[np.isfinite(y)] / nom - 1) * 100
+        ax.boxplot(rel, widths=0.5)
+        ax.plot(np.ones_like(rel) + np.linspace(-0.1, 0.1, len(rel)), rel, "o", ms=3, alpha=0.6)
+        ax.axhline(0, color="k", lw=0.8)
+        ax.set_xticks([1], [name])
+        ax.set_ylabel("change from nominal (%)")
+        ax.grid(alpha=0.3)
+        if name in ("tool_ke_j",):
+            hw = _values(rows, f"{name}_ci95")
+            ax.set_title(f"(statistical 95 % CI ±{np.nanmean(hw / y) * 100:.1f} %)", fontsize=8)
+    return tuple(axes)
+
+
+def study_figures(result, folder: str | Path) -> dict[str, Path]:
+    """Write the study's figures into ``folder`` (created); returns name -> path."""
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    made = {}
+    if _ok(result.rows):
+        made["main_effects"] = save_figure(main_effects(result), folder / "main_effects.png")
+        if len(result.study.pareto) == 2:
+            made["pareto"] = save_figure(pareto_front(result, *result.study.pareto), folder / "pareto.png")
+        if result.study.sampling == "tolerance" and tolerance_table(result):
+            made["tolerance"] = save_figure(tolerance_spread(result), folder / "tolerance.png")
+    return made
