@@ -148,3 +148,35 @@ def test_50um_layer_acts_as_a_constrained_spring():
     model = x / (math.pi / 2)
     assert model < 0.99
     assert longitudinal(tm_shim) / longitudinal(tm_plain) == pytest.approx(model, rel=1e-3)
+
+
+# ------------------------------------------------------------------ layouts
+
+
+def test_layers_between_unlike_neighbours_stay_conformal():
+    """A run of two layers (copper shim on an annulus, epoxy bond) between segments of other
+    diameters, a box insulator on a disc, a cone above: every outline imprinted, the mesh
+    conformal, the volumes exact, nothing inverted."""
+    design = StackDesign(name="unlike", target_frequency=30e3, segments=(
+        Segment("back", 0.01, material="steel_45", outer_diameter=0.03, inner_diameter=0.006),
+        Segment("shim", 0.0001, material="copper", outer_diameter=0.034, inner_diameter=0.004),
+        Segment("bond", 0.0002, material="epoxy", outer_diameter=0.025),
+        Segment("disc", 0.004, material="PZT-4", outer_diameter=0.02, poling="+z"),
+        Segment("insulator", 0.0003, kind="box", material="epoxy", thickness=0.01, width=0.012),
+        Segment("cone", 0.02, kind="cone", material="al7075", outer_diameter=0.018, end_diameter=0.01)),
+        electrodes=(ElectrodeSpec("electrode_bottom", "disc", "bottom", "ground"),
+                    ElectrodeSpec("electrode_top", "disc", "top", "hot")))
+    plan = mesh_layers(design)
+    assert set(plan) == {"shim", "bond", "insulator"}
+    assert {n for n, _z in plan["shim"].outlines} == {"shim", "bond", "back", "disc"}
+    tm, rep = build(design)
+    q = np.round(tm.points / 1e-9).astype(np.int64)
+    assert len(np.unique(q, axis=0)) == tm.n_points
+    volumes, _ = mesh_part_volumes(tm)
+    for part, v in design.part_volumes().items():
+        assert volumes[part] == pytest.approx(v, rel=1e-3), part
+    assert rep.quality["n_inverted"] == 0 and rep.quality["min_gamma"] > MIN_QUALITY
+    assert rep.quality["layer_elements"] == sum(len(tm.cells_in(region=n)) for n in plan)
+    for name in ("electrode_bottom", "electrode_top"):
+        assert len(tm.facet_sets[name]) > 0
+    assert 0.4 < estimate(design).elements / tm.n_cells < 2.5
