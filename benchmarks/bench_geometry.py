@@ -1,9 +1,14 @@
-"""Meshing the default RPUD design: chosen settings next to baselines, same run.
+"""Meshing the default RPUD design and the bonded sandwich: chosen settings next to baselines, same run.
 
-Prints one table: seconds (best of ``--repeat``), tetrahedra, nodes, min/median SICN, the worst
-part-volume error against the closed form, and whether the 5 s target is met.
+Prints two tables. Default design: seconds (best of ``--repeat``), tetrahedra, nodes, min/median
+SICN, the worst part-volume error against the closed form, and whether the 5 s target is met.
+Bonded sandwich (55 mm discs, two 0.275 mm epoxy bonds, ``geometry.examples.bonded_sandwich``):
+the structured layers at the default size and one refinement (``size_factor`` 1/1.5) against the
+free tetrahedral mesh the builder made before (its resource-guard estimate; ``--try-free S``
+also runs it for up to S seconds, last, since an abandoned Gmsh run ends further builds), and
+whether the 15 s target is met.
 
-    python benchmarks/bench_geometry.py [--repeat 3]
+    python benchmarks/bench_geometry.py [--repeat 3] [--try-free 60]
 """
 
 from __future__ import annotations
@@ -11,8 +16,11 @@ from __future__ import annotations
 import argparse
 import time
 
+import geometry.layers
 from geometry.builder import build
 from geometry.design import default_design
+from geometry.examples import bonded_sandwich
+from geometry.guard import estimate
 from geometry.report import mesh_part_volumes
 
 CASES = [
@@ -26,6 +34,8 @@ CASES = [
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--try-free", type=float, default=None, metavar="S",
+                    help="also mesh the sandwich with free tetrahedra, for at most S seconds")
     args = ap.parse_args()
     design = default_design()
     closed = design.part_volumes()
@@ -42,6 +52,43 @@ def main() -> None:
     print(f"{'case':<38} {'s':>6} {'tets':>7} {'nodes':>7} {'min SICN':>9} {'med SICN':>9} {'vol err %':>9} {'< 5 s':>6}")
     for label, t, n, p, qmin, qmed, err in rows:
         print(f"{label:<38} {t:6.2f} {n:7d} {p:7d} {qmin:9.3f} {qmed:9.3f} {err * 100:9.4f} {'yes' if t < 5 else 'no':>6}")
+    print()
+    sandwich(args.repeat, args.try_free)
+
+
+def sandwich(repeat: int, try_free: float | None) -> None:
+    """The bonded sandwich: structured layers vs the free mesh."""
+    design = bonded_sandwich()
+    closed = design.part_volumes()
+    print(f"{'bonded sandwich, 55 mm, 2 x 0.275 mm bonds':<44} {'s':>7} {'tets':>9} {'nodes':>8} "
+          f"{'layer tets':>10} {'vol err %':>9} {'< 15 s':>6}")
+    for label, factor in (("chosen: structured layers", 1.0), ("same, one refinement (sizes / 1.5)", 1 / 1.5)):
+        best = float("inf")
+        for _ in range(repeat):
+            t0 = time.perf_counter()
+            tm, rep = build(design, size_factor=factor)
+            best = min(best, time.perf_counter() - t0)
+        vols, _ = mesh_part_volumes(tm)
+        err = max(abs(vols[p] / closed[p] - 1) for p in closed)
+        print(f"{label:<44} {best:7.2f} {tm.n_cells:9d} {tm.n_points:8d} {rep.quality['layer_elements']:10d} "
+              f"{err * 100:9.4f} {'yes' if best < 15 else 'no':>6}")
+    ratio = geometry.layers.LAYER_RATIO
+    geometry.layers.LAYER_RATIO = 0.0  # no layers: the free mesh of the builder before them
+    try:
+        est = estimate(design)
+        print(f"{'baseline: free tetrahedra (guard estimate)':<44} {'-':>7} {est.elements:9d} "
+              f"{est.nodes:8d} {0:10d} {'-':>9} {'-':>6}")
+        if try_free:
+            t0 = time.perf_counter()
+            try:
+                tm, _ = build(design, time_limit=try_free)
+                print(f"{'baseline: free tetrahedra':<44} {time.perf_counter() - t0:7.2f} {tm.n_cells:9d} "
+                      f"{tm.n_points:8d} {0:10d} {'-':>9} {'no':>6}")
+            except Exception as exc:  # noqa: BLE001 - the time limit, reported as a row
+                print(f"{'baseline: free tetrahedra':<44} {'>' + format(try_free, 'g'):>7} "
+                      f"(did not finish: {type(exc).__name__})")
+    finally:
+        geometry.layers.LAYER_RATIO = ratio
 
 
 if __name__ == "__main__":

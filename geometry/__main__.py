@@ -119,6 +119,10 @@ def format_table(report: dict) -> str:
         lines.append(f"{name:<12} {p['z0_m'] * 1e3:8.2f} {p['z1_m'] * 1e3:8.2f} {p['volume_m3'] * 1e6:11.4f} "
                      f"{p['volume_closed_form_m3'] * 1e6:11.4f} {p['volume_error'] * 100:8.4f} {p['mass_kg'] * 1e3:8.2f}")
     lines.append(f"{'total':<12} {'':>8} {'':>8} {'':>11} {'':>11} {'':>8} {report['total_mass_kg'] * 1e3:8.2f}")
+    q = report["quality"]
+    if q.get("layer_elements"):
+        lines.append(f"thin layers meshed as structured extrusions: {q['layer_elements']} of the tetrahedra, "
+                     f"min SICN {q['layer_min_sicn']:.3f} (flat by design; the min SICN above is of the rest)")
     lines += _onedim_lines(report.get("onedim"))
     return "\n".join(lines)
 

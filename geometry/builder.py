@@ -1,12 +1,14 @@
 """Gmsh/OpenCASCADE builder: a design in, a conformal tagged tetrahedral mesh out.
 
-Every part is built as an OpenCASCADE solid (cylinders, cones, lofts, boxes; coupler slots as
-helical lofts and tooth gaps as sector prisms, both cut away), all solids are fragmented into
+Every part is built as an OpenCASCADE solid (:mod:`geometry.solids`: cylinders, cones, lofts,
+boxes; coupler slots as helical lofts and tooth gaps as sector prisms, both cut away; thin stack
+layers as structured extrusions, :mod:`geometry.layers`), all solids are fragmented into
 one conformal model, physical groups are named (one volume group per region, surface groups
 ``horn_tip``, ``teeth_tops``, ``flange``, ``electrode_*``...), and the model is meshed with
 first- or second-order (curved) tetrahedra. The mesh size per region is an
 elements-per-wavelength rule on the material's shear wavelength at the design's target
-frequency, capped near small features (slots, teeth, rings, shims).
+frequency, capped near small features (slots, teeth, rings, shims); a layer far thinner than
+that size keeps the in-plane size of its neighbours and is swept through its thickness.
 
 gmsh is imported inside the functions, so importing this module is cheap.
 """
@@ -27,10 +29,12 @@ import numpy as np
 from rpud_common import cli as common
 from rpud_common import ParameterError, check_choice, check_positive, check_range
 from .design import DesignBase, RPUDDesign, StackDesign
+from .layers import Layer, layer_plan, rim_fields
 from .materials import Material, get_material
+from .solids import make_rpud, make_stack
 from .mesh import Electrode, Region, TaggedMesh
 
-__all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "ALGORITHMS",
+__all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "mesh_layers", "ALGORITHMS",
            "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT", "GMSH_TIME_RANGE"]
 
 log = logging.getLogger(__name__)
@@ -107,12 +111,31 @@ class BuildReport:
 
 
 def region_sizes(design: DesignBase, mesh_size: float | None = None,
-                 elements_per_wavelength: float | None = None) -> dict[str, float]:
+                 elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> dict[str, float]:
     """Target element size (m) per region, and the feature sizes (keys starting with ``@``).
 
     ``mesh_size`` replaces the wavelength rule as the base size of every region; the
     feature caps (ring and shim thickness, slot width and depth, tooth height) still apply.
+    A thin layer (:mod:`geometry.layers`) gets its in-plane size, not a thickness cap.
+    ``size_factor`` scales every size, caps included (a uniform refinement: 1 / 1.5 is one
+    refinement step of a convergence study).
     """
+    check_range("size_factor", size_factor, 0.1, 10.0)
+    own, capped = _free_sizes(design, mesh_size, elements_per_wavelength)
+    sizes = {k: v * size_factor for k, v in capped.items()}
+    for name, layer in layer_plan(design, own, capped, size_factor).items():
+        sizes[name] = layer.size
+    return sizes
+
+
+def mesh_layers(design: DesignBase, mesh_size: float | None = None,
+                elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> dict[str, Layer]:
+    """The segments meshed as structured layers, by name (see :mod:`geometry.layers`)."""
+    return layer_plan(design, *_free_sizes(design, mesh_size, elements_per_wavelength), size_factor)
+
+
+def _free_sizes(design, mesh_size, elements_per_wavelength):
+    """(size of each region's own material, size after the thin-feature caps), m."""
     epw = design.elements_per_wavelength if elements_per_wavelength is None else elements_per_wavelength
     check_range("elements_per_wavelength", epw, 1.0, 200.0)
     if mesh_size is not None:
@@ -125,6 +148,7 @@ def region_sizes(design: DesignBase, mesh_size: float | None = None,
     sizes: dict[str, float] = {}
     for region, part, material, _vol in design.region_table():
         sizes[region] = base(material)
+    own = dict(sizes)
     if isinstance(design, RPUDDesign):
         s, c = design.stack, design.coupler
         for region, kind, z0, z1 in design.stack_layers():
@@ -142,170 +166,7 @@ def region_sizes(design: DesignBase, mesh_size: float | None = None,
                 dims += [seg.thickness, seg.width]
             # at least ~2 elements across the smallest dimension of a thin piece
             sizes[seg.name] = min(sizes[seg.name], max(min(dims) / 2, 0.25 * max(dims) / 20))
-    return sizes
-
-
-# ============================================================================ OCC helpers
-
-
-def _annular_cylinder(occ, z0, length, r_out, r_in):
-    vol = occ.addCylinder(0, 0, z0, 0, 0, length, r_out)
-    if r_in > 0:
-        hole = occ.addCylinder(0, 0, z0 - 1e-3, 0, 0, length + 2e-3, r_in)
-        out, _ = occ.cut([(3, vol)], [(3, hole)])
-        return out
-    return [(3, vol)]
-
-
-def _sector_prism(occ, a1, a2, r_out, z0, height):
-    """A pie-sector prism from angle a1 to a2 (rad), radius r_out, from z0 over height."""
-    n = max(1, math.ceil((a2 - a1) / (math.pi / 2)))
-    angles = np.linspace(a1, a2, n + 1)
-    centre = occ.addPoint(0, 0, z0)
-    pts = [occ.addPoint(r_out * math.cos(a), r_out * math.sin(a), z0) for a in angles]
-    curves = [occ.addLine(centre, pts[0])]
-    curves += [occ.addCircleArc(pts[i], centre, pts[i + 1]) for i in range(n)]
-    curves.append(occ.addLine(pts[-1], centre))
-    surf = occ.addPlaneSurface([occ.addCurveLoop(curves)])
-    ext = occ.extrude([(2, surf)], 0, 0, height)
-    return [dt for dt in ext if dt[0] == 3]
-
-
-def _slot_wire(occ, c, z, phi, r_tool):
-    """Closed wire of one slot's cross-section at height z, centred on angle phi."""
-    R = c.outer_diameter / 2
-    alpha = c.slot_width / (2 * R)
-    centre = occ.addPoint(0, 0, z)
-    if c.slot_profile == "rectangular":
-        r1 = R - c.slot_depth
-        pa = occ.addPoint(r1 * math.cos(phi - alpha), r1 * math.sin(phi - alpha), z)
-        pb = occ.addPoint(r_tool * math.cos(phi - alpha), r_tool * math.sin(phi - alpha), z)
-        pc = occ.addPoint(r_tool * math.cos(phi + alpha), r_tool * math.sin(phi + alpha), z)
-        pd = occ.addPoint(r1 * math.cos(phi + alpha), r1 * math.sin(phi + alpha), z)
-        curves = [occ.addLine(pa, pb), occ.addCircleArc(pb, centre, pc), occ.addLine(pc, pd),
-                  occ.addCircleArc(pd, centre, pa)]
-    else:
-        apex = np.array([R - c.slot_depth, 0.0])
-        ends = []
-        for sgn in (-1, 1):
-            edge = np.array([R * math.cos(alpha), sgn * R * math.sin(alpha)])
-            d = edge - apex
-            # |apex + t d| = r_tool, t > 0
-            A, B, C = d @ d, 2 * apex @ d, apex @ apex - r_tool ** 2
-            t = (-B + math.sqrt(B * B - 4 * A * C)) / (2 * A)
-            ends.append(apex + t * d)
-        rot = np.array([[math.cos(phi), -math.sin(phi)], [math.sin(phi), math.cos(phi)]])
-        p_apex = occ.addPoint(*(rot @ apex), z)
-        pa = occ.addPoint(*(rot @ ends[0]), z)
-        pb = occ.addPoint(*(rot @ ends[1]), z)
-        curves = [occ.addLine(p_apex, pa), occ.addCircleArc(pa, centre, pb), occ.addLine(pb, p_apex)]
-    return occ.addCurveLoop(curves)
-
-
-def _slot_phase(c) -> float:
-    """Start angle of slot 0: keeps phi = 0 (the OCC cylinder seam) clear of every slot if the
-    slots leave an angular gap, else centres the seam between two slot starts."""
-    R = c.outer_diameter / 2
-    alpha = c.slot_width / (2 * R)
-    pitch = 2 * math.pi / c.n_slots
-    tw = c.slot_twist
-    gap = pitch - abs(tw) - 2 * alpha
-    if gap > 0:
-        start = alpha + 0.5 * gap
-        return start if tw >= 0 else start + abs(tw)
-    return 0.5 * pitch
-
-
-def _slot_tool(occ, c, z0, phi0):
-    """One helical slot cutter over [z0, z0 + slot_length], starting at angle phi0."""
-    R = c.outer_diameter / 2
-    r_tool = R + max(1e-3, c.slot_depth)
-    twist = c.slot_twist
-    if abs(twist) < 1e-12:
-        wire = _slot_wire(occ, c, z0, phi0, r_tool)
-        surf = occ.addPlaneSurface([wire])
-        return [dt for dt in occ.extrude([(2, surf)], 0, 0, c.slot_length) if dt[0] == 3]
-    n = max(2, math.ceil(abs(twist) / math.radians(10.0))) + 1
-    wires = [_slot_wire(occ, c, z0 + c.slot_length * i / (n - 1), phi0 + twist * i / (n - 1), r_tool)
-             for i in range(n)]
-    return occ.addThruSections(wires, makeSolid=True, makeRuled=False)
-
-
-def _horn(occ, h, z0, bore):
-    L = h.length
-    if h.profile == "stepped":
-        l1 = h.step_fraction * L
-        a = occ.addCylinder(0, 0, z0, 0, 0, l1, h.back_diameter / 2)
-        b = occ.addCylinder(0, 0, z0 + l1, 0, 0, L - l1, h.tip_diameter / 2)
-        vols, _ = occ.fuse([(3, a)], [(3, b)])
-    elif h.profile == "conical":
-        vols = [(3, occ.addCone(0, 0, z0, 0, 0, L, h.back_diameter / 2, h.tip_diameter / 2))]
-    else:
-        n = 13
-        wires = []
-        for i in range(n):
-            s = L * i / (n - 1)
-            circ = occ.addCircle(0, 0, z0 + s, float(h.diameter_at(s)) / 2)
-            wires.append(occ.addCurveLoop([circ]))
-        vols = occ.addThruSections(wires, makeSolid=True, makeRuled=False)
-    if bore > 0:
-        hole = occ.addCylinder(0, 0, z0 - 1e-3, 0, 0, L + 2e-3, bore / 2)
-        vols, _ = occ.cut(vols, [(3, hole)])
-    return vols
-
-
-def _make_rpud(occ, d: RPUDDesign):
-    """OCC solids of the RPUD: list of (region, part, material, poling, dimtags)."""
-    c, s, f = d.coupler, d.stack, d.flange
-    pieces = []
-    # ---- coupler
-    body = _annular_cylinder(occ, -c.length, c.length, c.outer_diameter / 2, d.coupler_bore / 2)
-    tools = []
-    R = c.outer_diameter / 2
-    if c.n_teeth:
-        pitch = 2 * math.pi / c.n_teeth
-        half = c.tooth_width / (2 * R)
-        for k in range(c.n_teeth):
-            a = (k - 0.5) * pitch  # a gap centred on phi = 0, where OCC puts the cylinder's seam
-            tools += _sector_prism(occ, a + half, a + pitch - half, R + 1e-3, -c.length - 1e-3, c.tooth_height + 1e-3)
-    if c.n_slots:
-        z_slot = -c.length + (c.tooth_height if c.n_teeth else 0.0) + c.slot_offset
-        for k in range(c.n_slots):
-            tools += _slot_tool(occ, c, z_slot, _slot_phase(c) + 2 * math.pi * k / c.n_slots)
-    if tools:
-        body, _ = occ.cut(body, tools)
-    pieces.append(("coupler", "coupler", c.material, None, body))
-    # ---- stack
-    for region, kind, z0, z1 in d.stack_layers():
-        vols = _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)
-        if kind == "ring":
-            k = int(region.split("_")[1])
-            pieces.append((region, "stack", s.material, d.ring_poling(k), vols))
-        else:
-            pieces.append((region, "electrodes", s.shim_material, None, vols))
-    zf = s.length
-    pieces.append(("flange_disc", "flange", f.material, None,
-                   _annular_cylinder(occ, zf, f.thickness, f.outer_diameter / 2, d.bore_diameter / 2)))
-    pieces.append(("horn", "horn", d.horn.material, None, _horn(occ, d.horn, zf + f.thickness, d.bore_diameter)))
-    return pieces
-
-
-def _make_stack(occ, d: StackDesign):
-    pieces = []
-    ext = d.segment_extents()
-    for seg in d.segments:
-        z0, z1 = ext[seg.name]
-        if seg.kind == "box":
-            vols = [(3, occ.addBox(-seg.thickness / 2, -seg.width / 2, z0, seg.thickness, seg.width, seg.length))]
-        elif seg.kind == "cone":
-            vols = [(3, occ.addCone(0, 0, z0, 0, 0, seg.length, seg.outer_diameter / 2, seg.end_diameter / 2))]
-            if seg.inner_diameter > 0:
-                hole = occ.addCylinder(0, 0, z0 - 1e-3, 0, 0, seg.length + 2e-3, seg.inner_diameter / 2)
-                vols, _ = occ.cut(vols, [(3, hole)])
-        else:
-            vols = _annular_cylinder(occ, z0, seg.length, seg.outer_diameter / 2, seg.inner_diameter / 2)
-        pieces.append((seg.name, seg.part, seg.material, seg.poling_vector, vols))
-    return pieces
+    return own, sizes
 
 
 # ============================================================================ face selection
@@ -370,7 +231,7 @@ def build_mesh(design: DesignBase, mesh_size: float | None = None, order: int = 
 def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
           verbose: bool = False, msh_path: str | None = None,
-          time_limit: float | None = None) -> tuple[TaggedMesh, BuildReport]:
+          time_limit: float | None = None, size_factor: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
 
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
@@ -416,7 +277,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path)
+                                   msh_path, size_factor)
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -449,7 +310,8 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
 
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
            elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
-           verbose: bool = False, msh_path: str | None = None) -> tuple[TaggedMesh, BuildReport]:
+           verbose: bool = False, msh_path: str | None = None,
+           size_factor: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -469,6 +331,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     msh_path : str, optional
         Also write Gmsh's native ``.msh`` (4.1) of the model to this path (caller handles
         atomicity).
+    size_factor : float
+        Every element size times this, thin-feature caps and layers included (uniform
+        refinement for convergence studies; see :func:`region_sizes`).
 
     Returns
     -------
@@ -481,7 +346,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     check_choice("algorithm", algorithm, tuple(ALGORITHMS))
     if not isinstance(design, (RPUDDesign, StackDesign)):
         raise ParameterError("design", type(design).__name__, "must be an RPUDDesign or a StackDesign")
-    sizes = region_sizes(design, mesh_size, elements_per_wavelength)
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength, size_factor)
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
@@ -499,7 +364,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
 
         # ---- solids
         t0 = time.perf_counter()
-        pieces = _make_rpud(occ, design) if isinstance(design, RPUDDesign) else _make_stack(occ, design)
+        layers = mesh_layers(design, mesh_size, elements_per_wavelength, size_factor)
+        pieces = make_rpud(occ, design) if isinstance(design, RPUDDesign) else make_stack(occ, design, layers)
         all_tags = [dt for p in pieces for dt in p[4]]
         if len(all_tags) > 1:
             _out, out_map = occ.fragment(all_tags, [])
@@ -570,6 +436,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
                                      ("Thickness", 2.0 * sizes[key])):
                         gmsh.model.mesh.field.setNumber(fid, opt, val)
                     fields.append(fid)
+        if layers:
+            fields += rim_fields(gmsh, layers, region_vols)
         fmin = gmsh.model.mesh.field.add("Min")
         gmsh.model.mesh.field.setNumbers(fmin, "FieldsList", fields)
         gmsh.model.mesh.field.setAsBackgroundMesh(fmin)
@@ -587,26 +455,29 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         gmsh.model.mesh.generate(3)
         report.timings["mesh_linear"] = time.perf_counter() - t0
         # Slivers the default optimiser left (seen at some sizes near the slot ends): one
-        # Netgen pass, only when needed, keeps the default run fast.
+        # Netgen pass, only when needed, keeps the default run fast. Layers are flat by design
+        # and structured: the checks and optimisers see the freely meshed volumes only.
         t0 = time.perf_counter()
-        etypes, etags, _ = gmsh.model.mesh.getElements(3)
-        gamma = np.asarray(gmsh.model.mesh.getElementQualities(np.concatenate(etags).tolist(), "gamma"))
-        if gamma.min() < OPTIMISE_BELOW:
+        layer_vols = {v for name in layers for v in region_vols[name]}
+        free = [(3, v) for vs in region_vols.values() for v in vs if v not in layer_vols]
+        free_tags = _element_tags(gmsh, free)
+        gamma = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "gamma"))
+        if len(gamma) and gamma.min() < OPTIMISE_BELOW:
             log.info("min gamma %.3g < %.3g: Netgen optimisation pass", gamma.min(), OPTIMISE_BELOW)
-            gmsh.model.mesh.optimize("Netgen")
-            gmsh.model.mesh.optimize("")
+            gmsh.model.mesh.optimize("Netgen", dimTags=free)
+            gmsh.model.mesh.optimize("", dimTags=free)
+            free_tags = _element_tags(gmsh, free)
         report.timings["optimise"] = time.perf_counter() - t0
         if order == 2:
             t0 = time.perf_counter()
             gmsh.model.mesh.setOrder(2)
             # Curving the edges onto the geometry can fold an element near the slots at some
             # lengths (seen: SICN 4e-4); gmsh's high-order optimiser repairs it, run when needed.
-            etypes, etags, _ = gmsh.model.mesh.getElements(3)
-            sicn = np.asarray(gmsh.model.mesh.getElementQualities(np.concatenate(etags).tolist(), "minSICN"))
-            if sicn.min() < MIN_SICN_DEFAULT:
+            sicn = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "minSICN"))
+            if len(sicn) and sicn.min() < MIN_SICN_DEFAULT:
                 log.info("min SICN %.3g < %.3g after curving: high-order optimisation", sicn.min(),
                          MIN_SICN_DEFAULT)
-                gmsh.model.mesh.optimize("HighOrder")
+                gmsh.model.mesh.optimize("HighOrder", dimTags=free)
             report.timings["order_2"] = time.perf_counter() - t0
         if msh_path is not None:
             gmsh.write(str(msh_path))
@@ -616,7 +487,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         tm, qual_tags = _extract(gmsh, design, region_vols, region_meta, facet_surfs, order)
         report.timings["extract"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        report.quality = _quality(gmsh, qual_tags)
+        report.quality = _quality(gmsh, qual_tags, _element_tags(gmsh, [(3, v) for v in sorted(layer_vols)]))
         report.timings["quality"] = time.perf_counter() - t0
         for name, vols in region_vols.items():
             report.physical_groups[name] = {"dim": 3, "entities": len(vols),
@@ -682,13 +553,26 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
     return tm, np.concatenate(elem_tags)
 
 
-def _quality(gmsh, elem_tags) -> dict[str, float]:
-    """min / median of SICN (curvature aware) and gamma (straight corners); inverted count."""
+def _element_tags(gmsh, dimtags) -> np.ndarray:
+    """Tags of the 3-D elements of the given volumes."""
+    tags = [np.asarray(t, dtype=np.int64) for dim, v in dimtags for t in gmsh.model.mesh.getElements(dim, v)[1]]
+    return np.concatenate(tags) if tags else np.zeros(0, dtype=np.int64)
+
+
+def _quality(gmsh, elem_tags, layer_tags) -> dict[str, float]:
+    """min / median of SICN (curvature aware) and gamma (straight corners) of the freely meshed
+    elements (of all elements if there are only layers); inverted count of all; the layers' own
+    minima and element count (``layer_*``: flat by design, gamma ~ thickness / in-plane size)."""
     out: dict[str, float] = {}
+    layer = np.isin(elem_tags, layer_tags)
+    free = ~layer if (~layer).any() else np.ones_like(layer)
     for key, name in (("sicn", "minSICN"), ("gamma", "gamma")):
         q = np.asarray(gmsh.model.mesh.getElementQualities(elem_tags.tolist(), name))
-        out[f"min_{key}"] = float(q.min())
-        out[f"median_{key}"] = float(np.median(q))
+        out[f"min_{key}"] = float(q[free].min())
+        out[f"median_{key}"] = float(np.median(q[free]))
         if key == "sicn":
             out["n_inverted"] = int(np.sum(q <= 0))
+        if layer.any():
+            out[f"layer_min_{key}"] = float(q[layer].min())
+    out["layer_elements"] = int(layer.sum())
     return out

@@ -36,8 +36,8 @@ from rpud_common import ParameterError, check_choice, check_range, from_mapping,
 from .design_base import DesignBase
 from .design_materials import check_material_name, own_records
 from .materials import Material
-from .validate import (check_bore, check_count, check_frequency, check_length, check_name, design_table,
-                       finite_or_none)
+from .validate import (MIN_LAYER, check_bore, check_count, check_frequency, check_length, check_name,
+                       design_table, finite_or_none)
 
 __all__ = [
     "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign", "RPUDDesign",
@@ -558,7 +558,7 @@ class Segment:
     name : str
         Unique name; also the mesh region name.
     length : float
-        Axial length, m.
+        Axial length, m (down to MIN_LAYER = 10 um: thin layers, see geometry.layers).
     kind : {"cylinder", "cone", "box"}
         Cylinder (or annulus with ``inner_diameter`` > 0); cone (truncated, from
         ``outer_diameter`` at the -z end to ``end_diameter`` at the +z end); box (rectangular
@@ -593,7 +593,7 @@ class Segment:
     def __post_init__(self):
         check_name("segments.name", self.name, dots=False)
         p = f"segments.{self.name}"
-        check_length(f"{p}.length", self.length)
+        check_length(f"{p}.length", self.length, MIN_LAYER)  # thin layers: geometry.layers
         check_choice(f"{p}.kind", self.kind, ("cylinder", "cone", "box"))
         _material(f"{p}.material", self.material)
         check_choice(f"{p}.poling", self.poling, tuple(POLING_VECTORS))

@@ -4,7 +4,8 @@ Meshing and solving cost grows with the cube of the inverse element size, so a m
 ``--mesh-size`` or a sub-millimetre feature can ask for billions of elements and hang Gmsh or
 exhaust memory long after the run started. :func:`estimate` predicts the element count from
 the same per-region sizes the builder uses (:func:`geometry.builder.region_sizes`), capped as
-Gmsh caps them (curvature: 12 elements per circle; at least one layer across a thin part), and
+Gmsh caps them (curvature: 12 elements per circle; at least one layer across a thin part; thin
+layers meshed as structured extrusions counted as such, see :mod:`geometry.layers`), and
 derives nodes, degrees of freedom and the memory of a sparse direct factorisation from it.
 :func:`check_budget` refuses a run above the budget with one line naming the option to change.
 
@@ -98,7 +99,7 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
 
 
 def estimate(design, mesh_size: float | None = None, order: int = 2,
-             elements_per_wavelength: float | None = None) -> Estimate:
+             elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> Estimate:
     """Predict the mesh and FE size of ``design`` meshed as :func:`geometry.builder.build` would.
 
     Parameters
@@ -108,17 +109,27 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         Base element size, m (as ``build``).
     order : {1, 2}
     elements_per_wavelength : float, optional
+    size_factor : float
+        Uniform refinement factor (as ``build``).
 
     Returns
     -------
     Estimate
     """
-    from .builder import region_sizes
+    from .builder import mesh_layers, region_sizes
+    from .layers import layer_element_estimate
 
-    sizes = region_sizes(design, mesh_size, elements_per_wavelength)
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength, size_factor)
+    layers = mesh_layers(design, mesh_size, elements_per_wavelength, size_factor)
+    segments = {s.name: s for s in getattr(design, "segments", ())}
     n = 0.0
     smallest = math.inf
     for region, vol, length, radius in _regions(design):
+        if region in layers:
+            # structured: the face's triangles times the element layers, plus the refined rim
+            n += layer_element_estimate(segments[region], layers[region])
+            smallest = min(smallest, length / layers[region].n_elements)
+            continue
         h = min(sizes[region], _CURVATURE_FRACTION * radius, max(length, 1e-12))
         smallest = min(smallest, h)
         n += TETS_PER_CUBE * vol / h ** 3

@@ -45,7 +45,8 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
                                  "[materials] table")
     if "select" in include:
         parser.add_argument("--select", metavar="NAME", help="pick one design from a TOML file holding several "
-                            "(e.g. geometry/examples.toml: k33_rod, k31_bar, langevin, slender_rod, rpud)")
+                            "(e.g. geometry/examples.toml: k33_rod, k31_bar, langevin, slender_rod, "
+                            "bonded_sandwich, rpud)")
     if "materials" in include:
         parser.add_argument("--materials", metavar="FILE",
                             help="material library TOML (layout of geometry/materials.toml; stress-charge c_E, e, "

@@ -15,11 +15,15 @@ from typing import Any
 
 from rpud_common import ParameterError, check_integer, check_range
 
-__all__ = ["MIN_FEATURE", "MAX_LENGTH", "FREQUENCY_BAND", "MAX_COUNT", "check_length", "check_bore",
+__all__ = ["MIN_FEATURE", "MIN_LAYER", "MAX_LENGTH", "FREQUENCY_BAND", "MAX_COUNT", "check_length", "check_bore",
            "check_count", "check_name", "check_material", "check_frequency", "design_table"]
 
 MIN_FEATURE = 1e-4
 """Smallest length of a design feature, m (0.1 mm: thinner electrodes are not meshed as parts)."""
+
+MIN_LAYER = 1e-5
+"""Smallest axial length of a stack segment, m (10 um: bonds, shims and insulators down to
+this are meshed as structured layers, see :mod:`geometry.layers`)."""
 
 MAX_LENGTH = 2.0
 """Largest length or diameter of a design feature, m."""
@@ -33,9 +37,9 @@ MAX_COUNT = 64
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_+\-.]{0,63}")
 
 
-def check_length(name: str, value: Any) -> None:
-    """A finite length in [:data:`MIN_FEATURE`, :data:`MAX_LENGTH`] m."""
-    check_range(name, value, MIN_FEATURE, MAX_LENGTH, "m")
+def check_length(name: str, value: Any, minimum: float = MIN_FEATURE) -> None:
+    """A finite length in [``minimum`` (default :data:`MIN_FEATURE`), :data:`MAX_LENGTH`] m."""
+    check_range(name, value, minimum, MAX_LENGTH, "m")
 
 
 def check_bore(name: str, value: Any) -> None:
