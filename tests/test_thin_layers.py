@@ -43,6 +43,15 @@ def _coupled_mode(tm, near_hz, n_modes=4):
 # ------------------------------------------------------------------ the 55 mm bonded sandwich
 
 
+
+def _assert_conformal_and_whole(tm, design, rel):
+    """No node twice (a non-conformal interface would duplicate them); part volumes within rel."""
+    q = np.round(tm.points / 1e-9).astype(np.int64)
+    assert len(np.unique(q, axis=0)) == tm.n_points
+    volumes, _ = mesh_part_volumes(tm)
+    for part, v in design.part_volumes().items():
+        assert volumes[part] == pytest.approx(v, rel=rel), part
+
 def test_sandwich_layers_are_structured_conformal_and_cheap(sandwich):
     design, tm, rep = sandwich
     plan = mesh_layers(design)
@@ -58,12 +67,7 @@ def test_sandwich_layers_are_structured_conformal_and_cheap(sandwich):
         z0, z1 = ext[bond]
         np.testing.assert_allclose(z, [z0, z1], atol=1e-9)
     assert rep.quality["layer_elements"] == sum(len(tm.cells_in(region=b)) for b in plan)
-    # conformal: no node twice (a non-conformal interface would duplicate them)
-    q = np.round(tm.points / 1e-9).astype(np.int64)
-    assert len(np.unique(q, axis=0)) == tm.n_points
-    volumes, _ = mesh_part_volumes(tm)
-    for part, v in design.part_volumes().items():
-        assert volumes[part] == pytest.approx(v, rel=1e-4), part
+    _assert_conformal_and_whole(tm, design, rel=1e-4)
     # quality: the free elements keep the usual bound, the flat layer elements are valid
     assert rep.quality["n_inverted"] == 0 and rep.quality["min_gamma"] > MIN_QUALITY
     assert rep.quality["layer_min_sicn"] > 0.05
@@ -170,11 +174,7 @@ def test_layers_between_unlike_neighbours_stay_conformal():
     assert set(plan) == {"shim", "bond", "insulator"}
     assert {n for n, _z in plan["shim"].outlines} == {"shim", "bond", "back", "disc"}
     tm, rep = build(design)
-    q = np.round(tm.points / 1e-9).astype(np.int64)
-    assert len(np.unique(q, axis=0)) == tm.n_points
-    volumes, _ = mesh_part_volumes(tm)
-    for part, v in design.part_volumes().items():
-        assert volumes[part] == pytest.approx(v, rel=1e-3), part
+    _assert_conformal_and_whole(tm, design, rel=1e-3)
     assert rep.quality["n_inverted"] == 0 and rep.quality["min_gamma"] > MIN_QUALITY
     assert rep.quality["layer_elements"] == sum(len(tm.cells_in(region=n)) for n in plan)
     for name in ("electrode_bottom", "electrode_top"):
