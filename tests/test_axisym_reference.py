@@ -26,7 +26,7 @@ from scipy.special import jv
 import fem
 import geometry
 from geometry.examples import langevin_sandwich
-from geometry.materials import get_material
+from geometry.materials import EPS0, get_material
 from rpud_common import ParameterError
 
 import axisym_reference as ar
@@ -79,20 +79,53 @@ def test_pochhammer_chree_rod_with_sliding_ends():
     assert f == pytest.approx(f_exact, rel=2e-6)
 
 
-def test_thickness_mode_of_a_laterally_clamped_disc_is_ieee176_exact():
-    m = get_material("PZT-4")
-    t, R = 0.002, 0.001
-    eps33 = m.eps_S["eps33"] * 8.854e-12
-    c33D = m.c_E["c33"] + m.e["e33"] ** 2 / eps33
-    fp = math.sqrt(c33D / m.density) / (2 * t)
+def _thickness_disc(m, t, lossy):
+    """Exact 1-D laterally clamped plate (IEEE Std 176 thickness mode) with the loss model
+    c^E (1 + j / Q), eps^S (1 - j tan delta): f_p, f_s (lossless) and Y(f) per unit area."""
+    Q, tan_d = (m.q_mech, m.tan_delta) if lossy else (math.inf, 0.0)
+    eps33 = m.eps_S["eps33"] * EPS0 * (1 - 1j * tan_d)
+    c33D = m.c_E["c33"] * (1 + 1j / Q) + m.e["e33"] ** 2 / eps33
     kt2 = m.e["e33"] ** 2 / (c33D * eps33)
-    fs = brentq(lambda f: math.pi / 2 * f / fp * math.tan(math.pi / 2 * (fp - f) / fp) - kt2, 0.5 * fp, fp * (1 - 1e-12))
+    v = np.sqrt(c33D / m.density)
+
+    def Y(f):
+        X = 2 * math.pi * np.asarray(f) * t / (2 * v)
+        return 2j * math.pi * np.asarray(f) * (eps33 / t) / (1 - kt2 * np.tan(X) / X)
+
+    fp = (v / (2 * t)).real
+    fs = brentq(lambda f: math.pi / 2 * f / fp * math.tan(math.pi / 2 * (fp - f) / fp) - kt2.real, 0.5 * fp, fp * (1 - 1e-12))
+    return fs, fp, Y
+
+
+@pytest.fixture(scope="module")
+def disc():
+    """A PZT-4 disc with u_r = 0 on its rim: exactly the 1-D thickness-mode plate."""
+    t, R = 0.002, 0.001
     sec = ar.Section((ar._rect("disc", "PZT-4", 1, 0.0, R, 0.0, t),),
                      (ar.ElectrodeLine("ground", 0.0, 0.0, R), ar.ElectrodeLine("hot", t, 0.0, R)))
-    res = ar.modes(ar.assemble(sec, 1.25e-4, 1e-3, fixed=(("r", "r", R),)), fs, 2)
+    return t, R, ar.assemble(sec, 1.25e-4, 1e-3, fixed=(("r", "r", R),))
+
+
+def test_thickness_mode_of_a_laterally_clamped_disc_is_ieee176_exact(disc):
+    t, R, model = disc
+    fs, fp, _ = _thickness_disc(get_material("PZT-4"), t, lossy=False)
+    res = ar.modes(model, fs, 2)
     assert res.f_r[0] == pytest.approx(fs, rel=2e-6)
     assert res.f_a[0] == pytest.approx(fp, rel=2e-6)
     assert res.k_eff[0] > 0.4
+
+
+@pytest.mark.parametrize("lossy", [True, False])
+def test_thickness_disc_admittance_is_exact(disc, lossy):
+    """Y = j w C0 / (1 - kt^2 tan X / X) with complex constants; away from the resonance the
+    error is the eigenvalue error (3e-7) amplified by the resonance: measured <= 1.1e-5."""
+    t, R, model = disc
+    fs, fp, Y = _thickness_disc(get_material("PZT-4"), t, lossy)
+    f = np.array([0.3 * fs, 0.9 * fs, 0.5 * (fs + fp), 1.15 * fp])
+    y = ar.admittance(model, f, lossy=lossy)
+    assert np.abs(y / (np.pi * R ** 2 * Y(f)) - 1).max() < 5e-5
+    if not lossy:
+        assert np.all(y.real == 0)
 
 
 @pytest.mark.parametrize("poling", [1, -1])
@@ -162,7 +195,7 @@ def test_reference_converges_at_order_4_to_the_independent_values(reference):
 def default_3d():
     d = no_slots()
     system = fem.assemble(geometry.build_mesh(d))
-    return fem.modal_analysis(system, near_hz=d.target_frequency, n_modes=4)
+    return fem.modal_analysis(system, near_hz=d.target_frequency, n_modes=3)
 
 
 def test_3d_default_mesh_against_the_reference(reference, default_3d):
@@ -180,9 +213,9 @@ def test_3d_default_mesh_against_the_reference(reference, default_3d):
 @pytest.fixture(scope="module")
 def sandwich():
     d = langevin_sandwich()
-    ref = ar.convergence(d, 4e-3, 4e-3, levels=3, near_hz=d.target_frequency)
+    ref = ar.convergence(d, 2 * math.sqrt(2) * 1e-3, 4e-3, levels=3, near_hz=d.target_frequency, ratio=math.sqrt(2))
     system = fem.assemble(geometry.build_mesh(d))
-    modes3d = fem.modal_analysis(system, near_hz=d.target_frequency, n_modes=4)
+    modes3d = fem.modal_analysis(system, near_hz=d.target_frequency, n_modes=2)
     return d, ref, system, modes3d
 
 
@@ -200,19 +233,10 @@ def test_sandwich_3d_against_the_reference(sandwich):
     assert m.f_a_hz[w] == pytest.approx(ref.f_a_limit, rel=TOL_SANDWICH)
 
 
-def test_sandwich_admittance(sandwich):
-    d, ref, system, _m = sandwich
+def test_sandwich_lossless_admittance_vanishes_at_the_anti_resonance(sandwich):
+    d, _ref, _system, _m = sandwich
     model = ar.assemble(ar.section(d), 2e-3, 4e-3)
     res = ar.modes(model, d.target_frequency, 3)
-    w = res.working
-    fr, fa = res.f_r[w], res.f_a[w]
-    # lossless: Y = j B, and B = 0 exactly at the anti-resonance of the eigen-solve
+    fa = res.f_a[res.working]
     B = lambda f: ar.admittance(model, [f], lossy=False)[0].imag
-    assert ar.admittance(model, [fa], lossy=False)[0].real == 0
     assert brentq(B, fa * (1 - 1e-3), fa * (1 + 1e-3), xtol=1e-6) == pytest.approx(fa, rel=1e-8)
-    # lossy (material Q and tan delta, the loss model of fem.harmonic) against the 3-D direct
-    # solve away from the resonance, where the 3-D mesh's +0.06 % in f_r moves Y by < 0.5 %
-    freqs = [0.5 * fr, 1.1 * fa]
-    y3 = fem.harmonic_sweep(system, freqs, method="direct", surfaces=()).admittance
-    y2 = ar.admittance(model, freqs)
-    assert np.abs(y3 / y2 - 1).max() < 0.005
