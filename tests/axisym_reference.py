@@ -375,7 +375,7 @@ class Model:
     def matrices(self, electrical: str, loss: bool = False):
         """(K, L, M, n_u) on the reduced unknowns [u | phi~ | V~_hot if open]; L the hysteretic
         loss matrix (c (1 + j / Q) per block, eps (1 - j tan delta))."""
-        nu, npf = len(self.u_free), len(self.p_free)
+        nu = len(self.u_free)
         cols = [sp.identity(self.Kup.shape[1], format="csr")[:, self.p_free] * self.scale]
         if electrical == "open" and len(self.p_hot):
             tie = np.zeros((self.Kup.shape[1], 1))
@@ -442,12 +442,11 @@ def assemble(sec: Section, h: float, grade_radius: float, fixed=()) -> Model:
     if len(p_all) and not len(ground):
         raise ParameterError("electrodes", [], "a piezoceramic needs a ground electrode")
     p_free = np.setdiff1d(p_all, np.concatenate([hot, ground]))
-    Kpp_all = sum(Kpp)
     # scale the potential so that its block has the magnitude of the stiffness block
     # (unscaled they differ by ~20 orders of magnitude)
     scale = 1.0
     if len(p_all):
-        ratio = sum(Kuu).diagonal()[u_free].mean() / Kpp_all.diagonal()[p_all].mean()
+        ratio = sum(Kuu).diagonal()[u_free].mean() / sum(Kpp).diagonal()[p_all].mean()
         scale = 10.0 ** round(math.log10(math.sqrt(ratio)))
     return Model(mesh, owner, sec, Kuu, sp.csr_matrix(Kup), Kpp, sp.csr_matrix(M), u_free, p_free, hot, scale)
 
