@@ -1,0 +1,243 @@
+"""The independent axisymmetric (r, z) reference model (tests/axisym_reference.py), and the 3-D
+toolkit against it.
+
+The reference itself is checked first against exact or classical solutions:
+- Pochhammer-Chree: a steel cylinder with sliding ends (u_z = 0, shear-free) carries the exact
+  infinite-rod mode of wavenumber pi / L, here at k a = pi / 2 (7 % below the 1-D bar speed):
+  2e-6 (P2 at h = 0.5 mm measures 4e-7; the error falls as h^4).
+- IEEE Std 176 thickness mode: a PZT-4 disc with u_r = 0 on its rim is exactly the 1-D
+  laterally clamped plate, so f_s, f_p and the admittance (lossy: c^E (1 + j/Q), eps^S
+  (1 - j tan delta), the loss model of fem.harmonic; and lossless) are exact: 2e-6 on f_s, f_p
+  (measured 3e-7 / 4e-7), 5e-5 on Y off resonance (measured <= 1.1e-5).
+- IEEE Std 176 k33 rod (L / R = 20): 1-D theory with the Rayleigh-Love lateral-inertia factor
+  (effective Poisson ratio -s13/s33 at constant field for f_s, constant D for f_p): 1e-4.
+Then the default drill without slots and teeth: three graded levels (h = 2.83, 2, 1.41 mm, ratio
+sqrt 2) extrapolate with observed order ~4 to the independent values of issue 19 within 2e-5
+(measured -2e-6 / -5e-6; finer levels 2 / 1 / 0.5 mm: order 4.03, 19 682.311 / 21 410.332 Hz).
+The 3-D default meshes are compared with these converged answers (TOL_3D, TOL_SANDWICH).
+"""
+
+import math
+
+import numpy as np
+import pytest
+from scipy.optimize import brentq
+from scipy.special import jv
+
+import fem
+import geometry
+from geometry.examples import langevin_sandwich
+from geometry.materials import EPS0, get_material
+from rpud_common import ParameterError
+
+import axisym_reference as ar
+
+ISSUE_19 = (19682.31, 21410.33)
+"""f_r, f_a (Hz) of the default design without slots and teeth from the independent (r, z) model of issue 19."""
+
+TOL_3D = 0.006
+"""Fractional agreement of the 3-D default mesh with the converged reference on the default design
+without slots and teeth (today +0.45 % f_r, +0.56 % f_a: the re-entrant flange/horn and horn-step
+edges converge as h^1.1). The converged-mesh work of issue 19 tightens this to 0.0005."""
+
+TOL_SANDWICH = 0.002
+"""Fractional agreement of the 3-D default mesh of the Langevin sandwich (no re-entrant edge, only
+material junctions on the surface) with the reference; measured +0.055 % f_r, +0.008 % f_a."""
+
+
+def no_slots():
+    return geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+
+
+# ---------------------------------------------------------------------------- exact checks
+
+
+def _pochhammer(w, k, a, c1, c2):
+    """Pochhammer-Chree frequency function of the longitudinal modes (real for q^2 > 0)."""
+    p, q = np.sqrt(complex(w ** 2 / c1 ** 2 - k ** 2)), np.sqrt(complex(w ** 2 / c2 ** 2 - k ** 2))
+    pJ1 = p * jv(1, p * a)
+    return ((2 / a) * (q * q + k * k) * pJ1 * jv(1, q * a) - (q * q - k * k) ** 2 * jv(0, p * a) * jv(1, q * a)
+            - 4 * k * k * q * pJ1 * jv(0, q * a)).real
+
+
+def test_pochhammer_chree_rod_with_sliding_ends():
+    m = get_material("steel_45")
+    E, nu, rho = m.youngs_modulus, m.poisson_ratio, m.density
+    lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
+    c1, c2, c0 = math.sqrt((lam + 2 * mu) / rho), math.sqrt(mu / rho), math.sqrt(E / rho)
+    a, L = 0.005, 0.01
+    k = math.pi / L
+    # long waves: the equation reproduces Rayleigh-Love (checks the transcription)
+    k_long = math.pi / 1.0
+    w_long = brentq(_pochhammer, 0.7 * c0 * k_long, c0 * k_long, args=(k_long, a, c1, c2))
+    assert w_long / (c0 * k_long) == pytest.approx(1 - 0.5 * nu ** 2 * (a ** 2 / 2) * k_long ** 2, abs=1e-9)
+    f_exact = brentq(_pochhammer, 0.7 * c0 * k, c0 * k, args=(k, a, c1, c2)) / (2 * math.pi)
+    assert f_exact < 0.95 * c0 / (2 * L)                      # far from 1-D: a real test of r, u_r / r
+    sec = ar.Section((ar._rect("rod", "steel_45", 0, 0.0, a, 0.0, L),), ())
+    model = ar.assemble(sec, 5e-4, 1e-3, fixed=(("z", "z", 0.0), ("z", "z", L)))
+    res = ar.modes(model, f_exact, 2)
+    f = res.f_r[np.argmin(np.abs(res.f_r - f_exact))]
+    assert f == pytest.approx(f_exact, rel=2e-6)
+
+
+def _thickness_disc(m, t, lossy):
+    """Exact 1-D laterally clamped plate (IEEE Std 176 thickness mode) with the loss model
+    c^E (1 + j / Q), eps^S (1 - j tan delta): f_p, f_s (lossless) and Y(f) per unit area."""
+    Q, tan_d = (m.q_mech, m.tan_delta) if lossy else (math.inf, 0.0)
+    eps33 = m.eps_S["eps33"] * EPS0 * (1 - 1j * tan_d)
+    c33D = m.c_E["c33"] * (1 + 1j / Q) + m.e["e33"] ** 2 / eps33
+    kt2 = m.e["e33"] ** 2 / (c33D * eps33)
+    v = np.sqrt(c33D / m.density)
+
+    def Y(f):
+        X = 2 * math.pi * np.asarray(f) * t / (2 * v)
+        return 2j * math.pi * np.asarray(f) * (eps33 / t) / (1 - kt2 * np.tan(X) / X)
+
+    fp = (v / (2 * t)).real
+    fs = brentq(lambda f: math.pi / 2 * f / fp * math.tan(math.pi / 2 * (fp - f) / fp) - kt2.real, 0.5 * fp, fp * (1 - 1e-12))
+    return fs, fp, Y
+
+
+@pytest.fixture(scope="module")
+def disc():
+    """A PZT-4 disc with u_r = 0 on its rim: exactly the 1-D thickness-mode plate."""
+    t, R = 0.002, 0.001
+    sec = ar.Section((ar._rect("disc", "PZT-4", 1, 0.0, R, 0.0, t),),
+                     (ar.ElectrodeLine("ground", 0.0, 0.0, R), ar.ElectrodeLine("hot", t, 0.0, R)))
+    return t, R, ar.assemble(sec, 1.25e-4, 1e-3, fixed=(("r", "r", R),))
+
+
+def test_thickness_mode_of_a_laterally_clamped_disc_is_ieee176_exact(disc):
+    t, R, model = disc
+    fs, fp, _ = _thickness_disc(get_material("PZT-4"), t, lossy=False)
+    res = ar.modes(model, fs, 2)
+    assert res.f_r[0] == pytest.approx(fs, rel=2e-6)
+    assert res.f_a[0] == pytest.approx(fp, rel=2e-6)
+    assert res.k_eff[0] > 0.4
+
+
+@pytest.mark.parametrize("lossy", [True, False])
+def test_thickness_disc_admittance_is_exact(disc, lossy):
+    """Y = j w C0 / (1 - kt^2 tan X / X) with complex constants; away from the resonance the
+    error is the eigenvalue error (3e-7) amplified by the resonance: measured <= 1.1e-5."""
+    t, R, model = disc
+    fs, fp, Y = _thickness_disc(get_material("PZT-4"), t, lossy)
+    f = np.array([0.3 * fs, 0.9 * fs, 0.5 * (fs + fp), 1.15 * fp])
+    y = ar.admittance(model, f, lossy=lossy)
+    assert np.abs(y / (np.pi * R ** 2 * Y(f)) - 1).max() < 5e-5
+    if not lossy:
+        assert np.all(y.real == 0)
+
+
+@pytest.mark.parametrize("poling", [1, -1])
+def test_k33_rod_against_ieee176_with_rayleigh_love(poling):
+    m = get_material("PZT-4")
+    C, e, eps = m.voigt_matrices()
+    s = np.linalg.inv(C)
+    d = e @ s
+    epsT = eps + d @ e.T
+    sD = s - d.T @ np.linalg.inv(epsT) @ d
+    k33 = d[2, 2] ** 2 / (s[2, 2] * epsT[2, 2])
+    L, R = 0.04, 0.002
+    fp = 1 / (2 * L * math.sqrt(m.density * s[2, 2] * (1 - k33)))
+    fs = brentq(lambda f: math.pi / 2 * f / fp * math.tan(math.pi / 2 * (fp - f) / fp) - k33, 0.5 * fp, fp * (1 - 1e-12))
+
+    def rayleigh_love(nu):
+        return 1 - 0.5 * nu ** 2 * (R ** 2 / 2) * (math.pi / L) ** 2
+
+    sec = ar.Section((ar._rect("rod", "PZT-4", poling, 0.0, R, 0.0, L),),
+                     (ar.ElectrodeLine("ground", 0.0, 0.0, R), ar.ElectrodeLine("hot", L, 0.0, R)))
+    res = ar.modes(ar.assemble(sec, 1e-3, 1e-3), fs, 2)
+    assert res.f_r[0] == pytest.approx(fs * rayleigh_love(-s[0, 2] / s[2, 2]), rel=1e-4)
+    assert res.f_a[0] == pytest.approx(fp * rayleigh_love(-sD[0, 2] / sD[2, 2]), rel=1e-4)
+
+
+# ---------------------------------------------------------------------------- the default drill
+
+
+def test_section_of_the_default_drill_reads_the_design():
+    d = no_slots()
+    sec = ar.section(d)
+    names = [b.name for b in sec.blocks]
+    assert names == ["coupler", "ring_1", "ring_2", "ring_3", "ring_4", "flange", "horn"]
+    # closed-form volumes of the design = Pappus volumes of the section's polygons
+    vol = {}
+    for b in sec.blocks:
+        r, z = np.asarray(b.outline).T
+        # Pappus and Green: V = 2 pi int r dA = pi (closed integral of r^2 dz), counter-clockwise
+        r1, z1 = np.roll(r, -1), np.roll(z, -1)
+        vol[b.name] = math.pi * np.sum((z1 - z) * (r * r + r * r1 + r1 * r1) / 3)
+    table = {region: v for region, _part, _mat, v in d.region_table()}
+    assert vol["coupler"] == pytest.approx(table["coupler"], rel=1e-12)
+    assert vol["horn"] == pytest.approx(table["horn"], rel=1e-12)
+    assert vol["flange"] == pytest.approx(table["flange_disc"], rel=1e-12)
+    assert [b.poling for b in sec.blocks[1:5]] == [-1, 1, -1, 1]
+    assert [e.role for e in sec.electrodes] == ["ground", "hot", "hot", "ground", "ground", "hot", "hot", "ground"]
+    with pytest.raises(ParameterError):
+        ar.section(geometry.default_design())
+
+
+@pytest.fixture(scope="module")
+def reference():
+    """Converged working mode of the default drill without slots and teeth (about 30k DOF in all)."""
+    return ar.convergence(no_slots(), 2 * math.sqrt(2) * 1e-3, 4e-3, levels=3, ratio=math.sqrt(2))
+
+
+def test_reference_converges_at_order_4_to_the_independent_values(reference):
+    c = reference
+    assert 3.0 < c.order_r < 5.0 and 3.0 < c.order_a < 5.0           # graded: smooth P2 rate h^4
+    assert c.f_r_limit == pytest.approx(ISSUE_19[0], rel=2e-5)
+    assert c.f_a_limit == pytest.approx(ISSUE_19[1], rel=2e-5)
+    # the Richardson error estimate of the finest level brackets the independent value
+    assert abs(c.f_r[-1] - ISSUE_19[0]) < 1.5 * c.error_r and abs(c.f_a[-1] - ISSUE_19[1]) < 1.5 * c.error_a
+
+
+@pytest.fixture(scope="module")
+def default_3d():
+    d = no_slots()
+    system = fem.assemble(geometry.build_mesh(d))
+    return fem.modal_analysis(system, near_hz=d.target_frequency, n_modes=3)
+
+
+def test_3d_default_mesh_against_the_reference(reference, default_3d):
+    w = default_3d.working
+    assert default_3d.labels[w] == "longitudinal"
+    err_r = default_3d.f_r_hz[w] / reference.f_r_limit - 1
+    err_a = default_3d.f_a_hz[w] / reference.f_a_limit - 1
+    # the 3-D mesh is stiff (too high), not merely different
+    assert 0 < err_r < TOL_3D and 0 < err_a < TOL_3D
+
+
+# ---------------------------------------------------------------------------- a generic stack
+
+
+@pytest.fixture(scope="module")
+def sandwich():
+    d = langevin_sandwich()
+    ref = ar.convergence(d, 2 * math.sqrt(2) * 1e-3, 4e-3, levels=3, near_hz=d.target_frequency, ratio=math.sqrt(2))
+    system = fem.assemble(geometry.build_mesh(d))
+    modes3d = fem.modal_analysis(system, near_hz=d.target_frequency, n_modes=2)
+    return d, ref, system, modes3d
+
+
+def test_sandwich_reference_converges(sandwich):
+    _d, ref, _s, _m = sandwich
+    assert ref.order_r > 3.0 and ref.order_a > 3.0
+    assert ref.error_r < 1e-5 * ref.f_r_limit and ref.error_a < 1e-5 * ref.f_a_limit
+
+
+def test_sandwich_3d_against_the_reference(sandwich):
+    _d, ref, _s, m = sandwich
+    w = m.working
+    assert m.labels[w] == "longitudinal"
+    assert m.f_r_hz[w] == pytest.approx(ref.f_r_limit, rel=TOL_SANDWICH)
+    assert m.f_a_hz[w] == pytest.approx(ref.f_a_limit, rel=TOL_SANDWICH)
+
+
+def test_sandwich_lossless_admittance_vanishes_at_the_anti_resonance(sandwich):
+    d, _ref, _system, _m = sandwich
+    model = ar.assemble(ar.section(d), 2e-3, 4e-3)
+    res = ar.modes(model, d.target_frequency, 3)
+    fa = res.f_a[res.working]
+    B = lambda f: ar.admittance(model, [f], lossy=False)[0].imag
+    assert brentq(B, fa * (1 - 1e-3), fa * (1 + 1e-3), xtol=1e-6) == pytest.approx(fa, rel=1e-8)
