@@ -52,6 +52,7 @@ def _assert_conformal_and_whole(tm, design, rel):
     for part, v in design.part_volumes().items():
         assert volumes[part] == pytest.approx(v, rel=rel), part
 
+
 def test_sandwich_layers_are_structured_conformal_and_cheap(sandwich):
     design, tm, rep = sandwich
     plan = mesh_layers(design)
@@ -86,6 +87,22 @@ def test_sandwich_thickness_mode_converges(sandwich):
     c_r, c_a = _coupled_mode(coarse, 47.5e3, 3)
     assert 46e3 < f_r < 49e3
     assert abs(c_r / f_r - 1) < 0.003 and abs(c_a / f_a - 1) < 0.003
+    # an independent check: the axisymmetric (r, z) model of tests/axisym_reference.py, its own
+    # graded triangles (1 mm, grading toward the layer corners), the same most-coupled mode
+    import axisym_reference as ar
+
+    model = ar.assemble(ar.section(design), 2e-3, 4e-3)
+    ref = ar.modes(model, 47.5e3, 6)
+    i = int(np.argmax(ref.k_eff))
+    # measured: +0.020 % (f_r), +0.009 % (f_a); the issue asks 0.5 %. The 2 mm reference is
+    # within 1e-5 of a 1 mm one (47 496.98 / 51 255.99 Hz)
+    assert abs(f_r / ref.f_r[i] - 1) < 0.001 and abs(f_a / ref.f_a[i] - 1) < 0.001
+    # admittance below the resonance (lossy, datasheet losses): the direct 3-D solve against the
+    # reference's direct solve
+    f = 0.5 * f_r
+    y3 = fem.harmonic_sweep(fem.assemble(tm), [f], 1.0, surfaces=("top",), method="direct").admittance[0]
+    yr = ar.admittance(model, [f])[0]
+    assert abs(y3 / yr - 1) < 0.005
 
 
 # ------------------------------------------------------------------ layered vs free tetrahedra
