@@ -31,7 +31,8 @@ def build_parser():
     p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
-    p.add_argument("--mesh-size", type=float, metavar="M", help="mesh size, m")
+    p.add_argument("--mesh-size", type=float, metavar="M", help="base element size, m: replaces the elements-per-wavelength rule of every region; the feature caps (rings, flange, slots, teeth), the edge grading and the curvature rule stay, so it does not refine uniformly (use --refine)")
+    p.add_argument("--refine", type=float, default=1.0, metavar="F", help="mesh refinement factor in [0.2, 5] (default 1): scales every size rule together (region sizes, feature caps, re-entrant-edge grading, curvature), F < 1 refines, DOFs grow about F^-3")
     p.add_argument("--modes", type=int, default=8, metavar="N",
                    help="modes in the superposition basis (default 8; a wide --band grows it as needed)")
     p.add_argument("--mode", type=int, metavar="K",
@@ -72,6 +73,7 @@ def _check_options(args) -> None:
         check_range("--tan-delta", args.tan_delta, 0.0, 1.0)
     if args.mesh_size is not None:
         check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    check_range("--refine", args.refine, 0.2, 5.0)  # geometry.sizing.REFINE_RANGE
     if args.ring_up is not None:
         check_range("--ring-up", args.ring_up, 0.0, MAX_RING_UP, "s (0: six time constants)")
     if args.json is not None and not args.json.endswith(".json"):
@@ -119,8 +121,8 @@ def main(argv=None) -> int:
         raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
     loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
     design = geometry.load_design(args.design) if args.design is not None else geometry.default_design()
-    check_budget(design, args.mesh_size, allow_large=args.allow_large)
-    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size)
+    check_budget(design, args.mesh_size, allow_large=args.allow_large, refine=args.refine)
+    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, refine=args.refine)
     surfaces = tuple(args.surface) if args.surface else tuple(
         s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
     for s in surfaces:

@@ -41,8 +41,8 @@ def _parser() -> CliParser:
     p.add_argument("--json", metavar="OUT.json", help="write the report: parts (mesh volume, mass), groups, "
                    "counts, quality, timings")
     p.add_argument("--png", metavar="OUT.png", help="render the parts off screen (pyvista)")
-    p.add_argument("--mesh-size", type=float, metavar="M", help="base element size in m (replaces the "
-                   "elements-per-wavelength rule; feature caps still apply)")
+    p.add_argument("--mesh-size", type=float, metavar="M", help="base element size, m: replaces the elements-per-wavelength rule of every region; the feature caps (rings, flange, slots, teeth), the edge grading and the curvature rule stay, so it does not refine uniformly (use --refine)")
+    p.add_argument("--refine", type=float, default=1.0, metavar="F", help="mesh refinement factor in [0.2, 5] (default 1): scales every size rule together (region sizes, feature caps, re-entrant-edge grading, curvature), F < 1 refines, DOFs grow about F^-3")
     p.add_argument("--epw", type=float, metavar="N", help="elements per shear wavelength at the target frequency")
     p.add_argument("--order", type=int, choices=(1, 2), default=2, help="tetrahedron order (default 2, curved)")
     p.add_argument("--algorithm", choices=("delaunay", "frontal", "hxt"), default="delaunay",
@@ -81,10 +81,11 @@ def main(argv: list[str] | None = None) -> int:
     from .guard import check_budget
     from .report import build_report
 
-    check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large)
+    check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large,
+                 refine=args.refine)
     tm, report = build_report(design, mesh_size=args.mesh_size, order=args.order,
                               elements_per_wavelength=args.epw, algorithm=args.algorithm,
-                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout)
+                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout, refine=args.refine)
     sys.stdout.write(format_table(report) + "\n")
     if args.mesh:
         tm.write(args.mesh)
@@ -105,6 +106,7 @@ def check_options(args) -> None:
         check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
     if args.epw is not None:
         check_range("--epw", args.epw, 1.0, 200.0)
+    check_range("--refine", args.refine, 0.2, 5.0)  # geometry.sizing.REFINE_RANGE
     if args.gmsh_timeout is not None:
         check_range("--gmsh-timeout", args.gmsh_timeout, 0.1, 86400.0, "s")  # builder.GMSH_TIME_RANGE
 

@@ -4,9 +4,9 @@ Every part is built as an OpenCASCADE solid (cylinders, cones, lofts, boxes; cou
 helical lofts and tooth gaps as sector prisms, both cut away), all solids are fragmented into
 one conformal model, physical groups are named (one volume group per region, surface groups
 ``horn_tip``, ``teeth_tops``, ``flange``, ``electrode_*``...), and the model is meshed with
-first- or second-order (curved) tetrahedra. The mesh size per region is an
-elements-per-wavelength rule on the material's shear wavelength at the design's target
-frequency, capped near small features (slots, teeth, rings, shims).
+first- or second-order (curved) tetrahedra. The size rules (an elements-per-wavelength rule
+per region, caps near small features, grading toward re-entrant edges, one refinement factor
+scaling them all) live in :mod:`geometry.sizing`.
 
 gmsh is imported inside the functions, so importing this module is cheap.
 """
@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 
 from rpud_common import cli as common
-from rpud_common import ParameterError, check_choice, check_positive, check_range
+from rpud_common import ParameterError, check_choice, check_range
 from .design import DesignBase, RPUDDesign, StackDesign
-from .materials import get_material
 from .mesh import Electrode, Region, TaggedMesh
+from .sizing import apply_fields, check_refine, region_sizes, shear_wavelength
 
 __all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "ALGORITHMS",
            "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT", "GMSH_TIME_RANGE"]
@@ -65,20 +65,6 @@ _GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 """Gmsh's 10-node tetrahedron lists edge (2,3) before (1,3); meshio/VTK the other way round."""
 
 
-def shear_wavelength(material: str, frequency: float) -> float:
-    """Shear wavelength (m) of ``material`` at ``frequency`` (Hz).
-
-    Isotropic: sqrt(G / rho) / f; piezoceramic: sqrt(min(c44, c66) / rho) / f (the slowest
-    shear wave).
-    """
-    m = get_material(material)
-    if m.is_piezo:
-        G = min(m.c_E["c44"], m.c_E["c66"])
-    else:
-        G = m.youngs_modulus / (2 * (1 + m.poisson_ratio))
-    return math.sqrt(G / m.density) / frequency
-
-
 @dataclass
 class BuildReport:
     """What a build did: counts, quality, groups, sizes and timings (JSON friendly)."""
@@ -100,47 +86,6 @@ class BuildReport:
             "mesh_size_m": self.region_sizes, "physical_groups": self.physical_groups,
             "quality": self.quality, "timings_s": self.timings,
         }
-
-
-# ============================================================================ sizes
-
-
-def region_sizes(design: DesignBase, mesh_size: float | None = None,
-                 elements_per_wavelength: float | None = None) -> dict[str, float]:
-    """Target element size (m) per region, and the feature sizes (keys starting with ``@``).
-
-    ``mesh_size`` replaces the wavelength rule as the base size of every region; the
-    feature caps (ring and shim thickness, slot width and depth, tooth height) still apply.
-    """
-    epw = design.elements_per_wavelength if elements_per_wavelength is None else elements_per_wavelength
-    check_range("elements_per_wavelength", epw, 1.0, 200.0)
-    if mesh_size is not None:
-        check_positive("mesh_size", mesh_size, "m")
-
-    def base(material: str) -> float:
-        return mesh_size if mesh_size is not None else shear_wavelength(material, design.target_frequency) / epw
-
-    sizes: dict[str, float] = {}
-    for region, part, material, _vol in design.region_table():
-        sizes[region] = base(material)
-    if isinstance(design, RPUDDesign):
-        s, c = design.stack, design.coupler
-        for region, kind, z0, z1 in design.stack_layers():
-            cap = s.ring_thickness if kind == "ring" else 4 * s.shim_thickness
-            sizes[region] = min(sizes[region], cap)
-        sizes["flange_disc"] = min(sizes["flange_disc"], 1.5 * design.flange.thickness)
-        if c.n_slots:
-            sizes["@slots"] = min(sizes["coupler"], 0.6 * c.slot_width, 1.2 * c.slot_depth)
-        if c.n_teeth:
-            sizes["@teeth"] = min(sizes["coupler"], max(0.8 * c.tooth_height, 0.5 * c.tooth_width))
-    else:
-        for seg in design.segments:
-            dims = [seg.length]
-            if seg.kind == "box":
-                dims += [seg.thickness, seg.width]
-            # at least ~2 elements across the smallest dimension of a thin piece
-            sizes[seg.name] = min(sizes[seg.name], max(min(dims) / 2, 0.25 * max(dims) / 20))
-    return sizes
 
 
 # ============================================================================ OCC helpers
@@ -368,7 +313,7 @@ def build_mesh(design: DesignBase, mesh_size: float | None = None, order: int = 
 def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
           verbose: bool = False, msh_path: str | None = None,
-          time_limit: float | None = None) -> tuple[TaggedMesh, BuildReport]:
+          time_limit: float | None = None, refine: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
 
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
@@ -379,6 +324,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     (:func:`rpud_common.cli.run_cli`) then ends the process by ``os._exit`` after its line.
     See :func:`_build` for the other parameters and the result.
     """
+    refine = check_refine(refine)
     if time_limit is None:
         env = os.environ.get("RPUD_GMSH_TIMEOUT")
         try:
@@ -414,7 +360,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path)
+                                   msh_path, refine)
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -447,7 +393,8 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
 
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
            elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
-           verbose: bool = False, msh_path: str | None = None) -> tuple[TaggedMesh, BuildReport]:
+           verbose: bool = False, msh_path: str | None = None,
+           refine: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -455,7 +402,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     design : RPUDDesign or StackDesign
     mesh_size : float, optional
         Base element size in m for every region, replacing the elements-per-wavelength rule
-        (feature caps still apply).
+        (feature caps, edge grading and the curvature rule still apply).
     order : {1, 2}
         1: 4-node tetrahedra; 2: 10-node curved tetrahedra (nodes on the true geometry).
     elements_per_wavelength : float, optional
@@ -467,6 +414,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     msh_path : str, optional
         Also write Gmsh's native ``.msh`` (4.1) of the model to this path (caller handles
         atomicity).
+    refine : float
+        Scales every size rule together (region sizes, feature caps, edge grading, curvature;
+        :mod:`geometry.sizing`): ``refine < 1`` refines, element count ~ ``refine**-3``.
 
     Returns
     -------
@@ -479,7 +429,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     check_choice("algorithm", algorithm, tuple(ALGORITHMS))
     if not isinstance(design, (RPUDDesign, StackDesign)):
         raise ParameterError("design", type(design).__name__, "must be an RPUDDesign or a StackDesign")
-    sizes = region_sizes(design, mesh_size, elements_per_wavelength)
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
@@ -547,34 +497,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         for name, surfs in facet_surfs.items():
             gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
 
-        # ---- sizes
-        fields = []
-        for region, vols in region_vols.items():
-            fid = gmsh.model.mesh.field.add("Constant")
-            gmsh.model.mesh.field.setNumber(fid, "VIn", sizes[region])
-            gmsh.model.mesh.field.setNumbers(fid, "VolumesList", vols)
-            gmsh.model.mesh.field.setNumber(fid, "IncludeBoundary", 1)
-            fields.append(fid)
-        if isinstance(design, RPUDDesign):
-            c = design.coupler
-            R = c.outer_diameter / 2 + 1e-3
-            zones = {z[0]: z for z in design._zones()}
-            for key, zone in (("@slots", "coupler.slots"), ("@teeth", "coupler.teeth")):
-                if key in sizes:
-                    _lab, _part, z0, z1 = zones[zone]
-                    fid = gmsh.model.mesh.field.add("Box")
-                    for opt, val in (("VIn", sizes[key]), ("VOut", 1e22), ("XMin", -R), ("XMax", R),
-                                     ("YMin", -R), ("YMax", R), ("ZMin", z0 - 1e-4), ("ZMax", z1 + 1e-4),
-                                     ("Thickness", 2.0 * sizes[key])):
-                        gmsh.model.mesh.field.setNumber(fid, opt, val)
-                    fields.append(fid)
-        fmin = gmsh.model.mesh.field.add("Min")
-        gmsh.model.mesh.field.setNumbers(fmin, "FieldsList", fields)
-        gmsh.model.mesh.field.setAsBackgroundMesh(fmin)
-        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 12)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", max(v for v in sizes.values()))
+        # ---- sizes (geometry.sizing: region sizes, feature caps, graded re-entrant edges)
+        apply_fields(gmsh, design, sizes, region_vols, refine)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.option.setNumber("Mesh.Algorithm3D", ALGORITHMS[algorithm])
         gmsh.option.setNumber("Mesh.Optimize", 1)

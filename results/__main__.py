@@ -27,7 +27,8 @@ def build_parser() -> CliParser:
                    help="drive voltage amplitude on the hot electrodes, V (default 225, the article's)")
     p.add_argument("--out", metavar="DIR",
                    help="output folder (default results/default for the built-in design, else results/<name>)")
-    p.add_argument("--mesh-size", type=float, metavar="M", help="mesh size, m (default: elements-per-wavelength rule)")
+    p.add_argument("--mesh-size", type=float, metavar="M", help="base element size, m: replaces the elements-per-wavelength rule of every region; the feature caps (rings, flange, slots, teeth), the edge grading and the curvature rule stay, so it does not refine uniformly (use --refine)")
+    p.add_argument("--refine", type=float, default=1.0, metavar="F", help="mesh refinement factor in [0.2, 5] (default 1): scales every size rule together (region sizes, feature caps, re-entrant-edge grading, curvature), F < 1 refines, DOFs grow about F^-3")
     p.add_argument("--q-mech", type=float, default=100.0, metavar="Q",
                    help="mechanical quality factor of the assembled transducer (default 100); 0 = datasheet values")
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")
@@ -56,6 +57,7 @@ def check_options(args) -> None:
         check_range("--q-mech", args.q_mech, 1.0, 1e6, "(0 = datasheet values)")
     if args.mesh_size is not None:
         check_range("--mesh-size", args.mesh_size, 1e-5, 1.0, "m")
+    check_range("--refine", args.refine, 0.2, 5.0)  # geometry.sizing.REFINE_RANGE
     check_range("--rel-tol", args.rel_tol, 0.0, 1.0, lo_open=True)
     from impact.stats import MAX_MEMBERS
 
@@ -75,7 +77,7 @@ def main(argv=None) -> int:
     setup_logging(-1)
     check_options(args)
     settings = PipelineSettings(voltage=args.voltage, q_mech=None if args.q_mech == 0 else args.q_mech,
-                                mesh_size=args.mesh_size, match=not args.no_match,
+                                mesh_size=args.mesh_size, refine=args.refine, match=not args.no_match,
                                 couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                                 impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
                                 coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes)
@@ -89,7 +91,7 @@ def main(argv=None) -> int:
     check_output_paths(inputs={"--design": args.design}, folders=("out",), out=out)
     if args.design is not None and out.exists() and Path(args.design).resolve().is_relative_to(out.resolve()):
         raise ParameterError("--out", str(out), "holds the input --design; it would be replaced by the results")
-    check_budget(design, args.mesh_size, allow_large=args.allow_large)
+    check_budget(design, args.mesh_size, allow_large=args.allow_large, refine=args.refine)
     # progress on stdout: stderr carries only the one-line error of a failed run (and tqdm bars)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
     # built beside the target and swapped in whole: an interrupted or failed run leaves the

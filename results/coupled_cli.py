@@ -41,7 +41,8 @@ def _parser() -> CliParser:
     ap.add_argument("--modes", type=int, default=None, metavar="N",
                     help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
     ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
-    ap.add_argument("--mesh-size", type=_real, default=None, metavar="M", help="mesh size, m")
+    ap.add_argument("--mesh-size", type=_real, default=None, metavar="M", help="base element size, m: replaces the elements-per-wavelength rule of every region; the feature caps (rings, flange, slots, teeth), the edge grading and the curvature rule stay, so it does not refine uniformly (use --refine)")
+    ap.add_argument("--refine", type=_real, default=1.0, metavar="F", help="mesh refinement factor in [0.2, 5] (default 1): scales every size rule together (region sizes, feature caps, re-entrant-edge grading, curvature), F < 1 refines, DOFs grow about F^-3")
     ap.add_argument("--contact", choices=["newton", "hunt-crossley"], default="newton",
                     help="horn contact: newton = instantaneous impact with restitution e2 (default); hunt-crossley = "
                          "Hertz contact (horn material vs a steel sphere of the free mass) with Hunt-Crossley damping "
@@ -75,6 +76,7 @@ def main(argv=None) -> int:
         check_integer("--modes", ns.modes, 1, 12)
     if ns.mesh_size is not None:
         check_range("--mesh-size", ns.mesh_size, 1e-5, 1.0, "m")
+    check_range("--refine", ns.refine, 0.2, 5.0)  # geometry.sizing.REFINE_RANGE
     check_range("--history", ns.history, 1e-4, 1.0, "s")
     if ns.horn_law not in (None, "kinematic"):
         raise ParameterError("--horn-law", ns.horn_law, "must be kinematic with --horn fem (the modes carry the mass)")
@@ -101,11 +103,12 @@ def main(argv=None) -> int:
     from .coupled import build_transducer, contact_from_design, coupled_history, history_csv, horn_from_reduced
 
     design = geometry.load_design(ns.design) if ns.design is not None else geometry.default_design()
-    check_budget(design, ns.mesh_size)
+    check_budget(design, ns.mesh_size, refine=ns.refine)
     say = _progress(ns) or (lambda msg: None)
     say("[1/3] FE transducer")
     fe = build_transducer(design, voltage=ns.voltage, q_mech=None if ns.q_mech == 0 else ns.q_mech,
-                          freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say)
+                          freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say,
+                          refine=ns.refine)
     p = p.with_(freq=fe.freq_hz)
     contact = None
     hist = None
