@@ -118,7 +118,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
     -------
     Estimate
     """
-    from .sizing import GROWTH, graded_edges, region_sizes
+    from .sizing import graded_edges, region_sizes
 
     sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
     n = 0.0
@@ -135,11 +135,11 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
             shell = math.pi / 4 * (c.outer_diameter ** 2 - design.coupler_bore ** 2) * zone
             smallest = min(smallest, h)
             n += TETS_PER_CUBE * shell / h ** 3
-    for e in graded_edges(design, sizes):
-        # a torus of 270 degrees around the edge with h(d) = h_edge + GROWTH d:
-        # integral of 2 pi r (3 pi / 2) d dd / h^3 over d > 0 = 3 pi^2 r / (2 GROWTH^2 h_edge)
+    for e in graded_edges(design, sizes, refine):
+        # a torus of 270 degrees around the edge with h(d) = h_edge + g d:
+        # integral of 2 pi r (3 pi / 2) d dd / h^3 over d > 0 = 3 pi^2 r / (2 g^2 h_edge)
         smallest = min(smallest, e.h_edge)
-        n += TETS_PER_CUBE * 1.5 * math.pi ** 2 * e.r / (GROWTH ** 2 * e.h_edge)
+        n += TETS_PER_CUBE * 1.5 * math.pi ** 2 * e.r / (e.growth ** 2 * e.h_edge)
     elements = int(min(n, 1e18))
     nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
     dofs = 4 * nodes
