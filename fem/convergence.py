@@ -11,15 +11,17 @@ API
     last two levels, with at least three levels, at most ``max_levels``, and stops early (not
     converged) when the next level's estimated DOFs exceed ``max_dofs``.
 ``ConvergenceStudy.order(q)``, ``.richardson(q)``, ``.error(q)``, ``.table()``, ``.to_dict()``
-    From the last three levels (constant ratio r = h_k / h_{k+1}): the observed order
-    ``p = ln(|q1 - q2| / |q2 - q3|) / ln r``, the Richardson extrapolation
-    ``q_inf = q3 + (q3 - q2) / (r^p - 1)`` and the error estimate ``|q3 - q_inf|`` of the finest
-    level. If the differences change sign or the order falls outside ``ORDER_RANGE`` the
-    asymptotic range is not reached: the order is reported as NaN and the error falls back to
-    the last change ``|q3 - q2|`` (conservative).
+    From the last three levels, with the representative element size ``h = DOFs^(-1/3)`` of
+    each mesh (an unstructured mesh does not refine exactly by ``refine``; small meshes much
+    less): the model ``q(h) = q_inf + C h^p`` through the three points gives the observed order
+    ``p`` (solved from ``(q2 - q1) / (q3 - q2) = (h1^p - h2^p) / (h2^p - h3^p)``; with a constant
+    ratio r this is ``ln(|q1 - q2| / |q2 - q3|) / ln r``), the Richardson extrapolation ``q_inf``
+    and the error estimate ``|q3 - q_inf|`` of the finest level. If the differences change sign
+    or the order falls outside ``ORDER_RANGE`` the asymptotic range is not reached: the order is
+    reported as NaN and the error falls back to the last change ``|q3 - q2|`` (conservative).
 ``two_level_error(fine, coarse, ratio, order=ESTIMATOR_ORDER)``
-    The cheap estimator: one extra solve at ``coarse`` refine (``ratio = coarse / fine``, e.g.
-    1.4) and the order validated by a full study, ``|q(h) - q(ratio h)| / (ratio^p - 1)``.
+    The cheap estimator: one extra solve on a coarser mesh (``refine`` x 1.4; ``ratio`` =
+    h_coarse / h_fine from the DOFs) and an assumed order, ``|q(h) - q(ratio h)| / (ratio^p - 1)``.
 ``working_mode_level(design, refine, ...)``
     The evaluator of the RPUD working mode: mesh at ``refine``, modal analysis near the target
     (f_r, f_a of the working mode), and with ``harmonic=True`` the direct harmonic response at
@@ -33,7 +35,6 @@ Quantities are named as in the JSON of the other modules: ``f_r_hz``, ``f_a_hz``
 from __future__ import annotations
 
 import logging
-import math
 import time
 from dataclasses import dataclass, field
 from typing import Callable
@@ -87,8 +88,30 @@ class ConvergenceStudy:
 
     @property
     def ratio(self) -> float:
-        """h ratio between consecutive levels (> 1)."""
-        return self.levels[-2].refine / self.levels[-1].refine
+        """Ratio of the representative sizes h = DOFs^(-1/3) of the last two levels (> 1)."""
+        return (self.levels[-1].ndof / self.levels[-2].ndof) ** (1 / 3)
+
+    def _h3(self) -> tuple[float, float, float]:
+        return tuple(float(l.ndof) ** (-1 / 3) for l in self.levels[-3:])  # type: ignore[return-value]
+
+    def _fit(self, q: str) -> tuple[float, float]:
+        """(p, C) of q(h) = q_inf + C h^p through the last three levels; (NaN, NaN) if none."""
+        from scipy.optimize import brentq
+
+        q1, q2, q3 = self._last3(q)
+        h1, h2, h3 = self._h3()
+        d1, d2 = q2 - q1, q3 - q2
+        if d1 == 0 or d2 == 0 or np.sign(d1) != np.sign(d2) or not h1 > h2 > h3:
+            return float("nan"), float("nan")
+        target = d1 / d2
+
+        def g(p):
+            return (h1 ** p - h2 ** p) / (h2 ** p - h3 ** p) - target
+        lo, hi = ORDER_RANGE
+        if g(lo) * g(hi) > 0:
+            return float("nan"), float("nan")
+        p = brentq(g, lo, hi, xtol=1e-10)
+        return p, d2 / (h3 ** p - h2 ** p)
 
     def _last3(self, q: str) -> tuple[float, float, float]:
         if len(self.levels) < 3:
@@ -108,20 +131,15 @@ class ConvergenceStudy:
 
     def order(self, q: str) -> float:
         """Observed order in h from the last three levels (NaN outside the asymptotic range)."""
-        q1, q2, q3 = self._last3(q)
-        d1, d2 = q2 - q1, q3 - q2
-        if d1 == 0 or d2 == 0 or np.sign(d1) != np.sign(d2):
-            return float("nan")
-        p = math.log(abs(d1) / abs(d2)) / math.log(self.ratio)
-        return p if ORDER_RANGE[0] <= p <= ORDER_RANGE[1] else float("nan")
+        return self._fit(q)[0]
 
     def richardson(self, q: str) -> float:
         """Richardson extrapolation of ``q`` to h -> 0 (the finest value if no order)."""
-        _q1, q2, q3 = self._last3(q)
-        p = self.order(q)
+        q3 = self._last3(q)[2]
+        p, C = self._fit(q)
         if not np.isfinite(p):
             return q3
-        return q3 + (q3 - q2) / (self.ratio ** p - 1)
+        return q3 - C * self._h3()[2] ** p
 
     def error(self, q: str) -> float:
         """Estimated discretisation error of the finest level's ``q`` (same units)."""

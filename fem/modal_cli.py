@@ -28,7 +28,7 @@ def format_table(res: ModalResult, errors: dict | None = None) -> str:
         mc = f"{res.mac[i]:5.2f}" if np.isfinite(res.mac[i]) else f"{'-':>5}"
         sh = "/".join(f"{100 * s:.0f}" for s in res.shares[i])
         err = errors.get(i)
-        tail = (f"   f_r +- {err['f_r_err_hz']:.1f} Hz, f_a +- {err['f_a_err_hz']:.1f} Hz" if err else "")
+        tail = (f"   f_r +- {err['f_r_err_hz']:.2g} Hz, f_a +- {err['f_a_err_hz']:.2g} Hz" if err else "")
         lines.append(f"{i + 1:3d} {res.f_r_hz[i] / 1e3:10.4f} {fa} {ke} {mc}  {sh:>14}  {res.labels[i]}{tail}")
     t = res.timings
     lines.append(f"{res.ndof} DOFs, {res.backend}; assembly {t['assembly_s']:.2f} s, "
@@ -60,7 +60,7 @@ def build_parser(prog="python -m fem.modal"):
                    help="clamp the named surface (repeatable; default: free)")
     g.add_argument("--error", action="store_true",
                    help="estimate the working mode's discretisation error from one extra solve on a mesh "
-                        "1.4x coarser (--refine x 1.4; assumed order 2 in h, conservative: see fem.convergence); "
+                        "1.4x coarser (--refine x 1.4) and an assumed order in h (fem.convergence.ESTIMATOR_ORDER); "
                         "prints f_r +- err, f_a +- err and adds them to the JSON")
     g.add_argument("--converge", type=float, metavar="TOL",
                    help="mesh-convergence study of the working mode: refine by 0.8 per level from --refine until "
@@ -314,12 +314,12 @@ def _error_estimate(args, design, system, res, near):
     from .modal import modal_analysis, working_mode
 
     w = working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0))
-    coarse_refine = min(args.refine * ESTIMATOR_RATIO, 5.0)
-    ratio = coarse_refine / args.refine
+    coarse_refine = args.refine * ESTIMATOR_RATIO
     mesh_c = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, refine=coarse_refine)
     sys_c = assemble(mesh_c, order=args.order)
     res_c = modal_analysis(sys_c, near, 8, backend=None if args.solver in (None, "auto") else args.solver)
     wc = working_mode(sys_c, res_c.f_r_hz, res_c.vectors, max(near, 1.0))
+    ratio = (system.ndof / sys_c.ndof) ** (1 / 3)        # h ratio from the representative sizes
     err = {"mode": int(w + 1), "f_r_err_hz": two_level_error(res.f_r_hz[w], res_c.f_r_hz[wc], ratio),
            "f_a_err_hz": two_level_error(res.f_a_hz[w], res_c.f_a_hz[wc], ratio),
            "k_eff_err": two_level_error(res.k_eff[w], res_c.k_eff[wc], ratio),
