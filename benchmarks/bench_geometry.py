@@ -3,7 +3,7 @@
 Prints two tables. Default design: seconds (best of ``--repeat``), tetrahedra, nodes, min/median
 SICN, the worst part-volume error against the closed form, and whether the 5 s target is met.
 Bonded sandwich (55 mm discs, two 0.275 mm epoxy bonds, ``geometry.examples.bonded_sandwich``):
-the structured layers at the default size and one refinement (``size_factor`` 1/1.5) against the
+the structured layers at the default size and one refinement (``refine`` 1/1.5) against the
 free tetrahedral mesh the builder made before (its resource-guard estimate; ``--try-free S``
 also runs it for up to S seconds, last, since an abandoned Gmsh run ends further builds), and
 whether the 15 s target is met.
@@ -66,7 +66,7 @@ def sandwich(repeat: int, try_free: float | None) -> None:
         best = float("inf")
         for _ in range(repeat):
             t0 = time.perf_counter()
-            tm, rep = build(design, size_factor=factor)
+            tm, rep = build(design, refine=factor)
             best = min(best, time.perf_counter() - t0)
         vols, _ = mesh_part_volumes(tm)
         err = max(abs(vols[p] / closed[p] - 1) for p in closed)

@@ -33,7 +33,7 @@ def build_parser():
     p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
-    add_design_options(p, include=("mesh_size",), mesh_size_help="mesh size, m")
+    add_design_options(p, include=("mesh_size", "refine", "grade"))
     p.add_argument("--modes", type=int, default=8, metavar="N",
                    help="modes in the superposition basis (default 8; a wide --band grows it as needed)")
     p.add_argument("--mode", type=int, metavar="K",
@@ -109,7 +109,7 @@ def main(argv=None) -> int:
     import geometry
     from rpud_common import atomic_write_text, json_text, setup_logging
     from geometry.guard import check_budget
-    from geometry.options import design_from_options
+    from geometry.options import design_from_options, mesh_options
 
     from .assembly import assemble
     from .modal import modal_analysis
@@ -122,8 +122,8 @@ def main(argv=None) -> int:
         raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
     loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
     design = design_from_options(args)
-    check_budget(design, args.mesh_size, allow_large=args.allow_large)
-    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size)
+    check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args))
+    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, **mesh_options(args))
     surfaces = tuple(args.surface) if args.surface else tuple(
         s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
     for s in surfaces:

@@ -93,6 +93,10 @@ class MatchSettings:
         tuned design is re-meshed and matched again (at most ``max_rounds`` rounds).
     mesh_size : float or None
         Mesh size override, m (None: the design's elements-per-wavelength rule).
+    refine : float
+        Mesh refinement factor (:mod:`geometry.sizing`; < 1 refines, DOFs ~ refine^-3).
+    grade : bool
+        Grade the mesh toward the re-entrant edges (off by default; ~2x the DOFs).
     order : int
         Field order (2: P2).
     """
@@ -107,6 +111,8 @@ class MatchSettings:
     max_rounds: int = 3
     mesh_size: float | None = None
     order: int = 2
+    refine: float = 1.0
+    grade: bool = False
 
     def __post_init__(self):
         check_positive("target_hz", self.target_hz, "Hz")
@@ -122,6 +128,9 @@ class MatchSettings:
         check_integer("n_modes", self.n_modes, 1)
         if self.mesh_size is not None:
             check_positive("mesh_size", self.mesh_size, "m")
+        from geometry.sizing import check_refine
+
+        check_refine(self.refine)
 
 
 # --------------------------------------------------------------------------- morphing
@@ -338,7 +347,8 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         front, back = None, settings.tune[0]
     target = settings.target_hz
     if mesh is None:
-        mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size)
+        mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine,
+                                   grade=settings.grade)
     t_mesh = time.perf_counter() - t_start
     iterations: list[dict] = []
     start = {p: float(design.get(p)) for p in settings.tune}
@@ -406,7 +416,8 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         log.info("match: re-meshing the tuned design (zones stretched by %.1f %%)",
                  100 * _distortion(mesh_design, design))
         mesh_design = design
-        mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size)
+        mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine,
+                                   grade=settings.grade)
         timings["mesh_s"] += time.perf_counter() - t0
     prev = {"shape": last_shape}
 

@@ -16,15 +16,20 @@ from rpud_common import ParameterError
 
 from .modal import ModalResult, modal_analysis
 
-def format_table(res: ModalResult) -> str:
+def format_table(res: ModalResult, errors: dict | None = None) -> str:
+    """The modal table; ``errors`` (mode index -> ``{"f_r_err_hz": .., "f_a_err_hz": ..}``) adds the
+    estimated discretisation error of those modes as a last column."""
+    errors = errors or {}
     lines = [f"{'#':>3} {'f_r kHz':>10} {'f_a kHz':>10} {'k_eff':>7} {'MAC':>5}  "
-             f"{'ax/tor/lat':>14}  motion"]
+             f"{'ax/tor/lat':>14}  motion" + ("   (discretisation error)" if errors else "")]
     for i in range(res.n_modes):
         fa = f"{res.f_a_hz[i] / 1e3:10.4f}" if np.isfinite(res.f_a_hz[i]) else f"{'-':>10}"
         ke = f"{res.k_eff[i]:7.4f}" if np.isfinite(res.k_eff[i]) else f"{'-':>7}"
         mc = f"{res.mac[i]:5.2f}" if np.isfinite(res.mac[i]) else f"{'-':>5}"
         sh = "/".join(f"{100 * s:.0f}" for s in res.shares[i])
-        lines.append(f"{i + 1:3d} {res.f_r_hz[i] / 1e3:10.4f} {fa} {ke} {mc}  {sh:>14}  {res.labels[i]}")
+        err = errors.get(i)
+        tail = (f"   f_r +- {err['f_r_err_hz']:.2g} Hz, f_a +- {err['f_a_err_hz']:.2g} Hz" if err else "")
+        lines.append(f"{i + 1:3d} {res.f_r_hz[i] / 1e3:10.4f} {fa} {ke} {mc}  {sh:>14}  {res.labels[i]}{tail}")
     t = res.timings
     lines.append(f"{res.ndof} DOFs, {res.backend}; assembly {t['assembly_s']:.2f} s, "
                  f"factorisation {t['factorisation_s']:.2f} s, eigen {t['eigen_s']:.2f} s"
@@ -41,7 +46,7 @@ def build_parser(prog="python -m fem.modal"):
     from geometry.options import add_design_options
 
     g = p.add_argument_group("design")
-    add_design_options(g, design_default="default", mesh_size_help="characteristic mesh size in m")
+    add_design_options(g, design_default="default")
     g.add_argument("--order", type=int, default=2, choices=(1, 2), help="field order (default 2)")
     g = p.add_argument_group("modal analysis")
     g.add_argument("--near", type=float, metavar="HZ",
@@ -50,6 +55,15 @@ def build_parser(prog="python -m fem.modal"):
                    help=f"number of modes, 1-{MAX_MODES} (default 12; with --match: modes per iteration, default 4)")
     g.add_argument("--clamp", action="append", default=[], metavar="SURFACE",
                    help="clamp the named surface (repeatable; default: free)")
+    g.add_argument("--error", action="store_true",
+                   help="estimate the working mode's discretisation error from one extra solve on a mesh "
+                        "1.4x coarser (--refine x 1.4) and an assumed order in h (fem.convergence.estimator_order: "
+                        "1 ungraded, 2 with --grade); prints f_r +- err, f_a +- err and adds them to the JSON")
+    g.add_argument("--converge", type=float, metavar="TOL",
+                   help="mesh-convergence study of the working mode: refine by 0.8 per level from --refine until "
+                        "f_r, f_a, the tip amplitude per volt and the teeth ellipse ratio change by less than TOL "
+                        "(relative, 1e-7..0.1) between levels; prints each level, the observed order, the "
+                        "Richardson estimate and the error (with or without --grade)")
     g.add_argument("--solver", choices=("auto", "pardiso", "superlu"), default=None,
                    help="sparse direct solver (default: pardiso if installed; env RPUD_SOLVER)")
     g = p.add_argument_group("resonance matching")
@@ -97,6 +111,17 @@ def _check_options(args) -> dict:
         check_range("--near", args.near, *FREQUENCY_BAND, "Hz")
     if args.modes is not None:
         check_integer("--modes", args.modes, 1, MAX_MODES)
+    if args.converge is not None:
+        check_range("--converge", args.converge, 1e-7, 0.1)
+        for opt in ("match", "error", "render", "vtu"):
+            if getattr(args, opt):
+                raise ParameterError("--converge", args.converge, f"cannot be combined with --{opt}")
+        if args.clamp:
+            raise ParameterError("--converge", args.converge, "studies the free-free working mode: drop --clamp")
+    if args.error and (args.match or args.clamp):
+        raise ParameterError("--error", True, "applies to the free-free modal run (not with --match or --clamp)")
+    if args.error and args.refine * 1.4 > 5.0:
+        raise ParameterError("--refine", args.refine, "must be <= 3.5 with --error (its coarse mesh is 1.4x coarser)")
     if args.target is not None:
         check_range("--target", args.target, *FREQUENCY_BAND, "Hz")
     if args.tol is not None:
@@ -160,7 +185,7 @@ def main(argv=None) -> int:
     import geometry
     from rpud_common import atomic_write_text, check_output_paths, json_text, setup_logging
     from geometry.guard import check_budget
-    from geometry.options import design_from_options, design_inputs
+    from geometry.options import design_from_options, design_inputs, mesh_options
 
     from .assembly import assemble
 
@@ -171,7 +196,7 @@ def main(argv=None) -> int:
     outputs = _check_options(args)
     bracket = _factors(args.bracket, "--bracket") if args.match else None
     design = design_from_options(args)
-    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large)
+    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large, **mesh_options(args))
     if args.match:
         from .matching import MatchSettings, match
 
@@ -179,7 +204,7 @@ def main(argv=None) -> int:
         settings = MatchSettings(
             target_hz=float(args.target or getattr(design, "target_frequency", 20e3)), tolerance=0.005 if args.tol is None else args.tol,
             tune=tuple(args.tune.split(",")) if args.tune else getattr(design, "default_tuned", ()),
-            bracket=bracket, mesh_size=args.mesh_size, order=args.order, **extra)
+            bracket=bracket, mesh_size=args.mesh_size, order=args.order, **mesh_options(args), **extra)
         out_design = args.out_design
         if out_design is None and outputs["tuned"]:
             out_design = str(Path(args.json).parent / f"{design.name}-tuned.toml")
@@ -214,7 +239,9 @@ def main(argv=None) -> int:
             atomic_write_text(args.json, text)
         return 0 if res_m.converged else 1
     near = float(args.near if args.near is not None else getattr(design, "target_frequency", 20e3))
-    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order)
+    if args.converge is not None:
+        return _converge(args, design, near)
+    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, **mesh_options(args))
     for name in args.clamp:
         mesh.facets(name)
     system = assemble(mesh, order=args.order)
@@ -223,12 +250,19 @@ def main(argv=None) -> int:
         raise ParameterError("--modes", n_modes, f"must be <= {system.ndof // 4} for this mesh ({system.ndof} DOFs)")
     res = modal_analysis(system, near, n_modes, clamp=args.clamp,
                          backend=None if args.solver in (None, "auto") else args.solver)
-    print(format_table(res))
+    errors, err_json = {}, None
+    if args.error:
+        errors, err_json = _error_estimate(args, design, system, res, near)
+    print(format_table(res, errors))
     data = None
     if args.json:
         data = res.to_dict()
         data["design"] = str(args.design)
+        if err_json is not None:
+            data["discretisation_error"] = err_json
         data["mesh_size"] = args.mesh_size
+        data["refine"] = args.refine
+        data["grade"] = args.grade
         data = json_text(data, nonfinite="null")
     if args.render or args.vtu:
         from .matching import working_mode
@@ -237,6 +271,59 @@ def main(argv=None) -> int:
     if data is not None:
         atomic_write_text(args.json, data)
     return 0
+
+
+def _converge(args, design, near) -> int:
+    """``--converge TOL``: the refinement study of the working mode (fem.convergence)."""
+    from rpud_common import atomic_write_text, json_text
+    from geometry.guard import MAX_DOFS, estimate
+
+    from .convergence import study, working_mode_level
+
+    def level(refine):
+        lev = working_mode_level(design, refine, mesh_size=args.mesh_size, order=args.order, near_hz=near,
+                                 n_modes=8 if args.modes is None else args.modes, grade=args.grade)
+        print(f"  refine {refine:.4f}: {lev.ndof} DOFs, f_r {lev.values['f_r_hz']:.2f} Hz, "
+              f"f_a {lev.values['f_a_hz']:.2f} Hz ({lev.seconds:.1f} s)", flush=True)
+        return lev
+
+    with _solver(args.solver):
+        st = study(level, tol=args.converge, start=args.refine,
+                   estimate_dofs=lambda F: estimate(design, args.mesh_size, args.order, refine=F,
+                                                    grade=args.grade).dofs,
+                   max_dofs=None if args.allow_large else MAX_DOFS)
+    print(st.table())
+    if args.json:
+        atomic_write_text(args.json, json_text({"design": str(args.design), "mesh_size": args.mesh_size,
+                                                "grade": args.grade, "convergence": st.to_dict()},
+                                               nonfinite="null"))
+    return 0 if st.converged else 1
+
+
+def _error_estimate(args, design, system, res, near):
+    """``--error``: one coarser solve, the two-level estimate of the working mode's error."""
+    import geometry
+
+    from .assembly import assemble
+    from .convergence import ESTIMATOR_RATIO, estimator_order, two_level_error
+    from .modal import modal_analysis, working_mode
+
+    w = working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0))
+    coarse_refine = args.refine * ESTIMATOR_RATIO
+    p = estimator_order(args.grade)
+    mesh_c = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, refine=coarse_refine,
+                                 grade=args.grade)
+    sys_c = assemble(mesh_c, order=args.order)
+    res_c = modal_analysis(sys_c, near, 8, backend=None if args.solver in (None, "auto") else args.solver)
+    wc = working_mode(sys_c, res_c.f_r_hz, res_c.vectors, max(near, 1.0))
+    ratio = (system.ndof / sys_c.ndof) ** (1 / 3)        # h ratio from the representative sizes
+    err = {"mode": int(w + 1), "f_r_err_hz": two_level_error(res.f_r_hz[w], res_c.f_r_hz[wc], ratio, p),
+           "f_a_err_hz": two_level_error(res.f_a_hz[w], res_c.f_a_hz[wc], ratio, p),
+           "k_eff_err": two_level_error(res.k_eff[w], res_c.k_eff[wc], ratio, p),
+           "method": f"two-level: refine {args.refine:g} and {coarse_refine:g} ({sys_c.ndof} DOFs), "
+                     f"{'graded' if args.grade else 'ungraded'}, order {p:g} assumed",
+           "coarse_f_r_hz": float(res_c.f_r_hz[wc]), "coarse_f_a_hz": float(res_c.f_a_hz[wc])}
+    return {w: err}, err
 
 
 @contextlib.contextmanager

@@ -41,7 +41,7 @@ def _parser() -> CliParser:
     p.add_argument("--json", metavar="OUT.json", help="write the report: parts (mesh volume, mass), groups, "
                    "counts, quality, timings")
     p.add_argument("--png", metavar="OUT.png", help="render the parts off screen (pyvista)")
-    add_design_options(p, include=("mesh_size",))
+    add_design_options(p, include=("mesh_size", "refine", "grade"))
     p.add_argument("--epw", type=float, metavar="N", help="elements per shear wavelength at the target frequency")
     p.add_argument("--order", type=int, choices=(1, 2), default=2, help="tetrahedron order (default 2, curved)")
     p.add_argument("--algorithm", choices=("delaunay", "frontal", "hxt"), default="delaunay",
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
     # warnings only by default, as every rpud CLI: stderr carries the one line of a failed run
     setup_logging(-1 if args.quiet else args.verbose - 1)
     from .design import default_design
-    from .options import design_from_options, design_inputs
+    from .options import design_from_options, design_inputs, mesh_options
 
     for key, suffix in _SUFFIX.items():
         value = getattr(args, key)
@@ -79,10 +79,11 @@ def main(argv: list[str] | None = None) -> int:
     from .guard import check_budget
     from .report import build_report
 
-    check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large)
+    check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large,
+                 **mesh_options(args))
     tm, report = build_report(design, mesh_size=args.mesh_size, order=args.order,
                               elements_per_wavelength=args.epw, algorithm=args.algorithm,
-                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout)
+                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout, **mesh_options(args))
     sys.stdout.write(format_table(report) + "\n")
     if args.mesh:
         tm.write(args.mesh)
@@ -99,10 +100,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def check_options(args) -> None:
     """Numeric options: finite and inside their stated ranges (before anything is built)."""
-    if args.mesh_size is not None:
-        from .options import MESH_SIZE_RANGE
+    from .options import check_design_options
 
-        check_range("--mesh-size", args.mesh_size, *MESH_SIZE_RANGE, "m")
+    check_design_options(args)  # --mesh-size, --refine, --select
     if args.epw is not None:
         check_range("--epw", args.epw, 1.0, 200.0)
     if args.gmsh_timeout is not None:

@@ -5,10 +5,11 @@ boxes; coupler slots as helical lofts and tooth gaps as sector prisms, both cut 
 layers as structured extrusions, :mod:`geometry.layers`), all solids are fragmented into
 one conformal model, physical groups are named (one volume group per region, surface groups
 ``horn_tip``, ``teeth_tops``, ``flange``, ``electrode_*``...), and the model is meshed with
-first- or second-order (curved) tetrahedra. The mesh size per region is an
-elements-per-wavelength rule on the material's shear wavelength at the design's target
-frequency, capped near small features (slots, teeth, rings, shims); a layer far thinner than
-that size keeps the in-plane size of its neighbours and is swept through its thickness.
+first- or second-order (curved) tetrahedra. The size rules live in :mod:`geometry.sizing`: an
+elements-per-wavelength rule per region capped near small features (slots, teeth, rings,
+shims); a layer far thinner than that size keeps the in-plane size of its neighbours and is
+swept through its thickness; optional grading toward the re-entrant edges (``grade``); one
+refinement factor (``refine``) scaling them all.
 
 gmsh is imported inside the functions, so importing this module is cheap.
 """
@@ -27,12 +28,11 @@ from typing import Any
 import numpy as np
 
 from rpud_common import cli as common
-from rpud_common import ParameterError, check_choice, check_positive, check_range
+from rpud_common import ParameterError, check_choice, check_range
 from .design import DesignBase, RPUDDesign, StackDesign
-from .layers import Layer, layer_plan, rim_fields
-from .materials import Material, get_material
 from .solids import make_rpud, make_stack
 from .mesh import Electrode, Region, TaggedMesh
+from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, shear_wavelength
 
 __all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "mesh_layers", "ALGORITHMS",
            "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT", "GMSH_TIME_RANGE"]
@@ -69,21 +69,6 @@ _GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 """Gmsh's 10-node tetrahedron lists edge (2,3) before (1,3); meshio/VTK the other way round."""
 
 
-def shear_wavelength(material: str | Material, frequency: float, library=None) -> float:
-    """Shear wavelength (m) of ``material`` (a record, or a name in ``library``, default the
-    built-in one) at ``frequency`` (Hz).
-
-    Isotropic: sqrt(G / rho) / f; piezoceramic: sqrt(min(c44, c55, c66) / rho) / f (the slowest
-    shear wave along the material axes).
-    """
-    m = material if isinstance(material, Material) else get_material(material, library)
-    if m.is_piezo:
-        G = float(np.diag(m.voigt_matrices()[0])[3:].min())
-    else:
-        G = m.youngs_modulus / (2 * (1 + m.poisson_ratio))
-    return math.sqrt(G / m.density) / frequency
-
-
 @dataclass
 class BuildReport:
     """What a build did: counts, quality, groups, sizes and timings (JSON friendly)."""
@@ -105,68 +90,6 @@ class BuildReport:
             "mesh_size_m": self.region_sizes, "physical_groups": self.physical_groups,
             "quality": self.quality, "timings_s": self.timings,
         }
-
-
-# ============================================================================ sizes
-
-
-def region_sizes(design: DesignBase, mesh_size: float | None = None,
-                 elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> dict[str, float]:
-    """Target element size (m) per region, and the feature sizes (keys starting with ``@``).
-
-    ``mesh_size`` replaces the wavelength rule as the base size of every region; the
-    feature caps (ring and shim thickness, slot width and depth, tooth height) still apply.
-    A thin layer (:mod:`geometry.layers`) gets its in-plane size, not a thickness cap.
-    ``size_factor`` scales every size, caps included (a uniform refinement: 1 / 1.5 is one
-    refinement step of a convergence study).
-    """
-    check_range("size_factor", size_factor, 0.1, 10.0)
-    own, capped = _free_sizes(design, mesh_size, elements_per_wavelength)
-    sizes = {k: v * size_factor for k, v in capped.items()}
-    for name, layer in layer_plan(design, own, capped, size_factor).items():
-        sizes[name] = layer.size
-    return sizes
-
-
-def mesh_layers(design: DesignBase, mesh_size: float | None = None,
-                elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> dict[str, Layer]:
-    """The segments meshed as structured layers, by name (see :mod:`geometry.layers`)."""
-    return layer_plan(design, *_free_sizes(design, mesh_size, elements_per_wavelength), size_factor)
-
-
-def _free_sizes(design, mesh_size, elements_per_wavelength):
-    """(size of each region's own material, size after the thin-feature caps), m."""
-    epw = design.elements_per_wavelength if elements_per_wavelength is None else elements_per_wavelength
-    check_range("elements_per_wavelength", epw, 1.0, 200.0)
-    if mesh_size is not None:
-        check_positive("mesh_size", mesh_size, "m")
-
-    def base(material: str) -> float:
-        return mesh_size if mesh_size is not None else shear_wavelength(lib[material], design.target_frequency) / epw
-
-    lib = design.library
-    sizes: dict[str, float] = {}
-    for region, part, material, _vol in design.region_table():
-        sizes[region] = base(material)
-    own = dict(sizes)
-    if isinstance(design, RPUDDesign):
-        s, c = design.stack, design.coupler
-        for region, kind, z0, z1 in design.stack_layers():
-            cap = s.ring_thickness if kind == "ring" else 4 * s.shim_thickness
-            sizes[region] = min(sizes[region], cap)
-        sizes["flange_disc"] = min(sizes["flange_disc"], 1.5 * design.flange.thickness)
-        if c.n_slots:
-            sizes["@slots"] = min(sizes["coupler"], 0.6 * c.slot_width, 1.2 * c.slot_depth)
-        if c.n_teeth:
-            sizes["@teeth"] = min(sizes["coupler"], max(0.8 * c.tooth_height, 0.5 * c.tooth_width))
-    else:
-        for seg in design.segments:
-            dims = [seg.length]
-            if seg.kind == "box":
-                dims += [seg.thickness, seg.width]
-            # at least ~2 elements across the smallest dimension of a thin piece
-            sizes[seg.name] = min(sizes[seg.name], max(min(dims) / 2, 0.25 * max(dims) / 20))
-    return own, sizes
 
 
 # ============================================================================ face selection
@@ -231,7 +154,8 @@ def build_mesh(design: DesignBase, mesh_size: float | None = None, order: int = 
 def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
           verbose: bool = False, msh_path: str | None = None,
-          time_limit: float | None = None, size_factor: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
+          time_limit: float | None = None, refine: float = 1.0,
+          grade: bool = False) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
 
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
@@ -242,6 +166,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     (:func:`rpud_common.cli.run_cli`) then ends the process by ``os._exit`` after its line.
     See :func:`_build` for the other parameters and the result.
     """
+    refine = check_refine(refine)
     if time_limit is None:
         env = os.environ.get("RPUD_GMSH_TIMEOUT")
         try:
@@ -277,7 +202,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path, size_factor)
+                                   msh_path, refine, grade)
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -311,7 +236,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
            elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
            verbose: bool = False, msh_path: str | None = None,
-           size_factor: float = 1.0) -> tuple[TaggedMesh, BuildReport]:
+           refine: float = 1.0, grade: bool = False) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -319,7 +244,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     design : RPUDDesign or StackDesign
     mesh_size : float, optional
         Base element size in m for every region, replacing the elements-per-wavelength rule
-        (feature caps still apply).
+        (feature caps, layers, edge grading and the curvature rule still apply).
     order : {1, 2}
         1: 4-node tetrahedra; 2: 10-node curved tetrahedra (nodes on the true geometry).
     elements_per_wavelength : float, optional
@@ -331,9 +256,12 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     msh_path : str, optional
         Also write Gmsh's native ``.msh`` (4.1) of the model to this path (caller handles
         atomicity).
-    size_factor : float
-        Every element size times this, thin-feature caps and layers included (uniform
-        refinement for convergence studies; see :func:`region_sizes`).
+    refine : float
+        Scales every size rule together (region sizes, feature caps, layers, graded edges,
+        curvature; :mod:`geometry.sizing`): ``refine < 1`` refines, element count ~ ``refine**-3``.
+    grade : bool
+        Grade the mesh toward the major re-entrant edges (:func:`geometry.sizing.graded_edges`):
+        off by default (about twice the elements of the default design).
 
     Returns
     -------
@@ -346,7 +274,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     check_choice("algorithm", algorithm, tuple(ALGORITHMS))
     if not isinstance(design, (RPUDDesign, StackDesign)):
         raise ParameterError("design", type(design).__name__, "must be an RPUDDesign or a StackDesign")
-    sizes = region_sizes(design, mesh_size, elements_per_wavelength, size_factor)
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
@@ -364,7 +292,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
 
         # ---- solids
         t0 = time.perf_counter()
-        layers = mesh_layers(design, mesh_size, elements_per_wavelength, size_factor)
+        layers = mesh_layers(design, mesh_size, elements_per_wavelength, refine)
         pieces = make_rpud(occ, design) if isinstance(design, RPUDDesign) else make_stack(occ, design, layers)
         all_tags = [dt for p in pieces for dt in p[4]]
         if len(all_tags) > 1:
@@ -415,36 +343,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         for name, surfs in facet_surfs.items():
             gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
 
-        # ---- sizes
-        fields = []
-        for region, vols in region_vols.items():
-            fid = gmsh.model.mesh.field.add("Constant")
-            gmsh.model.mesh.field.setNumber(fid, "VIn", sizes[region])
-            gmsh.model.mesh.field.setNumbers(fid, "VolumesList", vols)
-            gmsh.model.mesh.field.setNumber(fid, "IncludeBoundary", 1)
-            fields.append(fid)
-        if isinstance(design, RPUDDesign):
-            c = design.coupler
-            R = c.outer_diameter / 2 + 1e-3
-            zones = {z[0]: z for z in design._zones()}
-            for key, zone in (("@slots", "coupler.slots"), ("@teeth", "coupler.teeth")):
-                if key in sizes:
-                    _lab, _part, z0, z1 = zones[zone]
-                    fid = gmsh.model.mesh.field.add("Box")
-                    for opt, val in (("VIn", sizes[key]), ("VOut", 1e22), ("XMin", -R), ("XMax", R),
-                                     ("YMin", -R), ("YMax", R), ("ZMin", z0 - 1e-4), ("ZMax", z1 + 1e-4),
-                                     ("Thickness", 2.0 * sizes[key])):
-                        gmsh.model.mesh.field.setNumber(fid, opt, val)
-                    fields.append(fid)
-        if layers:
-            fields += rim_fields(gmsh, layers, region_vols)
-        fmin = gmsh.model.mesh.field.add("Min")
-        gmsh.model.mesh.field.setNumbers(fmin, "FieldsList", fields)
-        gmsh.model.mesh.field.setAsBackgroundMesh(fmin)
-        gmsh.option.setNumber("Mesh.MeshSizeFromPoints", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeExtendFromBoundary", 0)
-        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", 12)
-        gmsh.option.setNumber("Mesh.MeshSizeMax", max(v for v in sizes.values()))
+        # ---- sizes (geometry.sizing: region sizes, feature caps, layer rims, graded edges)
+        apply_fields(gmsh, design, sizes, region_vols, refine, layers=layers, grade=grade)
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.option.setNumber("Mesh.Algorithm3D", ALGORITHMS[algorithm])
         gmsh.option.setNumber("Mesh.Optimize", 1)

@@ -3,10 +3,11 @@
 Meshing and solving cost grows with the cube of the inverse element size, so a mistyped
 ``--mesh-size`` or a sub-millimetre feature can ask for billions of elements and hang Gmsh or
 exhaust memory long after the run started. :func:`estimate` predicts the element count from
-the same per-region sizes the builder uses (:func:`geometry.builder.region_sizes`), capped as
-Gmsh caps them (curvature: 12 elements per circle; at least one layer across a thin part; thin
-layers meshed as structured extrusions counted as such, see :mod:`geometry.layers`), and
-derives nodes, degrees of freedom and the memory of a sparse direct factorisation from it.
+the same per-region sizes the builder uses (:func:`geometry.sizing.region_sizes`), capped as
+Gmsh caps them (curvature: 12 elements per circle at ``refine`` 1; at least one layer across a
+thin part; thin layers meshed as structured extrusions counted as such, see
+:mod:`geometry.layers`), adds the graded zones around re-entrant edges when the mesh is graded
+(:func:`geometry.sizing.graded_edges`), and derives nodes, degrees of freedom and the memory of a sparse direct factorisation from it.
 :func:`check_budget` refuses a run above the budget with one line naming the option to change.
 
 Calibration (default RPUD design and its textbook variants, order 2): the estimate lies within
@@ -38,8 +39,11 @@ TETS_PER_CUBE = 7.0
 """Tetrahedra per cube of the target size ``h`` in a Delaunay mesh (a regular tetrahedron of
 edge h fills h^3 / 8.5; Gmsh's are a little larger on average)."""
 
-_CURVATURE_FRACTION = 2 * math.pi / 12
-"""Gmsh's Mesh.MeshSizeFromCurvature = 12 caps the size at radius x 2 pi / 12."""
+def _curvature_fraction(refine: float) -> float:
+    """Gmsh's Mesh.MeshSizeFromCurvature = N / refine caps the size at radius x 2 pi refine / N."""
+    from .sizing import CURVATURE_ELEMENTS
+
+    return 2 * math.pi * refine / CURVATURE_ELEMENTS
 
 
 @dataclass(frozen=True)
@@ -99,7 +103,8 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
 
 
 def estimate(design, mesh_size: float | None = None, order: int = 2,
-             elements_per_wavelength: float | None = None, size_factor: float = 1.0) -> Estimate:
+             elements_per_wavelength: float | None = None, refine: float = 1.0,
+             grade: bool = False) -> Estimate:
     """Predict the mesh and FE size of ``design`` meshed as :func:`geometry.builder.build` would.
 
     Parameters
@@ -109,18 +114,20 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         Base element size, m (as ``build``).
     order : {1, 2}
     elements_per_wavelength : float, optional
-    size_factor : float
-        Uniform refinement factor (as ``build``).
+    refine : float
+        The builder's refinement factor (every size rule scaled by it).
+    grade : bool
+        The mesh is graded toward the re-entrant edges (as ``build``).
 
     Returns
     -------
     Estimate
     """
-    from .builder import mesh_layers, region_sizes
     from .layers import layer_element_estimate
+    from .sizing import graded_edges, mesh_layers, region_sizes
 
-    sizes = region_sizes(design, mesh_size, elements_per_wavelength, size_factor)
-    layers = mesh_layers(design, mesh_size, elements_per_wavelength, size_factor)
+    sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
+    layers = mesh_layers(design, mesh_size, elements_per_wavelength, refine)
     segments = {s.name: s for s in getattr(design, "segments", ())}
     n = 0.0
     smallest = math.inf
@@ -130,7 +137,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
             n += layer_element_estimate(segments[region], layers[region])
             smallest = min(smallest, length / layers[region].n_elements)
             continue
-        h = min(sizes[region], _CURVATURE_FRACTION * radius, max(length, 1e-12))
+        h = min(sizes[region], _curvature_fraction(refine) * radius, max(length, 1e-12))
         smallest = min(smallest, h)
         n += TETS_PER_CUBE * vol / h ** 3
     for key, h in sizes.items():
@@ -141,6 +148,11 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
             shell = math.pi / 4 * (c.outer_diameter ** 2 - design.coupler_bore ** 2) * zone
             smallest = min(smallest, h)
             n += TETS_PER_CUBE * shell / h ** 3
+    for e in (graded_edges(design, sizes, refine) if grade else []):
+        # a torus of 270 degrees around the edge with h(d) = h_edge + g d:
+        # integral of 2 pi r (3 pi / 2) d dd / h^3 over d > 0 = 3 pi^2 r / (2 g^2 h_edge)
+        smallest = min(smallest, e.h_edge)
+        n += TETS_PER_CUBE * 1.5 * math.pi ** 2 * e.r / (e.growth ** 2 * e.h_edge)
     elements = int(min(n, 1e18))
     nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
     dofs = 4 * nodes
@@ -150,7 +162,8 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
 
 def check_budget(design, mesh_size: float | None = None, order: int = 2,
                  elements_per_wavelength: float | None = None, *, solve: bool = True,
-                 allow_large: bool = False, option: str = "--allow-large") -> Estimate:
+                 allow_large: bool = False, option: str = "--allow-large", refine: float = 1.0,
+                 grade: bool = False) -> Estimate:
     """Refuse a build/solve whose estimate exceeds the budget, before anything runs.
 
     Parameters
@@ -161,13 +174,15 @@ def check_budget(design, mesh_size: float | None = None, order: int = 2,
         The user's explicit override: log the estimate and go on.
     option : str
         Name of the override option, quoted in the message.
+    refine, grade
+        The builder's refinement factor and edge grading.
 
     Raises
     ------
     ParameterError
         Naming ``--mesh-size`` (with the smallest size that fits) or the design.
     """
-    est = estimate(design, mesh_size, order, elements_per_wavelength)
+    est = estimate(design, mesh_size, order, elements_per_wavelength, refine, grade)
     value, budget, what = ((est.dofs, MAX_DOFS, "DOFs") if solve else (est.elements, MAX_ELEMENTS, "tetrahedra"))
     if value <= budget:
         log.debug("resource estimate: %s", est.describe())
@@ -176,6 +191,10 @@ def check_budget(design, mesh_size: float | None = None, order: int = 2,
         log.warning("above the budget of %s %s: %s (%s given)", f"{budget:,}", what, est.describe(), option)
         return est
     # the count grows as size^-3: the size that would fit, for the message
+    if refine < 1:
+        fit = refine * (value / budget) ** (1 / 3)
+        raise ParameterError("--refine", refine, f"gives {est.describe()}, above the budget of {budget:,} "
+                                                 f"{what}: use --refine >= {fit:.3g} or {option}")
     if mesh_size is not None:
         fit = mesh_size * (value / budget) ** (1 / 3)
         raise ParameterError("--mesh-size", mesh_size, f"gives {est.describe()}, above the budget of "

@@ -135,7 +135,7 @@ def _end_neighbours(segments, ext, run: list[int]) -> list[tuple[int, float]]:
 
 
 def layer_plan(design: DesignBase, own: dict[str, float], capped: dict[str, float],
-               size_factor: float = 1.0) -> dict[str, Layer]:
+               refine: float = 1.0) -> dict[str, Layer]:
     """The segments of ``design`` meshed as layers.
 
     Parameters
@@ -146,7 +146,7 @@ def layer_plan(design: DesignBase, own: dict[str, float], capped: dict[str, floa
         Region -> element size of its own material (wavelength rule or ``--mesh-size``), m.
     capped : dict
         Region -> size after the thin-part caps (what a free mesh would use), m.
-    size_factor : float
+    refine : float
         Uniform refinement: every size times this, the element layers through the thickness
         divided by it. Which segments are layers is decided at factor 1, so that a refinement
         study compares like with like.
@@ -177,9 +177,9 @@ def layer_plan(design: DesignBase, own: dict[str, float], capped: dict[str, floa
                 if seg.length >= LAYER_RATIO * size:
                     thick.add(seg.name)
                 edge = RIM_SIZE * seg.length < size and edge_fraction(seg) > RIM_FRACTION
-                n_elements = math.ceil((LAYER_ELEMENTS_EDGE if edge else LAYER_ELEMENTS) / size_factor - 1e-9)
-                rim = RIM_SIZE * seg.length * size_factor if edge else None
-                plan[seg.name] = Layer(seg.name, n_elements, size * size_factor, rim, outlines)
+                n_elements = math.ceil((LAYER_ELEMENTS_EDGE if edge else LAYER_ELEMENTS) / refine - 1e-9)
+                rim = RIM_SIZE * seg.length * refine if edge else None
+                plan[seg.name] = Layer(seg.name, n_elements, size * refine, rim, outlines)
         if not thick:
             return plan
         layered -= thick

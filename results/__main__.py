@@ -31,7 +31,7 @@ def build_parser() -> CliParser:
                    help="drive voltage amplitude on the hot electrodes, V (default 225, the article's)")
     p.add_argument("--out", metavar="DIR",
                    help="output folder (default results/default for the built-in design, else results/<name>)")
-    add_design_options(p, include=("mesh_size",), mesh_size_help="mesh size, m (default: elements-per-wavelength rule)")
+    add_design_options(p, include=("mesh_size", "refine", "grade"))
     p.add_argument("--q-mech", type=float, default=100.0, metavar="Q",
                    help="mechanical quality factor of the assembled transducer (default 100); 0 = datasheet values")
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")
@@ -77,7 +77,7 @@ def main(argv=None) -> int:
 
         return explore_main(argv[1:])
     from geometry.guard import check_budget
-    from geometry.options import design_from_options, design_inputs
+    from geometry.options import design_from_options, design_inputs, mesh_options
 
     from .pipeline import PipelineSettings, run_pipeline
 
@@ -85,7 +85,7 @@ def main(argv=None) -> int:
     setup_logging(-1)
     check_options(args)
     settings = PipelineSettings(voltage=args.voltage, q_mech=None if args.q_mech == 0 else args.q_mech,
-                                mesh_size=args.mesh_size, match=not args.no_match,
+                                mesh_size=args.mesh_size, **mesh_options(args), match=not args.no_match,
                                 couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                                 impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
                                 coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes)
@@ -99,7 +99,7 @@ def main(argv=None) -> int:
     check_output_paths(inputs=design_inputs(args), folders=("out",), out=out)
     if args.design is not None and out.exists() and Path(args.design).resolve().is_relative_to(out.resolve()):
         raise ParameterError("--out", str(out), "holds the input --design; it would be replaced by the results")
-    check_budget(design, args.mesh_size, allow_large=args.allow_large)
+    check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args))
     # progress on stdout: stderr carries only the one-line error of a failed run (and tqdm bars)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
     # built beside the target and swapped in whole: an interrupted or failed run leaves the

@@ -94,7 +94,7 @@ class FeTransducer:
 
 def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, freq_hz: float | None = None,
                      n_modes: int | None = None, match: bool = False, mesh_size: float | None = None,
-                     progress=None) -> FeTransducer:
+                     progress=None, refine: float = 1.0, grade: bool = False) -> FeTransducer:
     """Mesh, (match,) modal analysis, harmonic basis and the reduced transducer of a design.
 
     Parameters
@@ -113,6 +113,10 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, fr
         Run the resonance matching first (about 35 s) instead of analysing the design as it is.
     mesh_size : float, optional
         Mesh size override, m.
+    refine : float
+        Mesh refinement factor (geometry.sizing; < 1 refines).
+    grade : bool
+        Grade the mesh toward the re-entrant edges (off by default).
     """
     import time
 
@@ -126,9 +130,9 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, fr
     say = progress or (lambda msg: log.info("%s", msg))
     t0 = time.perf_counter()
     target = float(design.target_frequency)
-    mesh = geometry.build_mesh(design, mesh_size=mesh_size)
+    mesh = geometry.build_mesh(design, mesh_size=mesh_size, refine=refine, grade=grade)
     if match:
-        m = run_match(design, MatchSettings(target_hz=target, mesh_size=mesh_size), mesh=mesh)
+        m = run_match(design, MatchSettings(target_hz=target, mesh_size=mesh_size, refine=refine, grade=grade), mesh=mesh)
         mesh, system, modal, w = m.mesh, m.system, m.modal, m.working_index
     else:
         from fem.assembly import assemble

@@ -43,7 +43,7 @@ def _parser() -> CliParser:
     ap.add_argument("--modes", type=int, default=None, metavar="N",
                     help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
     ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
-    add_design_options(ap, include=("mesh_size",), number_type=_real, mesh_size_help="mesh size, m")
+    add_design_options(ap, include=("mesh_size", "refine", "grade"), number_type=_real)
     ap.add_argument("--contact", choices=["newton", "hunt-crossley"], default="newton",
                     help="horn contact: newton = instantaneous impact with restitution e2 (default); hunt-crossley = "
                          "Hertz contact (horn material vs a steel sphere of the free mass) with Hunt-Crossley damping "
@@ -75,7 +75,7 @@ def main(argv=None) -> int:
         check_range("--freq", ns.freq, 1.0, 1e6, "Hz")
     if ns.modes is not None:
         check_integer("--modes", ns.modes, 1, 12)
-    from geometry.options import check_design_options, design_from_options, design_inputs
+    from geometry.options import check_design_options, design_from_options, design_inputs, mesh_options
 
     check_design_options(ns)
     check_range("--history", ns.history, 1e-4, 1.0, "s")
@@ -103,11 +103,12 @@ def main(argv=None) -> int:
     from .coupled import build_transducer, contact_from_design, coupled_history, history_csv, horn_from_reduced
 
     design = design_from_options(ns)
-    check_budget(design, ns.mesh_size)
+    check_budget(design, ns.mesh_size, **mesh_options(ns))
     say = _progress(ns) or (lambda msg: None)
     say("[1/3] FE transducer")
     fe = build_transducer(design, voltage=ns.voltage, q_mech=None if ns.q_mech == 0 else ns.q_mech,
-                          freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say)
+                          freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say,
+                          **mesh_options(ns))
     p = p.with_(freq=fe.freq_hz)
     contact = None
     hist = None

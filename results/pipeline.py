@@ -65,6 +65,8 @@ class PipelineSettings:
     voltage : drive amplitude on the hot electrodes, V (the article's 225 V)
     q_mech : quality factor of the assembled transducer applied to every part (None: datasheet)
     mesh_size : mesh size override, m (None: the design's elements-per-wavelength rule)
+    refine : mesh refinement factor scaling every size rule (geometry.sizing; < 1 refines)
+    grade : grade the mesh toward the re-entrant edges (off: the 60 s budget is set on the ungraded mesh)
     match : run the resonance matching (else analyse the design as it is)
     couple_impacts : iterate A0 with the impact load on the horn tip
     m_free_values : free masses of the sweep, kg (0 is reported as zero energy: no free mass)
@@ -84,6 +86,8 @@ class PipelineSettings:
     voltage: float = 225.0
     q_mech: float | None = 100.0
     mesh_size: float | None = None
+    refine: float = 1.0
+    grade: bool = False
     match: bool = True
     couple_impacts: bool = True
     m_free_values: tuple[float, ...] = (0.0, 0.001, 0.002, 0.003, 0.004, 0.005, 0.006, 0.007, 0.008)
@@ -105,6 +109,9 @@ class PipelineSettings:
             check_positive("q_mech", self.q_mech)
         if self.mesh_size is not None:
             check_positive("mesh_size", self.mesh_size, "m")
+        from geometry.sizing import check_refine
+
+        check_refine(self.refine)
         if (not self.m_free_values or any((not np.isfinite(m)) or m < 0 or m > 10 for m in self.m_free_values)
                 or max(self.m_free_values) <= 0):
             raise ParameterError("m_free_values", self.m_free_values,
@@ -310,7 +317,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
 
     # 1. mesh
     t0 = stage("mesh", 1)
-    mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size)
+    mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine, grade=settings.grade)
     timings["mesh_s"] = time.perf_counter() - t0
     say(f"      {mesh.n_cells} tetrahedra, {mesh.n_points} nodes ({timings['mesh_s']:.1f} s)")
 
@@ -321,7 +328,8 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
         def show(rec):
             say(f"      {rec['stage']:5s} {rec['parameter']} = {rec['value_m'] * 1e3:8.4f} mm -> {rec['f_hz']:10.2f} Hz")
 
-        m = match(design, MatchSettings(target_hz=target, mesh_size=settings.mesh_size), mesh=mesh, progress=show)
+        m = match(design, MatchSettings(target_hz=target, mesh_size=settings.mesh_size, refine=settings.refine,
+                                        grade=settings.grade), mesh=mesh, progress=show)
         design, mesh, system, modal, w = m.design, m.mesh, m.system, m.modal, m.working_index
         match_json = m.to_dict()
     else:

@@ -112,7 +112,7 @@ def _bad_outputs(opts: list[str], suffix: dict[str, str]):
 
 # ----------------------------------------------------------------------------- geometry
 
-GEOMETRY_OPTS = {"--mesh-size": BAD_FLOAT, "--epw": BAD_FLOAT + ["0.5", "201"], "--order": ["3", "0", "x"],
+GEOMETRY_OPTS = {"--mesh-size": BAD_FLOAT, "--refine": BAD_FLOAT + ["0.1", "6"], "--epw": BAD_FLOAT + ["0.5", "201"], "--order": ["3", "0", "x"],
                  "--algorithm": ["nope", ""], "--gmsh-timeout": BAD_FLOAT + ["0", "0.05", "1e5"],
                  "--design": ["", "missing.toml", "adir", "afile"], "--select": ["k33_rod"],
                  "--json": ["x.txt"], "--png": ["x.jpg"], "--mesh": ["x.vtu"], "--vtu": ["x.msh"],
@@ -243,7 +243,7 @@ def test_design_files_are_refused_cleanly(data, cli):
 
 # ----------------------------------------------------------------------------- fem
 
-MODAL_OPTS = {"--mesh-size": BAD_FLOAT, "--near": [v for v in BAD_FLOAT if v not in ("1e-320",)] + ["1e-3", "5e6"],
+MODAL_OPTS = {"--mesh-size": BAD_FLOAT, "--refine": BAD_FLOAT + ["0.1", "6"], "--converge": BAD_FLOAT + ["0", "0.5"], "--near": [v for v in BAD_FLOAT if v not in ("1e-320",)] + ["1e-3", "5e6"],
               "--modes": BAD_INT + ["201"], "--order": ["3"], "--solver": ["mkl"], "--target": BAD_FLOAT,
               "--tol": BAD_FLOAT + ["0", "0.5"], "--bracket": ["1,2", "0,2", "nan,2", "0.5,inf", "x", "0.5"],
               "--tune": ["horn.lenght"], "--design": ["", "missing.toml", "adir"], "--select": ["x"],
@@ -266,7 +266,7 @@ def test_modal_cli_refuses_cleanly(argv):
 HARMONIC_OPTS = {"--voltage": BAD_FLOAT + ["0", "1e5"], "--freq": BAD_FLOAT + ["0"],
                  "--band": ["1,2", "0,inf", "nan,5", "3e4,2e4", "x"], "--points": BAD_INT[1:] + ["2"],
                  "--q-mech": BAD_FLOAT + ["0"], "--tan-delta": BAD_FLOAT[:5] + ["2", "-0.1"],
-                 "--mesh-size": BAD_FLOAT, "--modes": BAD_INT, "--mode": BAD_INT + ["9"],
+                 "--mesh-size": BAD_FLOAT, "--refine": BAD_FLOAT + ["0.1", "6"], "--modes": BAD_INT, "--mode": BAD_INT + ["9"],
                  "--ring-up": BAD_FLOAT[:5] + ["-1", "5"],
                  "--design": ["", "missing.toml", "adir"], "--json": ["x.txt"]}
 
@@ -280,7 +280,7 @@ def test_harmonic_cli_refuses_cleanly(argv):
 
 
 RESULTS_OPTS = {"--voltage": BAD_FLOAT + ["0"], "--q-mech": [v for v in BAD_FLOAT if v != "0"] + ["0.5"],
-                "--mesh-size": BAD_FLOAT, "--rel-tol": BAD_FLOAT + ["0", "2"],
+                "--mesh-size": BAD_FLOAT, "--refine": BAD_FLOAT + ["0.1", "6"], "--rel-tol": BAD_FLOAT + ["0", "2"],
                 "--max-members": BAD_INT, "--seed": ["-1", "x", "1.5", "9" * 30],
                 "--design": ["", "missing.toml", "adir", "afile"]}
 

@@ -81,7 +81,7 @@ def test_sandwich_thickness_mode_converges(sandwich):
     """First thickness mode (metal discs moving apart, k_eff ~0.38, ~47.5 kHz): a mesh 1.5x
     coarser everywhere (caps and layers included) agrees with the default within 0.3 %."""
     design, tm, _ = sandwich
-    coarse, _ = build(design, size_factor=1.5)
+    coarse, _ = build(design, refine=1.5)
     assert coarse.n_cells < tm.n_cells / 2.5
     f_r, f_a = _coupled_mode(tm, 47.5e3, 3)
     c_r, c_a = _coupled_mode(coarse, 47.5e3, 3)
