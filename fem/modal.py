@@ -61,10 +61,11 @@ from typing import Iterable
 import numpy as np
 import scipy.sparse.linalg as spla
 
-from rpud_common import ParameterError, check_nonnegative
+from rpud_common import ParameterError, check_choice, check_nonnegative
 from rpud_common.result import Result
 
 from .assembly import PiezoSystem
+from .eigen import block_eigs, bordered_solve, smooth_start
 from .modeshape import ModeShares, classify, energy_shares, mac
 from .solvers import blas_threads, factorize
 
@@ -176,8 +177,9 @@ def _freq(lam):
     return np.sign(lam) * np.sqrt(np.abs(lam)) / (2 * np.pi)
 
 
-def _rigid_basis(system, free):
-    """M-orthonormal rigid-body modes (3 translations, 3 rotations; zero potential) on ``free``."""
+def _rigid_basis(system, free, M=None):
+    """M-orthonormal rigid-body modes (3 translations, 3 rotations; zero potential) on ``free``
+    (``M``: the mass restricted to ``free``, sliced here when not given)."""
     x0 = system.nodes.mean(axis=0)
     r = system.nodes - x0
     R = np.zeros((system.ndof, 6))
@@ -188,7 +190,8 @@ def _rigid_basis(system, free):
         w[c] = 1.0
         R[: system.n_u, 3 + c] = np.cross(w, r).ravel()
     R = R[free]
-    M = system.M[free][:, free]
+    if M is None:
+        M = system.M[free][:, free]
     G = R.T @ (M @ R)
     L = np.linalg.cholesky(G)
     return np.linalg.solve(L, R.T).T, M       # R L^-T: R^T M R = I
@@ -203,6 +206,26 @@ def _deflated(solve, R, M):
         y = solve(b)
         return y - R @ (R.T @ (M @ y))
     return op
+
+
+def _bordered_mass(Ms):
+    """The short-circuit mass bordered by a zero row and column (the massless hot DOF)."""
+    import scipy.sparse as sp
+
+    return sp.bmat([[Ms, None], [None, sp.csr_matrix((1, 1))]], format="csr")
+
+
+def _restricted(A, free):
+    """``A[free][:, free]`` as an operator, without slicing the matrix (only products needed)."""
+    n = len(free)
+
+    def matmat(X):
+        X = np.asarray(X).reshape(n, -1)
+        full = np.zeros((A.shape[0], X.shape[1]))
+        full[free] = X
+        return (A @ full)[free]
+
+    return spla.LinearOperator((n, n), matvec=matmat, matmat=matmat, dtype=float)
 
 
 def _eig(K, M, k, sigma, solve, tol, n):
@@ -222,14 +245,42 @@ def _eig(K, M, k, sigma, solve, tol, n):
     return vals, vecs
 
 
+def _pair(system, shapes, vec_o, free_o, f_o, mac_min):
+    """Hungarian MAC pairing of short-circuit shapes with open-circuit vectors."""
+    from scipy.optimize import linear_sum_assignment
+
+    full_o_all = np.zeros((system.ndof, vec_o.shape[1]))
+    full_o_all[free_o] = vec_o
+    MAC = mac(shapes, system.displacement(full_o_all), mesh=system)
+    rows, cols = linear_sum_assignment(-MAC)
+    ok = len(rows) == len(shapes) and MAC[rows, cols].min() >= mac_min
+    return ok, rows, cols, MAC, full_o_all
+
+
 def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Iterable[str] = (), *,
                    sigma: float | None = None, rigid_hz: float | None = None,
                    backend: str | None = None, tol: float = 1e-10,
-                   open_circuit: bool = True, mac_min: float = 0.5) -> ModalResult:
-    """Short- and open-circuit modes nearest ``near_hz`` (see the module docstring)."""
+                   open_circuit: bool | str = True, mac_min: float = 0.5,
+                   eigen: str = "block", factor=None) -> ModalResult:
+    """Short- and open-circuit modes nearest ``near_hz`` (see the module docstring).
+
+    ``eigen="block"`` (default): :func:`fem.eigen.block_eigs`, block right-hand sides, Rayleigh
+    quotient eigenvalues; ``"arpack"``: scipy ``eigsh`` one vector at a time (the earlier path).
+    ``open_circuit``: ``True`` (``"seeded"`` with the block solver, ``"scratch"`` with ARPACK),
+    ``"seeded"`` (block iteration started from the short-circuit modes and the static response
+    to the hot electrode), ``"scratch"`` (ARPACK from a random start, window widened until
+    every mode has a partner), ``False`` (no anti-resonances). ``factor``: an existing
+    factorisation of ``K - sigma M`` on ``system.reduce("short", clamp)`` (same ``sigma``),
+    reused instead of factorising again.
+    """
     check_nonnegative("near_hz", near_hz, "Hz")
     if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise ParameterError("n_modes", n_modes, "must be an integer >= 1")
+    check_choice("eigen", eigen, ("block", "arpack"))
+    if open_circuit is True:
+        open_circuit = "seeded" if eigen == "block" else "scratch"
+    if open_circuit is not False:
+        check_choice("open_circuit", open_circuit, ("seeded", "scratch"))
     clamp = (clamp,) if isinstance(clamp, str) else tuple(clamp)
     t0 = time.perf_counter()
     if sigma is None:
@@ -245,11 +296,24 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
 
     Ks, Ms, free_s = system.reduce("short", clamp)
     ns = len(free_s)
-    A = (Ks - sigma * Ms).tocsr()
-    F = factorize(A, backend=backend)
+    if factor is None:
+        F = factorize((Ks - sigma * Ms).tocsr(), backend=backend)
+    elif getattr(factor, "n", ns) != ns:
+        raise ParameterError("factor", getattr(factor, "n", None), f"must factorise the {ns} short-circuit DOFs")
+    else:
+        F = factor
     t1 = time.perf_counter()
-    Rs, Ms_ = _rigid_basis(system, free_s) if deflate else (None, None)
-    lam_s, vec_s = _eig(Ks, Ms, n_req, sigma, _deflated(F, Rs, Ms_), tol, ns)
+    Rs, Ms_ = _rigid_basis(system, free_s, Ms) if deflate else (None, None)
+    info = {}
+    if eigen == "arpack":
+        lam_s, vec_s = _eig(Ks, Ms, n_req, sigma, _deflated(F, Rs, Ms_), tol, ns)
+    else:
+        b = min(n_req + max(4, n_req // 3), max(ns - 2, 1))
+        start = smooth_start(system.nodes, free_s, system.ndof, b, n_random=max(2, b // 4))
+        with blas_threads(1):
+            res = block_eigs(F, Ks, Ms, sigma, start, n_wanted=min(n_req, ns - 2), locked=Rs, tol=tol)
+        lam_s, vec_s = res.lam, res.vectors
+        info["short_block_solves"], info["short_vectors"] = res.n_solves, res.n_vectors
     t2 = time.perf_counter()
 
     def keep_nonrigid(lam, vec, limit=True):
@@ -274,36 +338,36 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     if open_circuit and system.hot_dof is not None and n_found:
         hot = system.hot_dof
         free_o = np.append(free_s, hot)
-        Ko, Mo = system.K[free_o][:, free_o].tocsr(), system.M[free_o][:, free_o].tocsr()
-        a = np.asarray(system.K[free_s][:, [hot]].toarray()).ravel()
-        alpha = float(system.K[hot, hot])
-        z = F(a)
-        delta = alpha - a @ z
-
-        def solve_open(b):
-            b = np.asarray(b).ravel()
-            x1 = F(b[:-1])
-            y = (b[-1] - a @ x1) / delta
-            return np.append(x1 - z * y, y)
-
-        from scipy.optimize import linear_sum_assignment
-
-        # anti-resonances lie above their resonances (by up to ~1/sqrt(1-k^2)): widen the
-        # open-circuit window until every short-circuit mode has a partner (MAC >= mac_min)
-        k_open = n_req + 2
-        Ro = _rigid_basis(system, free_o)[0] if deflate else None
-        for attempt in range(3):
-            lam_o, vec_o = _eig(Ko, Mo, k_open, sigma, _deflated(solve_open, Ro, Mo), tol, ns + 1)
-            _, f_o, Vo = keep_nonrigid(lam_o, vec_o, limit=False)
-            full_o_all = np.zeros((system.ndof, Vo.shape[1]))
-            full_o_all[free_o] = Vo
-            MAC = mac(shapes, system.displacement(full_o_all), mesh=system)
-            rows, cols = linear_sum_assignment(-MAC)
-            if len(rows) == n_found and MAC[rows, cols].min() >= mac_min:
-                break
-            if k_open >= ns - 2:
-                break
-            k_open = min(2 * k_open, ns - 2)
+        krow = system.K.getrow(hot).toarray().ravel()      # = the hot column (K symmetric)
+        solve_open, z = bordered_solve(F, krow[free_s], float(krow[hot]))
+        Mo = _bordered_mass(Ms)
+        Ro = _rigid_basis(system, free_o, Mo)[0] if deflate else None
+        if open_circuit == "seeded":
+            # the open-circuit pencil is the short-circuit one plus a rank-1 stiffening through
+            # the hot electrode: its modes lie in the span of the short-circuit ones and the
+            # static response z, refined by a few block solves
+            seeds = np.vstack([Vs, np.zeros((1, n_found))])
+            start = np.column_stack([seeds, np.append(z, 0.0)])
+            with blas_threads(1):
+                res_o = block_eigs(solve_open, _restricted(system.K, free_o), Mo, sigma, start,
+                                   targets=seeds, locked=Ro, tol=tol)
+            info["open_block_solves"], info["open_vectors"] = res_o.n_solves, res_o.n_vectors
+            f_o = _freq(res_o.lam)
+            ok, rows, cols, MAC, full_o_all = _pair(system, shapes, res_o.vectors, free_o, f_o, mac_min)
+        if open_circuit == "scratch" or not ok:
+            if open_circuit == "seeded":
+                log.info("modal: seeded open-circuit solve left a mode unpaired; solving from scratch")
+            # anti-resonances lie above their resonances (by up to ~1/sqrt(1-k^2)): widen the
+            # open-circuit window until every short-circuit mode has a partner (MAC >= mac_min)
+            k_open = n_req + 2
+            Ko = system.K[free_o][:, free_o].tocsr()
+            for attempt in range(3):
+                lam_o, vec_o = _eig(Ko, Mo, k_open, sigma, _deflated(solve_open, Ro, Mo), tol, ns + 1)
+                _, f_o, Vo = keep_nonrigid(lam_o, vec_o, limit=False)
+                ok, rows, cols, MAC, full_o_all = _pair(system, shapes, Vo, free_o, f_o, mac_min)
+                if ok or k_open >= ns - 2:
+                    break
+                k_open = min(2 * k_open, ns - 2)
         t3 = time.perf_counter()
         full_o = np.full((system.ndof, n_found), np.nan)
         for r_, c_ in zip(rows, cols):
@@ -322,11 +386,13 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     shares = mode_shares.overall.table() if n_found else np.zeros((0, 3))
     t4 = time.perf_counter()
     timings = {"assembly_s": float(system.timings.get("assembly_s", np.nan)),
-               "factorisation_s": F.seconds, "eigen_s": (t2 - t1) + (t3 - t2),
+               "factorisation_s": F.seconds if factor is None else 0.0,
+               "eigen_s": (t2 - t1) + (t3 - t2), "eigen_short_s": t2 - t1, "eigen_open_s": t3 - t2,
                "modal_s": t4 - t0}
     timings["total_s"] = timings["assembly_s"] + timings["modal_s"]
-    log.info("modal: %d modes near %.1f Hz, %d DOFs, %s, factor %.2f s, eigen %.2f s",
-             n_found, near_hz, system.ndof, F.backend, F.seconds, timings["eigen_s"])
+    log.info("modal: %d modes near %.1f Hz, %d DOFs, %s, factor %.2f s, eigen %.2f s (%s, open circuit %s) %s",
+             n_found, near_hz, system.ndof, F.backend, timings["factorisation_s"], timings["eigen_s"], eigen,
+             open_circuit, info)
     return ModalResult(f_r_hz=f_r, f_a_hz=f_a, k_eff=k_eff, mac=pair_mac, shapes=shapes, vectors=full_s,
                        vectors_open=full_o, shares=shares, rigid_hz=rigid_f,
                        ndof=system.ndof, backend=F.backend, sigma=float(sigma),
