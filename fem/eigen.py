@@ -31,9 +31,12 @@ the statically condensed response of their displacement, as in ARPACK's mode 3).
 * Convergence: the block-Lanczos residual of each wanted Ritz pair,
   ``rho = ||S y - theta y||_M / |theta|`` (for ``||y||_M = 1``), read off the last block's
   coefficients without an extra product. Converged when every wanted pair's error bound
-  ``min(rho, rho^2 |theta| / gap) |lam - sigma| / |lam|`` is ``<= tol`` (``gap``: distance to
-  the nearest other Ritz value, degenerate ones within ``tol`` counted as one, and at most
-  ``1e-3 |theta|``: an eigenvalue the basis has not seen yet may be closer), i.e. the
+  ``min(rho, rho_c^2 |theta| / gap) |lam - sigma| / |lam|`` is ``<= tol`` (``rho_c``: the block
+  residual of the pair's cluster, Ritz values within 1e-3 relative such as a bending pair,
+  which Rayleigh-Ritz separates; ``gap``: distance to the nearest Ritz value outside it; with
+  ``targets`` at most ``1e-3 |theta|``, since a basis grown from a few seeds may not have seen
+  a nearer eigenvalue yet; a basis grown from a random-rich start block sees the
+  neighbourhood of its extreme Ritz values), i.e. the
   Rayleigh-Ritz bound in the operator's eigenvalue carried over to ``lam``; stops early (with
   a warning and ``converged = False``) when that bound stagnates at the round-off of the solve.
 * Eigenvalues are the Rayleigh quotients ``y^T K y / y^T M y`` on the exact matrices, not
@@ -53,15 +56,19 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
+import scipy.sparse.linalg as spla
 
 from rpud_common import ParameterError
 
-__all__ = ["block_eigs", "BlockEigs"]
+from .solvers import blas_threads
+
+__all__ = ["block_eigs", "BlockEigs", "smooth_start", "bordered_solve", "arpack_eigs", "rigid_basis"]
 
 log = logging.getLogger(__name__)
 
 _DROP = 1e-12     # new directions shorter than this times the largest |theta| are dropped
-_GAP_FLOOR = 1e-3  # largest relative gap assumed to the nearest eigenvalue (see _error_estimate)
+_GAP_FLOOR = 1e-3  # with targets: largest relative gap assumed to the nearest eigenvalue
+_CLUSTER = 1e-3    # Ritz values closer than this (relative) are bounded together
 
 
 @dataclass(frozen=True)
@@ -154,25 +161,31 @@ class _Basis:
         self.m = k
 
 
-def _error_estimate(theta, rho, theta_all, sigma, tol):
+def _error_estimate(pick, theta_all, R_all, sigma, tol, gap_floor):
     """Relative eigenvalue error bound of each wanted Ritz pair.
 
-    For an M-symmetric operator a Ritz value with residual ``rho |theta|`` is within
-    ``rho |theta|`` of an eigenvalue, and within ``(rho theta)^2 / gap`` when the nearest other
-    eigenvalue is ``gap`` away; Ritz values closer than ``tol |theta|`` count as one cluster
-    (a degenerate pair: any mix of it has the same Rayleigh quotient to ``tol``). The relative
-    error of ``lam = sigma + 1/theta`` is that of ``theta`` times ``|lam - sigma| / |lam|``
-    (``|lam|`` floored at 1e-3 ``|sigma|``: rigid-body modes sit at 0)."""
-    est = np.empty(len(theta))
-    for i, (t, r) in enumerate(zip(theta, rho)):
+    ``R_all``: the residual coefficients of every Ritz pair (``S y - theta y = Q_next R``).
+    For an M-symmetric operator a Ritz value with residual ``r`` is within ``r`` of an
+    eigenvalue (Bauer-Fike), and a cluster of Ritz values (within ``_CLUSTER`` relative, e.g. a
+    bending pair) with block residual ``R`` is within ``||R||^2 / gap`` of eigenvalues when the
+    rest of the spectrum is ``gap`` away (Rayleigh-Ritz separates the cluster's own members).
+    The relative error of ``lam = sigma + 1/theta`` is that of ``theta`` times
+    ``|lam - sigma| / |lam|`` (``|lam|`` floored at 1e-3 ``|sigma|``: rigid-body modes sit at 0)."""
+    est = np.empty(len(pick))
+    for i, j in enumerate(pick):
+        t = theta_all[j]
         d = np.abs(theta_all - t)
-        d = d[d > tol * abs(t)]
-        # an eigenvalue not yet seen by the basis may be nearer than every Ritz value: the gap
-        # is capped at _GAP_FLOOR |theta| (the langevin example: a seeded open-circuit mode
-        # 0.4 % from a bending pair absent from the basis came out 6e-9 off without the cap)
-        gap = min(d.min() if len(d) else np.inf, _GAP_FLOOR * abs(t))
+        inside = d <= max(_CLUSTER, tol) * abs(t)
+        r = np.linalg.norm(R_all[:, j])
+        r_cl = np.linalg.norm(R_all[:, inside], 2) if R_all.size else 0.0
+        # in a basis grown from a few seeds an eigenvalue not yet seen may be nearer than every
+        # Ritz value: there the gap is capped at gap_floor |theta| (the langevin example: a
+        # seeded open-circuit mode 0.4 % from a bending pair absent from the basis came out
+        # 6e-9 off without the cap)
+        gap = min(d[~inside].min() if (~inside).any() else np.inf, gap_floor * abs(t))
         lam = sigma + 1.0 / t
-        est[i] = min(r, r * r * abs(t) / gap) * abs(1.0 / t) / max(abs(lam), 1e-3 * abs(sigma), 1e-300)
+        scale = abs(1.0 / t) / max(abs(lam), 1e-3 * abs(sigma), 1e-300) / abs(t)
+        est[i] = min(r, r_cl * r_cl / gap) * scale
     return est
 
 
@@ -211,7 +224,7 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
     tol : float
         Relative accuracy of the eigenvalues (see the module docstring for the bound used).
     max_dim : int, optional
-        Largest basis before a thick restart (default ``max(120, 6 b + 2 wanted)``).
+        Largest basis before a thick restart (default ``max(160, 8 b + 2 wanted)``).
     max_solves : int
         Largest number of block solves before giving up (``converged = False``).
     """
@@ -225,7 +238,8 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
     if n_want < 1:
         raise ParameterError("n_wanted", n_want, "must be >= 1")
     if max_dim is None:
-        max_dim = max(120, 6 * b + 2 * n_want)
+        max_dim = max(160, 8 * b + 2 * n_want)
+    gap_floor = _GAP_FLOOR if targets is not None else np.inf
     max_dim = min(max_dim, n)
     basis = _Basis(M, n, max_dim + b, locked)
     MT = None if targets is None else M @ targets
@@ -265,8 +279,9 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
             G = basis.MQ[:, :m].T @ targets                # Q^T M t
             pick = _hungarian_pick((G.T @ C_all) ** 2 / tnorm2[:, None])
         theta, C = theta_all[pick], C_all[:, pick]
-        rho = (np.zeros(len(pick)) if B is None else np.linalg.norm(B @ C[m_old:, :], axis=0)) / np.abs(theta)
-        est = _error_estimate(theta, rho, theta_all, sigma, tol)
+        R_all = np.zeros((0, m)) if B is None else B @ C_all[m_old:, :]
+        rho = np.linalg.norm(R_all[:, pick], axis=0) / np.abs(theta)
+        est = _error_estimate(pick, theta_all, R_all, sigma, tol, gap_floor)
         log.debug("block eigs: dim %d, %d solves, max residual %.2e, max error estimate %.2e",
                   m, n_solves, rho.max(), est.max())
         if est.max() <= tol or Qn is None:
@@ -361,3 +376,74 @@ def bordered_solve(solve: Callable[[np.ndarray], np.ndarray], a: np.ndarray, alp
         return X[:, 0] if vec else X
 
     return solve_open, z
+
+
+# ------------------------------------------------ shared with fem.modal (and its ARPACK path)
+
+
+def rigid_basis(system, free, M=None):
+    """M-orthonormal rigid-body modes (3 translations, 3 rotations; zero potential) on ``free``
+    (``M``: the mass restricted to ``free``, sliced here when not given)."""
+    x0 = system.nodes.mean(axis=0)
+    r = system.nodes - x0
+    R = np.zeros((system.ndof, 6))
+    for c in range(3):
+        R[c: system.n_u: 3, c] = 1.0
+    for c in range(3):
+        w = np.zeros(3)
+        w[c] = 1.0
+        R[: system.n_u, 3 + c] = np.cross(w, r).ravel()
+    R = R[free]
+    if M is None:
+        M = system.M[free][:, free]
+    G = R.T @ (M @ R)
+    L = np.linalg.cholesky(G)
+    return np.linalg.solve(L, R.T).T, M       # R L^-T: R^T M R = I
+
+
+def deflated(solve, R, M):
+    """OPinv followed by the M-orthogonal projection away from span(R)."""
+    if R is None:
+        return solve
+
+    def op(b):
+        y = solve(b)
+        return y - R @ (R.T @ (M @ y))
+    return op
+
+
+def bordered_mass(Ms):
+    """The short-circuit mass bordered by a zero row and column (the massless hot DOF)."""
+    import scipy.sparse as sp
+
+    return sp.bmat([[Ms, None], [None, sp.csr_matrix((1, 1))]], format="csr")
+
+
+def restricted(A, free):
+    """``A[free][:, free]`` as an operator, without slicing the matrix (only products needed)."""
+    n = len(free)
+
+    def matmat(X):
+        X = np.asarray(X).reshape(n, -1)
+        full = np.zeros((A.shape[0], X.shape[1]))
+        full[free] = X
+        return (A @ full)[free]
+
+    return spla.LinearOperator((n, n), matvec=matmat, matmat=matmat, dtype=float)
+
+
+def arpack_eigs(K, M, k, sigma, solve, tol, n):
+    k = int(min(k, n - 2))
+    op = spla.LinearOperator((n, n), matvec=solve, dtype=float)
+    # a fixed start vector: ARPACK's default is random, which makes reruns differ in the last
+    # digits (and the chaotic impact model downstream amplifies that)
+    v0 = np.random.default_rng(20000).standard_normal(n)
+    with blas_threads(1):
+        vals, vecs = spla.eigsh(K, k=k, M=M, sigma=sigma, OPinv=op, which="LM", tol=tol, mode="normal",
+                                v0=v0)
+    order = np.argsort(vals)
+    vals, vecs = vals[order], vecs[:, order]
+    # mass normalisation (ARPACK returns M-orthonormal vectors; enforce against round-off)
+    mnorm = np.sqrt(np.abs(np.einsum("ij,ij->j", vecs, M @ vecs)))
+    vecs = vecs / np.where(mnorm > 0, mnorm, 1.0)
+    return vals, vecs

@@ -177,7 +177,7 @@ def _modes(system: PiezoSystem, free: np.ndarray, near_hz: float, k: int, keep: 
     M = system.M[free][:, free].tocsr()
     sigma = _shift(near_hz)
     F = factorize((K - sigma * M).tocsr())
-    b = k + max(4, k // 3)
+    b = max(8, k // 2 + 2)
     start = smooth_start(system.nodes, free, system.ndof, b, n_random=max(2, b // 4))
     with blas_threads(1):
         res = block_eigs(F, K, M, sigma, start, n_wanted=min(k, len(free) - 2), tol=1e-12)
