@@ -28,7 +28,12 @@ iteration is one fast assembly, one factorisation and a few eigenvectors near th
 half model's cell selection is computed once. The working mode is followed from iteration to
 iteration by the modal assurance criterion (same mesh topology), not by index. (Interpolating
 the matrices in the stretch factor is exact only for cells inside one zone; cells that straddle a
-zone boundary deform non-affinely, so every iteration assembles the true matrices.)
+zone boundary deform non-affinely, so every iteration assembles the true matrices.) Each
+iteration's few modes come from the block shift-invert solver (:mod:`fem.eigen`, smooth start
+fields). The final paired modal analysis runs at the same shift as the search, on the
+evaluation Brent's method returned (it is one of its evaluated points): that system and its
+factorisation are kept (only the one nearest the target, to bound memory) and reused, so the
+final step neither assembles nor factorises again (``MatchSettings.reuse``; identical results).
 
 Re-meshing: the result must not depend on where the search started, so when the tuned design's
 axial zones differ from those the mesh was built for by more than ``max_stretch`` (2 %), the
@@ -57,9 +62,10 @@ from rpud_common.result import Result
 from geometry.mesh import TaggedMesh
 
 from .assembly import PiezoSystem, assemble
-from .modal import _eig, working_mode
+from .eigen import block_eigs, smooth_start
+from .modal import working_mode
 from .modeshape import surface_motion
-from .solvers import factorize
+from .solvers import blas_threads, factorize
 
 __all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half", "nodal_plane"]
 
@@ -99,6 +105,10 @@ class MatchSettings:
         Grade the mesh toward the re-entrant edges (off by default; ~2x the DOFs).
     order : int
         Field order (2: P2).
+    reuse : bool
+        Reuse the assembled system and factorisation of the whole composition at the tuned
+        value (evaluated during the search) for the final modal analysis instead of assembling
+        and factorising it again; the result is identical either way.
     """
 
     target_hz: float = 20000.0
@@ -113,6 +123,7 @@ class MatchSettings:
     order: int = 2
     refine: float = 1.0
     grade: bool = False
+    reuse: bool = True
 
     def __post_init__(self):
         check_positive("target_hz", self.target_hz, "Hz")
@@ -162,17 +173,27 @@ def _morphed(design, mesh: TaggedMesh, path: str, value: float):
 # --------------------------------------------------------------------------- modes
 
 
-def _modes(system: PiezoSystem, free: np.ndarray, near_hz: float, k: int):
-    """Short-circuit modes near ``near_hz`` on the given free set: (f_hz, full vectors)."""
+def _shift(near_hz: float) -> float:
+    """Shift of the matching solves, rad^2/s^2: just below the target (the matched working
+    mode sits at the target; the final modal analysis reuses the same shift)."""
+    return (2 * np.pi * near_hz) ** 2 * (1 - 1e-3)
+
+
+def _modes(system: PiezoSystem, free: np.ndarray, near_hz: float, k: int, keep: bool = False):
+    """Short-circuit modes near ``near_hz`` on the given free set: (f_hz, full vectors), and
+    with ``keep`` also the factorisation (for reuse by the final modal analysis)."""
     K = system.K[free][:, free].tocsr()
     M = system.M[free][:, free].tocsr()
-    sigma = (2 * np.pi * near_hz) ** 2 * (1 - 1e-3)
+    sigma = _shift(near_hz)
     F = factorize((K - sigma * M).tocsr())
-    lam, vec = _eig(K, M, k, sigma, F, 0.0, len(free))
-    f = np.sign(lam) * np.sqrt(np.abs(lam)) / (2 * np.pi)
-    full = np.zeros((system.ndof, vec.shape[1]))
-    full[free] = vec
-    return f, full
+    b = max(8, k // 2 + 2)
+    start = smooth_start(system.nodes, free, system.ndof, b, n_random=max(2, b // 4))
+    with blas_threads(1):
+        res = block_eigs(F, K, M, sigma, start, n_wanted=min(k, len(free) - 2), tol=1e-12)
+    f = np.sign(res.lam) * np.sqrt(np.abs(res.lam)) / (2 * np.pi)
+    full = np.zeros((system.ndof, res.vectors.shape[1]))
+    full[free] = res.vectors
+    return (f, full, F) if keep else (f, full)
 
 
 def nodal_plane(design) -> float:
@@ -362,12 +383,15 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         if progress:
             progress(rec)
 
-    def stage(name, path, design, mesh, select, free_of, n_modes):
-        """Tune ``path`` so that the (selected) model's working mode is at the target."""
+    def stage(name, path, design, mesh, select, free_of, n_modes, keep=False):
+        """Tune ``path`` so that the (selected) model's working mode is at the target. With
+        ``keep``, the system and factorisation of the evaluation nearest the target are kept
+        (Brent's method returns one of its evaluated points)."""
         _check_morphable(design, path)
         idx = {"keep": None}
         prev = {"shape": None}
         cache = {}
+        best = {}
 
         def evaluate(value):
             if value in cache:
@@ -378,18 +402,22 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
                     idx["keep"] = select(m)
                 m = _select(m, idx["keep"])
             sy = assemble(m, order=settings.order)
-            f, vec = _modes(sy, free_of(sy), target, n_modes)
+            f, vec, F = _modes(sy, free_of(sy), target, n_modes, keep=True)
             i = working_mode(sy, f, vec, target, prev["shape"])
             prev["shape"] = sy.displacement(vec[:, i])
             record(name, path, value, f[i])
             cache[value] = f[i]
+            if keep and (not best or abs(f[i] - target) <= abs(best["f"] - target)):
+                best.clear()
+                best.update(value=value, f=f[i], system=sy, factor=F)
             return f[i]
 
         v0 = float(design.get(path))
-        best = _tune(evaluate, v0, target, _bounds(design, path, settings.bracket), settings.xtol, path,
-                     "the horn side" if name == "horn" else "the working mode")
-        new, m = _morphed(design, mesh, path, best)
-        return new, m, prev["shape"]
+        tuned = _tune(evaluate, v0, target, _bounds(design, path, settings.bracket), settings.xtol, path,
+                      "the horn side" if name == "horn" else "the working mode")
+        new, m = _morphed(design, mesh, path, tuned)
+        reuse = (best["system"], best["factor"]) if best.get("value") == tuned else None
+        return new, m, prev["shape"], reuse
 
     mesh_design = design                   # the design the current mesh was built for
     for round_ in range(settings.max_rounds):
@@ -397,7 +425,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         if front is not None:
             t0 = time.perf_counter()
             z_cut = nodal_plane(design)
-            design, mesh, _ = stage(
+            design, mesh, _, _ = stage(
                 "horn", front, design, mesh, lambda m: _front_cells(m, z_cut),
                 lambda sy: np.setdiff1d(sy.free_dofs("short"), sy.dofs_on("node_plane", (2,))),
                 settings.n_modes)
@@ -405,8 +433,9 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
 
         # ---- stage 2: the whole composition (free-free; rigid modes lie far below the shift)
         t0 = time.perf_counter()
-        design, mesh, last_shape = stage("whole", back, design, mesh, None,
-                                         lambda sy: sy.free_dofs("short"), settings.n_modes)
+        design, mesh, last_shape, reuse = stage("whole", back, design, mesh, None,
+                                                lambda sy: sy.free_dofs("short"), settings.n_modes,
+                                                keep=settings.reuse)
         timings["whole_s"] = timings.get("whole_s", 0.0) + time.perf_counter() - t0
         # a mesh stretched far from the design it was built for is re-made at the tuned design
         # (and the match repeated from there), so the result does not depend on the start
@@ -425,8 +454,13 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
     from .modal import modal_analysis
 
     t0 = time.perf_counter()
-    system = assemble(mesh, order=settings.order)
-    modal = modal_analysis(system, target, settings.n_modes)
+    if reuse is not None:
+        system, factor = reuse                 # the same mesh, matrices and shift: nothing to redo
+    else:
+        system, factor = assemble(mesh, order=settings.order), None
+    modal = modal_analysis(system, target, settings.n_modes, sigma=_shift(target), factor=factor)
+    log.info("match: final modal analysis %s", "reuses the last stage's system and factorisation"
+             if reuse is not None else "assembles and factorises afresh")
     # follow the working mode into the final modal result by MAC
     w = working_mode(system, modal.f_r_hz, modal.vectors, target, prev["shape"])
     shape = modal.shapes[w]

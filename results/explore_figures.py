@@ -52,19 +52,19 @@ def main_effects(result, outputs=None, axes=None):
         s, unit = _scale(out)
         levels = np.unique(x[np.isfinite(x)])
         if 0 < len(levels) <= 12:
-            means, lo, hi = [], [], []
-            for lv in levels:
-                sel = (x == lv) & np.isfinite(y)
-                m = y[sel].mean() if sel.any() else math.nan
-                means.append(m)
-                if np.isfinite(hw[sel]).any():
-                    half = math.sqrt(np.nansum(hw[sel] ** 2)) / max(sel.sum(), 1)
-                    lo.append(half)
-                    hi.append(half)
-                else:
-                    lo.append(m - y[sel].min() if sel.any() else math.nan)
-                    hi.append(y[sel].max() - m if sel.any() else math.nan)
-            ax.errorbar(levels, np.array(means) * s, yerr=np.array([lo, hi]) * s, marker="o", capsize=3)
+            sel = [(x == lv) & np.isfinite(y) for lv in levels]
+            means = np.array([y[m].mean() if m.any() else math.nan for m in sel])
+            if any(np.isfinite(hw[m]).any() for m in sel):
+                # 95 % CI of a level mean: the members' half-widths combined in quadrature
+                half = np.array([math.sqrt(np.nansum(hw[m] ** 2)) / max(m.sum(), 1) for m in sel])
+                ax.errorbar(levels, means * s, yerr=half * s, marker="o", capsize=3, label="mean, 95 % CI")
+            else:
+                lo = np.array([y[m].min() if m.any() else math.nan for m in sel])
+                hi = np.array([y[m].max() if m.any() else math.nan for m in sel])
+                ax.plot(levels, means * s, "o-", label="mean over the other parameters")
+                if len(params) > 1:
+                    ax.fill_between(levels, lo * s, hi * s, alpha=0.2, label="range over the other parameters")
+            ax.legend(fontsize=7)
         else:
             ax.errorbar(x, y * s, yerr=np.where(np.isfinite(hw), hw, 0) * s, fmt="o", ms=3, capsize=2)
         ax.set_xlabel(par)
