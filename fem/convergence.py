@@ -72,9 +72,11 @@ below that rate so the estimate errs on the large side; not validated by a 3-D s
 default design's ungraded levels are pre-asymptotic below ~160k DOFs, issue 19's table)."""
 
 
-def estimator_order(grade: bool) -> float:
-    """The order :func:`two_level_error` should assume for a graded or an ungraded mesh."""
-    return ESTIMATOR_ORDER if grade else ESTIMATOR_ORDER_UNGRADED
+def estimator_order(grade: bool, corners: bool = True) -> float:
+    """The order :func:`two_level_error` should assume: :data:`ESTIMATOR_ORDER_UNGRADED` on an
+    ungraded mesh of a design with major re-entrant edges (``corners``,
+    :func:`geometry.sizing.graded_edges` not empty), else :data:`ESTIMATOR_ORDER`."""
+    return ESTIMATOR_ORDER if grade or not corners else ESTIMATOR_ORDER_UNGRADED
 
 ESTIMATOR_RATIO = 1.4
 """Refine factor of the extra, coarser solve of the two-level estimator (~1/2.7 of the DOFs)."""

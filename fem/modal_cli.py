@@ -58,7 +58,7 @@ def build_parser(prog="python -m fem.modal"):
     g.add_argument("--error", action="store_true",
                    help="estimate the working mode's discretisation error from one extra solve on a mesh "
                         "1.4x coarser (--refine x 1.4) and an assumed order in h (fem.convergence.estimator_order: "
-                        "1 ungraded, 2 with --grade); prints f_r +- err, f_a +- err and adds them to the JSON")
+                        "1 on an ungraded mesh with re-entrant edges, else 2); prints f_r +- err, f_a +- err and adds them to the JSON")
     g.add_argument("--converge", type=float, metavar="TOL",
                    help="mesh-convergence study of the working mode: refine by 0.8 per level from --refine until "
                         "f_r, f_a, the tip amplitude per volt and the teeth ellipse ratio change by less than TOL "
@@ -310,7 +310,10 @@ def _error_estimate(args, design, system, res, near):
 
     w = working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0))
     coarse_refine = args.refine * ESTIMATOR_RATIO
-    p = estimator_order(args.grade)
+    from geometry.sizing import graded_edges, region_sizes
+
+    corners = bool(graded_edges(design, region_sizes(design, args.mesh_size, refine=args.refine), args.refine))
+    p = estimator_order(args.grade, corners)
     mesh_c = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, refine=coarse_refine,
                                  grade=args.grade)
     sys_c = assemble(mesh_c, order=args.order)
@@ -321,7 +324,8 @@ def _error_estimate(args, design, system, res, near):
            "f_a_err_hz": two_level_error(res.f_a_hz[w], res_c.f_a_hz[wc], ratio, p),
            "k_eff_err": two_level_error(res.k_eff[w], res_c.k_eff[wc], ratio, p),
            "method": f"two-level: refine {args.refine:g} and {coarse_refine:g} ({sys_c.ndof} DOFs), "
-                     f"{'graded' if args.grade else 'ungraded'}, order {p:g} assumed",
+                     f"{'graded' if args.grade else 'ungraded'}, "
+                     f"{'re-entrant edges' if corners else 'no re-entrant edges'}, order {p:g} assumed",
            "coarse_f_r_hz": float(res_c.f_r_hz[wc]), "coarse_f_a_hz": float(res_c.f_a_hz[wc])}
     return {w: err}, err
 

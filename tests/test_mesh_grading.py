@@ -29,7 +29,7 @@ import pytest
 
 import geometry
 from fem.assembly import assemble
-from fem.convergence import ESTIMATOR_ORDER, Level, study, two_level_error
+from fem.convergence import ESTIMATOR_ORDER, Level, estimator_order, study, two_level_error
 from fem.modal import modal_analysis
 from fem.modeshape import energy_shares
 from geometry.design import Segment, StackDesign, default_design
@@ -105,6 +105,9 @@ def test_two_level_estimator_bounds_the_study_error(cylinder_study):
     assert st.error("f_r_hz") <= est <= 5 * st.error("f_r_hz")
     with pytest.raises(ParameterError):
         two_level_error(1.0, 2.0, ratio=1.0)
+    # ungraded re-entrant edges limit the rate to h^1.1: the estimator assumes order 1 there
+    assert estimator_order(False, corners=True) == 1.0
+    assert estimator_order(True, corners=True) == estimator_order(False, corners=False) == ESTIMATOR_ORDER
 
 
 def test_study_table_and_stop_rules():
