@@ -210,3 +210,25 @@ def test_cli_bad_study_is_one_line(tmp_path):
     res = subprocess.run([sys.executable, "-m", "results", "explore", str(p)], capture_output=True, text=True,
                          env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=120)
     assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "study.stages" in res.stderr
+
+
+def test_tolerance_spread_table_and_figures(tmp_path):
+    """The tolerance summary of a study is the spread of each output over its points, relative to
+    the nominal (first) point; the three figures are written."""
+    from results.explore import StudyResult
+    from results.explore_figures import study_figures, tolerance_table
+
+    study = study_from_mapping({"study": {"name": "t", "sampling": "tolerance", "samples": 4,
+                                          "stages": ["mesh", "match"], "pareto": ["f_r_hz", "k_eff"]},
+                                "parameters": {"horn.length": {"tolerance": 0.01}}})
+    f = [20000.0, 20010.0, 19980.0, 20030.0, 19990.0]
+    rows = [{"point": i, "id": f"p{i}", "status": "ok", "error": "", "failed_stage": "",
+             "in.horn.length": p["horn.length"], "f_r_hz": f[i], "f_a_hz": 21000.0 + i, "k_eff": 0.39 - 0.001 * i,
+             "tetrahedra": 100, "nodes": 200} for i, p in enumerate(study.points())]
+    res = StudyResult(study=study, rows=rows)
+    t = tolerance_table(res)["f_r_hz"]
+    assert t["nominal"] == 20000.0 and t["rel_spread"] == pytest.approx(50.0 / 20000.0, rel=1e-12)
+    assert t["std"] == pytest.approx(np.std(f, ddof=1), rel=1e-12) and t["n"] == 5
+    made = study_figures(res, tmp_path / "figs")
+    assert set(made) == {"main_effects", "pareto", "tolerance"} and all(p.is_file() for p in made.values())
+    assert res.to_dict()["tolerance"]["f_r_hz"]["max"] == 20030.0
