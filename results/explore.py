@@ -298,8 +298,8 @@ def _submit(client, study: Study, todo: list[tuple[int, dict]], store: str | Non
 def run_sequential(study: Study, points: list[dict] | None = None, threads: int | None = 1) -> list[dict]:
     """The hand-scheduled loop: each unique mesh / match / harmonic computed once, in order.
 
-    Same stage functions and reuse as the Dask path, in this process (the benchmark's
-    baseline, and the reference of the 1-worker / 2-worker test)."""
+    Same stage functions and reuse as the Dask path, in this process: the baseline of
+    ``benchmarks/bench_explore.py`` (its impact numbers equal the Dask run's)."""
     points = study.points() if points is None else points
     cache: dict[str, Any] = {}
 
