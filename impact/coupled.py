@@ -286,52 +286,37 @@ class _HornState:
         self.B2 = sim.Ua * W * W + b2         # |u''| <= B2
         self.B4 = sim.Ua * W * W * W * W + b4  # |u| <= B4
 
-    def tip(self, sim, tt: float) -> tuple[float, float]:
+    def _derivatives(self, sim, tt, order: int, vec: bool):
+        """Tip derivatives ``order`` and ``order + 1`` (order 0 or 2) at time ``tt`` (an array if
+        ``vec``): the steady part plus every mode's free oscillation, as ``kernel_modal._tip``."""
         W = sim.W
-        c, s = math.cos(W * tt), math.sin(W * tt)
-        u = sim.Uc * c + sim.Us * s
-        ud = W * (-sim.Uc * s + sim.Us * c)
+        cos, sin = (np.cos, np.sin) if vec else (math.cos, math.sin)
+        c, s = cos(W * tt), sin(W * tt)
+        k = 1.0 if order == 0 else -W * W
+        a = k * (sim.Uc * c + sim.Us * s)
+        b = k * W * (-sim.Uc * s + sim.Us * c)
         for i in range(sim.n):
-            y, yd = self.osc[i].pv(tt - self.t0)
-            u += sim.hs[i] * y
-            ud += sim.hs[i] * yd
-        return u, ud
+            osc = self.osc[i]
+            f = (osc.pv_vec if vec else osc.pv) if order == 0 else (osc.acc_jerk_vec if vec else osc.acc_jerk)
+            y, yd = f(tt - self.t0)
+            a = a + sim.hs[i] * y
+            b = b + sim.hs[i] * yd
+        return a, b
+
+    def tip(self, sim, tt: float) -> tuple[float, float]:
+        return self._derivatives(sim, tt, 0, False)
 
     def tip_vec(self, sim, tg: np.ndarray):
-        W = sim.W
-        c, s = np.cos(W * tg), np.sin(W * tg)
-        u = sim.Uc * c + sim.Us * s
-        ud = W * (-sim.Uc * s + sim.Us * c)
-        for i in range(sim.n):
-            y, yd = self.osc[i].pv_vec(tg - self.t0)
-            u = u + sim.hs[i] * y
-            ud = ud + sim.hs[i] * yd
-        return u, ud
+        return self._derivatives(sim, tg, 0, True)
 
     def tip_acc(self, sim, tt: float) -> float:
-        return self.tip_acc_jerk(sim, tt)[0]
+        return self._derivatives(sim, tt, 2, False)[0]
 
     def tip_acc_jerk(self, sim, tt: float) -> tuple[float, float]:
-        W = sim.W
-        c, s = math.cos(W * tt), math.sin(W * tt)
-        u2 = -W * W * (sim.Uc * c + sim.Us * s)
-        u3 = -W * W * W * (-sim.Uc * s + sim.Us * c)
-        for i in range(sim.n):
-            y2, y3 = self.osc[i].acc_jerk(tt - self.t0)
-            u2 += sim.hs[i] * y2
-            u3 += sim.hs[i] * y3
-        return u2, u3
+        return self._derivatives(sim, tt, 2, False)
 
     def tip_acc_jerk_vec(self, sim, tg: np.ndarray):
-        W = sim.W
-        c, s = np.cos(W * tg), np.sin(W * tg)
-        u2 = -W * W * (sim.Uc * c + sim.Us * s)
-        u3 = -W * W * W * (-sim.Uc * s + sim.Us * c)
-        for i in range(sim.n):
-            y2, y3 = self.osc[i].acc_jerk_vec(tg - self.t0)
-            u2 = u2 + sim.hs[i] * y2
-            u3 = u3 + sim.hs[i] * y3
-        return u2, u3
+        return self._derivatives(sim, tg, 2, True)
 
     def modal(self, sim, tt: float) -> tuple[list, list]:
         W = sim.W
