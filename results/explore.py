@@ -413,6 +413,8 @@ def explore(study: Study, out: str | os.PathLike, *, workers: int | None = None,
     out = Path(out)
     t0 = time.perf_counter()
     points = study.points()
+    # a scheduler address is checked before anything is written or computed
+    remote = _connect(Client, scheduler) if scheduler else None
     store = _resume_store(out)
     if not resume and store.exists():
         shutil.rmtree(store)
@@ -424,9 +426,11 @@ def explore(study: Study, out: str | os.PathLike, *, workers: int | None = None,
              len(points) - len(todo), store, len(todo))
     rows_new: list[dict] = []
     n_workers = 0
+    if not todo and remote is not None:
+        remote.close()
     if todo:
-        if scheduler:
-            cluster, client = None, Client(scheduler)
+        if remote is not None:
+            cluster, client = None, remote
         else:
             n = workers or os.cpu_count() or 1
             cluster = LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
@@ -463,6 +467,17 @@ def explore(study: Study, out: str | os.PathLike, *, workers: int | None = None,
     shutil.rmtree(store, ignore_errors=True)
     result.folder = out
     return result
+
+
+def _connect(client_cls, address: str, timeout_s: float = 10.0):
+    """A client of the scheduler at ``address``, or a ParameterError saying why not."""
+    from rpud_common import ParameterError
+
+    try:
+        return client_cls(address, timeout=timeout_s)
+    except (ValueError, OSError, TimeoutError) as exc:
+        raise ParameterError("scheduler", address, f"no Dask scheduler reachable there within {timeout_s:g} s "
+                             f"({type(exc).__name__}); give the tcp://host:port of a running scheduler") from None
 
 
 def _write_table(result: StudyResult, folder: Path) -> None:

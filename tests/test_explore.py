@@ -232,3 +232,12 @@ def test_tolerance_spread_table_and_figures(tmp_path):
     made = study_figures(res, tmp_path / "figs")
     assert set(made) == {"main_effects", "pareto", "tolerance"} and all(p.is_file() for p in made.values())
     assert res.to_dict()["tolerance"]["f_r_hz"]["max"] == 20030.0
+
+
+def test_cli_unreachable_scheduler_is_one_line_and_writes_nothing(tmp_path):
+    p = _study(tmp_path, '[study]\nname = "x"\nstages = ["mesh"]\n[parameters."horn.length"]\nvalues = [0.067]\n')
+    res = subprocess.run([sys.executable, "-m", "results", "explore", str(p), "--out", str(tmp_path / "o"),
+                          "--scheduler", "nonsense"], capture_output=True, text=True,
+                         env=dict(os.environ, PYTHONPATH=str(ROOT)), timeout=120)
+    assert res.returncode == 2 and len(res.stderr.strip().splitlines()) == 1 and "scheduler" in res.stderr
+    assert sorted(q.name for q in tmp_path.iterdir()) == ["s.toml"]
