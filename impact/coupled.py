@@ -78,7 +78,8 @@ class CoupledResult:
     seg_t0 : ndarray (k,)
         Segment starts, s (segments end at the next start or ``t_end``).
     seg_q, seg_qd : ndarray (k, n)
-        Modal coordinates and velocities at the segment starts.
+        Modal coordinates and velocities at the segment starts (with a series-resistance drive the
+        ``n + 1`` pseudo-modal ones of :mod:`impact.drive`).
     impulse : ndarray (n_events,)
         Impulse on the free mass at each impact (N s; tool impacts included).
     tip_v_before, tip_v_after : ndarray (n_events,)
@@ -109,6 +110,11 @@ class CoupledResult:
 
     def state_at(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Modal coordinates and velocities at time t (from the segment containing it)."""
+        if self.horn.series_resistance > 0:
+            from . import drive_result as drive
+
+            x, xd, _ = drive.physical(self, [t])
+            return x[0, :self.horn.n_modes], x[0, self.horn.n_modes:2 * self.horn.n_modes]
         j = int(np.searchsorted(self.seg_t0, t, side="right") - 1)
         return _propagate(self.horn, self.freq_hz, self.seg_t0[j], self.seg_q[j], self.seg_qd[j], t - self.seg_t0[j])
 
@@ -129,6 +135,10 @@ class CoupledResult:
         if self.extra.get("compliant"):
             raise ParameterError("energy_balance", "compliant contact",
                                  "needs closed-form segments; not available with the Hunt-Crossley option")
+        if self.horn.series_resistance > 0:
+            from . import drive_result as drive
+
+            return drive.energy_balance(self, edges)
         edges = np.asarray(edges, float)
         p = self.impact.params
         t_end = p.t_end
@@ -192,6 +202,10 @@ class CoupledResult:
         return 0.5 * (edges[:-1] + edges[1:]), amp
 
     def _fundamental(self, a: float, b: float) -> complex:
+        if self.horn.series_resistance > 0:
+            from . import drive_result as drive
+
+            return drive.fundamental(self, a, b)
         ends = np.append(self.seg_t0[1:], self.impact.params.t_end)
         lo = np.maximum(self.seg_t0, a)
         hi = np.minimum(ends, b)
@@ -206,7 +220,12 @@ class CoupledResult:
 
     def drive_power(self, t_from: float, t_to: float, dt: float | None = None) -> tuple[float, float]:
         """Mean electrical power drawn (W) and RMS drive current (A) over [t_from, t_to], from
-        the current ``I = dQ/dt`` sampled at ``dt`` (default: 64 points per drive period)."""
+        the current ``I = dQ/dt`` sampled at ``dt`` (default: 64 points per drive period); with a
+        series resistance the source's power and current (:func:`impact.drive.drive_power`)."""
+        if self.horn.series_resistance > 0:
+            from . import drive_result as drive
+
+            return drive.drive_power(self, t_from, t_to, dt)
         dt = dt or 1.0 / (64 * self.freq_hz)
         t = np.arange(t_from, t_to, dt)
         q, qd, qdd = _states_on(self, t)
@@ -626,14 +645,19 @@ def _series(res: CoupledResult) -> None:
     # the free mass and tool face as in the kinematic model; riding the horn: below
     _kin_series(res.impact, seg)
     tg = res.impact.t_grid
-    q, qd, _ = _states_on(res, tg)
-    h = res.horn
-    W = 2 * math.pi * p.freq
-    r = h.residual_phasor()
-    e = np.exp(1j * W * tg)
     res.t_grid = tg
-    res.u = q @ h.tip + (r * e).real
-    res.tip_velocity = qd @ h.tip + (1j * W * r * e).real
+    h = res.horn
+    if h.series_resistance > 0:
+        from . import drive_result as drive
+
+        res.u, res.tip_velocity = drive.tip_series(res, tg)
+    else:
+        q, qd, _ = _states_on(res, tg)
+        W = 2 * math.pi * p.freq
+        r = h.residual_phasor()
+        e = np.exp(1j * W * tg)
+        res.u = q @ h.tip + (r * e).real
+        res.tip_velocity = qd @ h.tip + (1j * W * r * e).real
     res.impact.u = res.u
     idx = np.searchsorted(seg[0], tg, side="right") - 1
     riding = seg[1][idx] == ON_HORN
@@ -652,7 +676,7 @@ def _run_kernel(params: ImpactParams, horn: ModalHorn, contact=None) -> CoupledR
     if status == kernel_modal.STATUS_CONTACT:
         raise SimulationError(f"the compliant contact starting at t = {t_status:.9g} s was not resolved in 1e6 "
                               "integration steps (contact stiffness or damping out of range)")
-    n = horn.n_modes
+    n = (segs.shape[1] - 6) // 2
     contact = np.where(kinds == K.KIND_TOOL, TOOL, HORN).astype("<U4")
     stick = [(float(a), float(b), "tool" if body == K.BODY_TOOL else "horn") for a, b, body in stk]
     res = ImpactResult(params=params, t=ev[:, 0].copy(), contact=contact, x=ev[:, 1].copy(),
@@ -697,6 +721,12 @@ def simulate_coupled(params: ImpactParams, horn: ModalHorn, *, series: bool = Tr
         Pinched free mass, too many events.
     """
     check_coupled_params(params, horn)
+    if horn.series_resistance > 0:
+        if contact is not None:
+            raise ParameterError("contact", "hunt-crossley", "is not available with a series-resistance drive "
+                                 "(its contact phases integrate the voltage-driven modes); use Newton's law")
+        if engine == "python":
+            raise ParameterError("engine", engine, "must be 'kernel' with a series-resistance drive")
     if contact is not None:
         from .contact import HuntCrossley
 

@@ -45,11 +45,11 @@ HORN_STARTS = ("rest", "steady")
 MAX_HORN_MODES = 64
 
 # columns of the packed per-mode table (ModalHorn.pack)
-H_OMEGA, H_ZETA, H_MASS, H_TIP, H_A, H_B, H_FC, H_FS, H_GRE, H_GIM = range(10)
-N_HCOLS = 10
+H_OMEGA, H_ZETA, H_MASS, H_TIP, H_A, H_B, H_FC, H_FS, H_GRE, H_GIM, H_JQ, H_JV = range(12)
+N_HCOLS = 12
 # packed scalars
-X_W, X_UC, X_US, X_RC, X_RS, X_STEADY, X_V0, X_QBR, X_QBI = range(9)
-N_HX = 9
+X_W, X_UC, X_US, X_RC, X_RS, X_STEADY, X_V0, X_QBR, X_QBI, X_SERIES = range(10)
+N_HX = 10
 
 _ARRAYS = ("omega", "zeta", "modal_mass", "tip", "coupling_re", "coupling_im")
 
@@ -91,6 +91,10 @@ class ModalHorn:
     start : {"rest", "steady"}
         Modal state at t = 0: at rest (ring-up with the drive switched on at t = 0) or on the
         steady harmonic response (no transient).
+    series_resistance : float
+        Source resistance in series with the electrodes, ohm; 0 (default): voltage drive (the
+        electrode voltage is the source's). With R > 0 the electrode voltage is a state
+        (:mod:`impact.drive`; ``coupling_im`` and the residual are then left out).
     """
 
     omega: np.ndarray
@@ -105,6 +109,7 @@ class ModalHorn:
     blocked_charge_re: float = 0.0
     blocked_charge_im: float = 0.0
     start: str = "rest"
+    series_resistance: float = 0.0
 
     def __post_init__(self):
         arrs = {}
@@ -130,6 +135,7 @@ class ModalHorn:
             if not (isinstance(v, (int, float, np.floating)) and math.isfinite(v)):
                 raise ParameterError(name, v, "must be a finite number")
         check_choice("start", self.start, HORN_STARTS)
+        check_range("series_resistance", self.series_resistance, 0.0, 1e9, "ohm")
 
     # ------------------------------------------------------------------ derived
     @property
@@ -176,7 +182,7 @@ class ModalHorn:
     def pack(self, freq_hz: float) -> tuple[np.ndarray, np.ndarray]:
         """``(table, scalars)`` for the compiled kernel: ``table`` (n, N_HCOLS) with columns
         ``H_*`` (omega, zeta, mass, tip, steady cos / sin coefficients a_i, b_i, force Fc, Fs, coupling
-        per volt re / im),
+        per volt re / im, jumps of the coordinate and its velocity per unit impulse),
         ``scalars`` (N_HX,) with ``X_*`` (W, steady tip cos / sin coefficients, residual cos /
         sin coefficients, 1.0 if the start is steady, voltage, blocked charge per volt re / im)."""
         W = 2 * math.pi * freq_hz
@@ -188,10 +194,11 @@ class ModalHorn:
         tab[:, H_A], tab[:, H_B] = q.real, -q.imag
         tab[:, H_FC], tab[:, H_FS] = fc, fs
         tab[:, H_GRE], tab[:, H_GIM] = self.coupling_re, self.coupling_im
+        tab[:, H_JQ], tab[:, H_JV] = 0.0, -self.tip / self.modal_mass
         U = self.steady_tip(freq_hz)
         r = self.residual_phasor()
         x = np.array([W, U.real, -U.imag, r.real, -r.imag, 1.0 if self.start == "steady" else 0.0,
-                      self.voltage, self.blocked_charge_re, self.blocked_charge_im])
+                      self.voltage, self.blocked_charge_re, self.blocked_charge_im, 0.0])
         return tab, x
 
     # ------------------------------------------------------------------ free response

@@ -11,7 +11,14 @@ Entry points: :func:`run_events` (one run, every event and segment) and
 :func:`impact.kernel.ensemble_stats` followed by ``C_DRIVE`` (work of the drive on the modes and
 the residual, J), ``C_DAMP`` (modal damping loss, J), ``C_FUND_RE``/``C_FUND_IM``
 (``int u e^{-jWt} dt`` over the window, m s), ``C_ELEC`` (electrical energy drawn ``int V I dt``,
-J): closed-form integrals per segment).
+J): closed-form integrals per segment) and ``C_SOURCE_LOSS`` (resistor and dielectric loss of a
+series-resistance drive, J; 0 with the voltage drive).
+
+With a series-resistance drive (``X_SERIES``, :mod:`impact.drive`) the rows of the table are
+pseudo-modes: an impulse jumps both a row's coordinate and its velocity (columns ``H_JQ``,
+``H_JV``), and the energy integrals are quadratic forms over every pair of rows
+(:func:`_integrals_series`): ``C_ELEC`` the source's work, ``C_DRIVE`` the conversion to mechanics,
+``C_DAMP`` the modal damping, ``C_SOURCE_LOSS`` the resistor and dielectric loss.
 """
 
 from __future__ import annotations
@@ -22,8 +29,8 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .horn import (H_A, H_B, H_FC, H_FS, H_GIM, H_GRE, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_QBI, X_QBR, X_RC, X_RS,
-                   X_STEADY, X_UC, X_US, X_V0, X_W,
+from .horn import (H_A, H_B, H_FC, H_FS, H_GIM, H_GRE, H_JQ, H_JV, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_QBI, X_QBR,
+                   X_RC, X_RS, X_SERIES, X_STEADY, X_UC, X_US, X_V0, X_W,
                    ModalHorn)
 from .kernel import (_O_B0, _O_B2, _O_B4, _O_DELTA, _O_N, CONTACT_TOL, _H_MIN, _RTOL,
                      _XTOL, BODY_HORN, BODY_TOOL, FREE, KIND_HORN, KIND_TOOL, N_PARAMS, N_STATS, ON_TOOL, P_C, P_E1, P_E2, P_GAP,
@@ -37,8 +44,8 @@ __all__ = ["run_events", "ensemble_coupled", "N_CSTATS", "STATUS_CONTACT"]
 
 #: status of a run whose compliant contact was not resolved in 1e6 integration steps
 STATUS_CONTACT = 4
-C_DRIVE, C_DAMP, C_FUND_RE, C_FUND_IM, C_ELEC = N_STATS, N_STATS + 1, N_STATS + 2, N_STATS + 3, N_STATS + 4
-N_CSTATS = N_STATS + 5
+C_DRIVE, C_DAMP, C_FUND_RE, C_FUND_IM, C_ELEC, C_SOURCE_LOSS = range(N_STATS, N_STATS + 6)
+N_CSTATS = N_STATS + 6
 
 _FN_HORN, _FN_TOOL, _FN_PINCH, _FN_RELEASE, _FN_HREL = 0, 1, 2, 3, 4
 # contact record: t0, w0, wd0, a, L0, W, Uc, Us
@@ -275,14 +282,64 @@ def _integrals(tab, xs, n, t0, q, qd, sa, sb):
 
 
 @njit(cache=True)
-def _window_integrals(tab, xs, n, t0, t1, q, qd, t_from, t_end, stats):
+def _integrals_series(tab, xs, n, t0, q, qd, sa, sb, lam, G1, G2, cw):
+    """(source work, resistor + dielectric loss, conversion to mechanics, modal damping, fundamental)
+    over [t0 + sa, t0 + sb] of a free segment of a series-resistance drive (:mod:`impact.drive`).
+
+    Over the segment the augmented state is ``Re(sum_j C_j w_j e^{lam_j s})`` (the pseudo-modes, then
+    the steady state with ``lam = jW``), so ``int xt^T Q xt ds = sum_jl Re(C_j C_l G1_jl E(lam_j +
+    lam_l)) / 2 + Re(C_j conj(C_l) G2_jl E(lam_j + conj lam_l)) / 2``; the (j, l) and (l, j) terms
+    are equal, so only l >= j is summed. ``cw`` is work space (n + 1,) complex."""
+    W = xs[X_W]
+    jw = 1j * W
+    S = sb - sa
+    ta = t0 + sa
+    e0 = cmath.exp(jw * t0)
+    for k in range(n):
+        P = complex(tab[k, H_A], -tab[k, H_B])
+        h0 = q[k] - (P * e0).real
+        hd0 = qd[k] - (jw * P * e0).real
+        lk = lam[k]
+        if lk.imag != 0.0:
+            C = complex(h0, -(hd0 - h0 * lk.real) / lk.imag)
+        else:
+            C = complex(h0, 0.0)
+        cw[k] = C * cmath.exp(lk * sa)
+    ewa = cmath.exp(jw * ta)
+    cw[n] = ewa
+    acc = np.zeros(4)
+    for j in range(n + 1):
+        for l in range(j, n + 1):
+            f = 0.5 if l == j else 1.0
+            x1 = cw[j] * cw[l] * _expint(lam[j] + lam[l], S)
+            x2 = cw[j] * cw[l].conjugate() * _expint(lam[j] + lam[l].conjugate(), S)
+            for a in range(4):
+                acc[a] += f * ((G1[a, j, l] * x1).real + (G2[a, j, l] * x2).real)
+    U = complex(xs[X_UC], -xs[X_US]) * ewa
+    fund = 0.5 * (U * S + U.conjugate() * _expint(2.0 * jw, S).conjugate())
+    for k in range(n):
+        Ct = cw[k] * tab[k, H_TIP]
+        fund += 0.5 * (Ct * _expint(lam[k] - jw, S) + Ct.conjugate() * _expint(lam[k].conjugate() - jw, S))
+    fund = fund * cmath.exp(-jw * ta)
+    return acc[0], acc[1], acc[2], acc[3], fund
+
+
+@njit(cache=True)
+def _window_integrals(tab, xs, n, t0, t1, q, qd, t_from, t_end, stats, lam, G1, G2, cw):
     lo = max(t0, t_from)
     hi = min(t1, t_end)
     if hi > lo:
-        d, dm, f, el = _integrals(tab, xs, n, t0, q, qd, lo - t0, hi - t0)
-        stats[C_ELEC] += el
-        stats[C_DRIVE] += d
-        stats[C_DAMP] += dm
+        if xs[X_SERIES] == 1.0:
+            src, loss, conv, dm, f = _integrals_series(tab, xs, n, t0, q, qd, lo - t0, hi - t0, lam, G1, G2, cw)
+            stats[C_ELEC] += src
+            stats[C_SOURCE_LOSS] += loss
+            stats[C_DRIVE] += conv
+            stats[C_DAMP] += dm
+        else:
+            d, dm, f, el = _integrals(tab, xs, n, t0, q, qd, lo - t0, hi - t0)
+            stats[C_ELEC] += el
+            stats[C_DRIVE] += d
+            stats[C_DAMP] += dm
         stats[C_FUND_RE] += f.real
         stats[C_FUND_IM] += f.imag
 
@@ -513,7 +570,7 @@ def _modal_at(ho, tab, n, W, t0, tt, q, qd):
 
 
 @njit(cache=True)
-def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats):
+def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2):
     m_free, e1, e2 = pv[P_M_FREE], pv[P_E1], pv[P_E2]
     m_tool, k0, c, L0 = pv[P_M_TOOL], pv[P_K0], pv[P_C], pv[P_GAP]
     v_stick = pv[P_V_STICK]
@@ -522,9 +579,14 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats):
     n = tab.shape[0]
     W = xs[X_W]
     Ua = math.hypot(xs[X_UC], xs[X_US])
+    series = xs[X_SERIES] == 1.0
     Sg = 0.0
     for i in range(n):
-        Sg += tab[i, H_TIP] * tab[i, H_TIP] / tab[i, H_MASS]
+        if series:
+            Sg -= tab[i, H_TIP] * tab[i, H_JV]
+        else:
+            Sg += tab[i, H_TIP] * tab[i, H_TIP] / tab[i, H_MASS]
+    cw = np.empty(n + 1, np.complex128)
 
     cap = 1024 if record else 1
     ev = np.empty((cap, _E_N + 3))
@@ -652,7 +714,7 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats):
                 have, te, name = True, r, fkind[i]
         if not have:
             # the last segment runs to t_end: its share of the window integrals
-            _window_integrals(tab, xs, n, t0, t_end, q, qd, t_from, t_end, stats)
+            _window_integrals(tab, xs, n, t0, t_end, q, qd, t_from, t_end, stats, lam, G1, G2, cw)
             break
         if name == _FN_PINCH:
             status, t_status = STATUS_PINCHED, te
@@ -661,7 +723,7 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats):
         if n_ev > max_events:
             status, t_status = STATUS_MAX_EVENTS, te
             break
-        _window_integrals(tab, xs, n, t0, te, q, qd, t_from, t_end, stats)
+        _window_integrals(tab, xs, n, t0, te, q, qd, t_from, t_end, stats, lam, G1, G2, cw)
         s = te - t0
         v, vd = _osc_pv(o, s)
         _modal_at(ho, tab, n, W, t0, te, q, qd)
@@ -731,8 +793,13 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats):
             rel_in = wd - uhd
             J = -(1.0 + e2) * rel_in / (1.0 / m_free + Sg)
             wa = wd + J / m_free
-            for i in range(n):
-                qd[i] -= tab[i, H_TIP] * J / tab[i, H_MASS]
+            if series:
+                for i in range(n):
+                    q[i] += tab[i, H_JQ] * J
+                    qd[i] += tab[i, H_JV] * J
+            else:
+                for i in range(n):
+                    qd[i] -= tab[i, H_TIP] * J / tab[i, H_MASS]
             ua = uhd - J * Sg
             work += J * 0.5 * (uhd + ua)
             if te >= t_from and te <= t_end:
@@ -817,6 +884,21 @@ def _hc_array(contact) -> np.ndarray:
     return np.array([float(contact.stiffness), float(contact.chi)])
 
 
+def _kernel_data(horn: ModalHorn, freq_hz: float):
+    """``(tab, xs, lam, G1, G2)``: the packed horn and, with a series-resistance drive, the tables of
+    its closed-form energy integrals (:meth:`impact.drive.SeriesModel.kernel_tables`; one-element
+    placeholders with the voltage drive)."""
+    if horn.series_resistance > 0:
+        from .drive import pack_series, series_model
+
+        model = series_model(horn, freq_hz)
+        tab, xs = pack_series(horn, model)
+        lam, G1, G2 = model.kernel_tables(horn)
+        return np.ascontiguousarray(tab), xs, lam, G1, G2
+    tab, xs = horn.pack(freq_hz)
+    return np.ascontiguousarray(tab), xs, np.zeros(1, complex), np.zeros((4, 1, 1), complex), np.zeros((4, 1, 1), complex)
+
+
 def run_events(params: ImpactParams, horn: ModalHorn, contact=None) -> tuple:
     """One coupled run (compiled): every event and segment.
 
@@ -834,18 +916,19 @@ def run_events(params: ImpactParams, horn: ModalHorn, contact=None) -> tuple:
         ``stick`` (p, 3): start, end, ``BODY_*``; initial energy (J); ``STATUS_*`` and its time (s);
         number of events; ``window`` the whole run's statistics row (``N_CSTATS``).
     """
-    tab, xs = horn.pack(params.freq)
+    tab, xs, lam, G1, G2 = _kernel_data(horn, params.freq)
     stats = np.zeros(N_CSTATS)
     ev, kinds, nr, segs, ns, stk, nk, E0, status, t_status, n_ev = _core(
-        pack(params), tab, xs, _hc_array(contact), float(params.t_end), int(params.max_events), True, 0.0, stats)
+        pack(params), tab, xs, _hc_array(contact), float(params.t_end), int(params.max_events), True, 0.0, stats,
+        lam, G1, G2)
     return (ev[:nr].copy(), kinds[:nr].copy(), segs[:ns].copy(), stk[:nk].copy(), float(E0), int(status),
             float(t_status), int(n_ev), stats)
 
 
 @njit(cache=True, parallel=True)
-def _ensemble(pmat, tab, xs, hc, t_from, t_end, max_events, out):
+def _ensemble(pmat, tab, xs, hc, t_from, t_end, max_events, out, lam, G1, G2):
     for i in prange(pmat.shape[0]):
-        _core(pmat[i], tab, xs, hc, t_end, max_events, False, t_from, out[i])
+        _core(pmat[i], tab, xs, hc, t_end, max_events, False, t_from, out[i], lam, G1, G2)
 
 
 def ensemble_coupled(pmat: np.ndarray, horn: ModalHorn, freq_hz: float, t_from: float, t_end: float,
@@ -873,9 +956,9 @@ def ensemble_coupled(pmat: np.ndarray, horn: ModalHorn, freq_hz: float, t_from: 
     pmat = np.ascontiguousarray(np.atleast_2d(pmat), dtype=np.float64)
     if pmat.shape[1] != N_PARAMS:
         raise ValueError(f"pmat has {pmat.shape[1]} columns, expected {N_PARAMS}")
-    tab, xs = horn.pack(freq_hz)
+    tab, xs, lam, G1, G2 = _kernel_data(horn, freq_hz)
     out = np.zeros((pmat.shape[0], N_CSTATS))
-    _ensemble(pmat, np.ascontiguousarray(tab), xs, _hc_array(contact), float(t_from), float(t_end), int(max_events), out)
+    _ensemble(pmat, tab, xs, _hc_array(contact), float(t_from), float(t_end), int(max_events), out, lam, G1, G2)
     return out
 
 

@@ -19,7 +19,7 @@ log = logging.getLogger(__name__)
 __all__ = ["horn_from_reduced", "build_transducer", "FeTransducer", "rounded"]
 
 
-def horn_from_reduced(reduced, voltage: float, start: str = "rest") -> ModalHorn:
+def horn_from_reduced(reduced, voltage: float, start: str = "rest", series_resistance: float = 0.0) -> ModalHorn:
     """The impact model's modal horn from a :class:`fem.reduced.ReducedTransducer`.
 
     Parameters
@@ -30,6 +30,8 @@ def horn_from_reduced(reduced, voltage: float, start: str = "rest") -> ModalHorn
         Drive amplitude, V.
     start : {"rest", "steady"}
         Modal state at t = 0.
+    series_resistance : float
+        Source resistance in series with the electrodes, ohm (0: voltage drive; :mod:`impact.drive`).
 
     Returns
     -------
@@ -40,7 +42,8 @@ def horn_from_reduced(reduced, voltage: float, start: str = "rest") -> ModalHorn
                      coupling_re=reduced.coupling_re, coupling_im=reduced.coupling_im, voltage=float(voltage),
                      residual_re=float(reduced.residual_re), residual_im=float(reduced.residual_im),
                      blocked_charge_re=float(reduced.blocked_charge_re),
-                     blocked_charge_im=float(reduced.blocked_charge_im), start=start)
+                     blocked_charge_im=float(reduced.blocked_charge_im), start=start,
+                     series_resistance=float(series_resistance))
 
 
 def round_sig(x: float, digits: int) -> float:
@@ -160,7 +163,8 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, fr
     return FeTransducer(red, f_r, f_a, f, wp.tip_amplitude_m, float(wp.power_w), info)
 
 
-def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, intervals: int = 5) -> dict:
+def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, intervals: int = 5,
+                    series_resistance: float = 0.0) -> dict:
     """Ring-up from rest with the free mass in place: one coupled run of ``t_end`` s.
 
     Returns a dict: ``result`` (:class:`impact.coupled.CoupledResult`, with series), ``lines``
@@ -169,7 +173,7 @@ def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, inte
     """
     from impact.coupled import simulate_coupled
 
-    horn = horn_from_reduced(fe.reduced, voltage, start="rest")
+    horn = horn_from_reduced(fe.reduced, voltage, start="rest", series_resistance=series_resistance)
     p = params.with_(t_end=t_end, freq=fe.freq_hz)
     res = simulate_coupled(p, horn, series=True)
     tc, env = res.envelope(4)
@@ -179,18 +183,22 @@ def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, inte
     power, i_rms = res.drive_power(*tail)
     amp_tail = res.mean_amplitude(*tail)
     imp = res.impact
+    series = series_resistance > 0
     lines = [f"      {imp.tool_impacts} tool and {imp.horn_impacts} horn impacts; tip amplitude over the last "
              f"{(tail[1] - tail[0]) * 1e3:.0f} ms {amp_tail * 1e6:.3f} um (unloaded {fe.tip_amplitude_m * 1e6:.3f} um); "
-             f"drive {power:.2f} W, {i_rms:.3f} A rms (unloaded {fe.power_w:.2f} W)",
+             f"{'source' if series else 'drive'} {power:.2f} W, {i_rms:.3f} A rms (unloaded {fe.power_w:.2f} W)"
+             + (f"; {series_resistance:g} ohm in series" if series else ""),
              "      energy per interval (mJ): " + "  ".join(
-                 ["electrical", "to modes", "damping", "stored", "to free mass", "to tool", "restitution",
-                  "riding", "balance"])]
+                 ["electrical"] + (["source loss"] if series else []) + ["to modes", "damping", "stored", "to free mass",
+                                                                         "to tool", "restitution", "riding", "balance"])]
+    keys = ("electric_j",) + (("source_loss_j",) if series else ()) + ("drive_j", "damping_j", "stored_change_j",
+                                                                       "to_free_mass_j", "to_tool_j")
     for r in rows:
+        bal = abs(r["residual_j"]) + abs(r.get("electric_residual_j", 0.0))
         lines.append(f"      {r['t_from_s'] * 1e3:5.1f}-{r['t_to_s'] * 1e3:5.1f} ms: " + "  ".join(
-            f"{1e3 * r[k]:.4g}" for k in ("electric_j", "drive_j", "damping_j", "stored_change_j", "to_free_mass_j",
-                                          "to_tool_j")) + f"  {1e3 * (r['restitution_horn_j'] + r['restitution_tool_j']):.4g}"
-            f"  {1e3 * r['riding_j']:.3g}  {r['residual_j']:.1e} J")
-    doc = {"t_end_s": t_end, "horn_start": "rest", "modes": fe.reduced.n_modes,
+            f"{1e3 * r[k]:.4g}" for k in keys) + f"  {1e3 * (r['restitution_horn_j'] + r['restitution_tool_j']):.4g}"
+            f"  {1e3 * r['riding_j']:.3g}  {bal:.1e} J")
+    doc = {"t_end_s": t_end, "horn_start": "rest", "modes": fe.reduced.n_modes, "series_resistance_ohm": series_resistance,
            "tool_impacts": imp.tool_impacts, "horn_impacts": imp.horn_impacts,
            "envelope": {"t_s": tc.tolist(), "amplitude_m": env.tolist(), "window_cycles": 4},
            "energy_balance": rows,
@@ -277,13 +285,23 @@ def history_csv(res) -> str:
     from impact.coupled import _states_on
 
     t = res.t_grid
-    _, qd, qdd = _states_on(res, t)
     W = 2 * np.pi * res.freq_hz
     V = res.horn.voltage * np.sin(W * t)
-    current = res.horn.drive_current(res.freq_hz, t, qd, qdd)
-    cols = np.column_stack([t, res.u, res.tip_velocity, res.impact.w, res.impact.tool_face, V, current])
+    head = "t_s,tip_m,tip_velocity_m_per_s,free_mass_m,tool_face_m,voltage_v,current_a"
+    if res.horn.series_resistance > 0:
+        from impact.drive_result import physical
+
+        vp = physical(res, t)[0][:, -1]
+        current = (V - vp) / res.horn.series_resistance
+        extra = [vp]
+        head += ",electrode_voltage_v"
+    else:
+        _, qd, qdd = _states_on(res, t)
+        current = res.horn.drive_current(res.freq_hz, t, qd, qdd)
+        extra = []
+    cols = np.column_stack([t, res.u, res.tip_velocity, res.impact.w, res.impact.tool_face, V, current] + extra)
     buf = io.StringIO()
-    buf.write("t_s,tip_m,tip_velocity_m_per_s,free_mass_m,tool_face_m,voltage_v,current_a\n")
+    buf.write(head + "\n")
     np.savetxt(buf, cols, delimiter=",", fmt="%.10g")
     return buf.getvalue()
 

@@ -36,6 +36,9 @@ def _parser() -> CliParser:
 
     add_design_options(ap, include=("design", "materials"), metavar="TOML")
     ap.add_argument("--voltage", type=_real, default=225.0, metavar="V", help="drive amplitude, V (default 225)")
+    ap.add_argument("--series-resistance", dest="series_resistance", type=_real, default=0.0, metavar="OHM",
+                    help="source resistance in series with the electrodes, ohm (default 0: voltage drive; > 0: the "
+                         "electrode voltage follows the charge, with the resistor's loss in the energy balance)")
     ap.add_argument("--freq", type=_real, default=None, metavar="HZ",
                     help="drive frequency, Hz (default: the working mode's resonance)")
     ap.add_argument("--q-mech", type=_real, default=100.0, metavar="Q",
@@ -69,6 +72,7 @@ def main(argv=None) -> int:
     from impact.cli import _params, _print_stats, _progress, _scenario, _settings, _threads
 
     check_range("--voltage", ns.voltage, 1e-3, 1e4, "V")
+    check_range("--series-resistance", ns.series_resistance, 0.0, 1e6, "ohm")
     if ns.q_mech != 0:
         check_range("--q-mech", ns.q_mech, 1.0, 1e6, "(0 = datasheet values)")
     if ns.freq is not None:
@@ -89,6 +93,9 @@ def main(argv=None) -> int:
         p = p.with_(sample_dt=ns.sample_dt)
     p.with_(t_end=ns.history)                  # at most 2e7 history samples (ImpactParams checks it)
     if ns.contact == "hunt-crossley":
+        if ns.series_resistance > 0:
+            raise ParameterError("--series-resistance", ns.series_resistance, "must be 0 with --contact hunt-crossley "
+                                 "(its contact phases integrate the voltage-driven modes)")
         for opt, val in (("--plots", ns.plots), ("--history-csv", ns.history_csv)):
             if val is not None:
                 raise ParameterError(opt, val, "not available with --contact hunt-crossley (its contact phases are "
@@ -118,11 +125,12 @@ def main(argv=None) -> int:
             f"{contact.chi:.4f} (e2 = {p.e2:g}); no history (contact phases are integrated numerically)")
     else:
         say(f"[2/3] ring-up from rest with the {p.m_free * 1e3:g} g free mass in place, {ns.history * 1e3:g} ms")
-        hist = coupled_history(fe, p.with_(spring_force=sc.spring_force), ns.voltage, ns.history)
+        hist = coupled_history(fe, p.with_(spring_force=sc.spring_force), ns.voltage, ns.history,
+                               series_resistance=ns.series_resistance)
         for line in hist["lines"]:
             print(line)
     say(f"[3/3] statistics, {sc.name} scenario, steady operation")
-    horn = horn_from_reduced(fe.reduced, ns.voltage, start="steady")
+    horn = horn_from_reduced(fe.reduced, ns.voltage, start="steady", series_resistance=ns.series_resistance)
     st = coupled_batch([p], horn, sc, settings, progress=_progress(ns), contact=contact)[0]
     if st.failed:
         raise ParameterError("gap", p.gap, st.note)
@@ -133,7 +141,7 @@ def main(argv=None) -> int:
     print(f"  unloaded (harmonic working point): tip {fe.tip_amplitude_m * 1e6:.3f} um, power {fe.power_w:.2f} W")
     if ns.json:
         doc = {"reduced_transducer": fe.reduced.to_dict(), "fe": fe.info, "drive": {"voltage_v": ns.voltage,
-               "freq_hz": fe.freq_hz, "f_r_hz": fe.f_r_hz, "f_a_hz": fe.f_a_hz,
+               "freq_hz": fe.freq_hz, "series_resistance_ohm": ns.series_resistance, "f_r_hz": fe.f_r_hz, "f_a_hz": fe.f_a_hz,
                "unloaded_tip_amplitude_m": fe.tip_amplitude_m, "unloaded_power_w": fe.power_w},
                "params": p.to_dict(), "history": hist["json"] if hist else None, "statistics": st.to_dict(),
                "contact": ({"law": "hunt-crossley", "stiffness_n_per_m1p5": contact.stiffness, "chi": contact.chi,
