@@ -22,7 +22,7 @@ a clear error (``ParameterError``: "outside the bracket") instead of extrapolati
 
 What is reused between iterations
 ---------------------------------
-The mesh is never rebuilt: :meth:`geometry.design.DesignBase.morph_points` maps it exactly onto
+The mesh is never rebuilt: :meth:`geometry.design_base.DesignBase.morph_points` maps it exactly onto
 the design with the new length (piecewise-linear in z between the zone breakpoints), so an
 iteration is one fast assembly, one factorisation and a few eigenvectors near the target; the
 half model's cell selection is computed once. The working mode is followed from iteration to

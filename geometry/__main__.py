@@ -60,7 +60,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     # warnings only by default, as every rpud CLI: stderr carries the one line of a failed run
     setup_logging(-1 if args.quiet else args.verbose - 1)
-    from .design import default_design
+    from .design_rpud import default_design
     from .options import design_from_options, design_inputs, mesh_options
 
     for key, suffix in _SUFFIX.items():
