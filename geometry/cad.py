@@ -27,7 +27,8 @@ import numpy as np
 from rpud_common import ParameterError
 from rpud_common import cli as common
 
-__all__ = ["Resolved", "resolve", "import_step", "apply_rules", "gmsh_session", "face_point", "volume_point"]
+__all__ = ["Resolved", "resolve", "import_step", "apply_rules", "gmsh_session", "face_point", "volume_point",
+           "native_stdout_quiet"]
 
 log = logging.getLogger(__name__)
 
@@ -103,6 +104,35 @@ def gmsh_session():
         gmsh.finalize()
 
 
+@contextlib.contextmanager
+def native_stdout_quiet():
+    """Silence what native code (OpenCASCADE's STEP translator) writes to file descriptor 1:
+    its transfer statistics would mix with a command line's own output."""
+    import sys
+
+    with contextlib.suppress(Exception):
+        sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+        yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+def _snap_z(gmsh, dim: int, tags, z_lo: float, z_hi: float) -> tuple[float, float]:
+    """OCC pads bounding boxes by its tolerance: snap the z range to the entities' vertices."""
+    pts = gmsh.model.getBoundary([(dim, t) for t in tags], combined=False, oriented=False, recursive=True)
+    zs = np.array([gmsh.model.getValue(0, abs(t), [])[2] for d, t in pts if d == 0]) if pts else np.zeros(0)
+    out = []
+    for z in (z_lo, z_hi):
+        near = zs[np.abs(zs - z) < 1e-6] if len(zs) else zs
+        out.append(float(near[np.argmin(np.abs(near - z))]) if len(near) else float(z))
+    return out[0], out[1]
+
+
 # ============================================================================ import
 
 
@@ -118,7 +148,8 @@ def import_step(gmsh, path: str) -> tuple[list[int], dict[int, str]]:
     gmsh.option.setString("Geometry.OCCTargetUnit", "M")   # OCC converts the file's declared unit
     gmsh.option.setNumber("Geometry.OCCImportLabels", 1)
     try:
-        dimtags = occ.importShapes(str(path), highestDimOnly=True)
+        with native_stdout_quiet():
+            dimtags = occ.importShapes(str(path), highestDimOnly=True)
         occ.synchronize()
     except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
         raise ParameterError("step", str(path), f"cannot be read as STEP ({exc})") from None
@@ -317,7 +348,7 @@ def resolve(design) -> Resolved:
         region_vols, _meta, facet_surfs = apply_rules(gmsh, design, vols, labels)
         tol = _tol(gmsh)
         bb = gmsh.model.getBoundingBox(-1, -1)
-        z_range = (float(bb[2]), float(bb[5]))
+        z_range = _snap_z(gmsh, 3, vols, bb[2], bb[5])
         for x in design.lengths:
             if x.z0 < z_range[0] - tol or x.z1 > z_range[1] + tol:
                 raise ParameterError(f"lengths.{x.name}", [x.z0, x.z1], f"lies outside the drawing's z range "
@@ -329,7 +360,7 @@ def resolve(design) -> Resolved:
             boxes = [gmsh.model.getBoundingBox(3, v) for v in rv]
             region_box[region] = tuple(float(f(b[i] for b in boxes)) for f, i in
                                        ((min, 0), (min, 1), (min, 2), (max, 3), (max, 4), (max, 5)))
-            region_z[region] = (region_box[region][2], region_box[region][5])
+            region_z[region] = _snap_z(gmsh, 3, rv, region_box[region][2], region_box[region][5])
             vols_z: dict[str, float] = {}
             for v in rv:
                 mass = occ.getMass(3, v)

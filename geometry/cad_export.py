@@ -19,7 +19,7 @@ import re
 from pathlib import Path
 
 from rpud_common import ParameterError, atomic_output, dump_toml
-from .cad import apply_rules, face_point, gmsh_session, import_step, volume_point
+from .cad import apply_rules, face_point, gmsh_session, import_step, native_stdout_quiet, volume_point
 from .design_base import POLING_VECTORS, DesignBase
 from .design_cad import CadDesign, LengthRule
 from .design_rpud import RPUDDesign
@@ -159,7 +159,8 @@ def export_cad(design: DesignBase, folder: str | Path, name: str | None = None) 
                 for k, v in enumerate(vols):
                     label[v] = region if len(vols) == 1 else f"{region}_{k + 1}"
             rules = cad_rules(gmsh, design, region_vols, region_meta, facet_surfs, labels=label)
-            gmsh.write(str(tmp_step))
+            with native_stdout_quiet():
+                gmsh.write(str(tmp_step))
         _rename_products(tmp_step, [label[v] for v in order])
         lengths, tuned = _length_rules(design)
         data = {"kind": "cad", "name": name or f"{design.name}-cad", "step": STEP_NAME,

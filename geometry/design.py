@@ -65,7 +65,7 @@ def design_from_mapping(data: Mapping[str, Any], where: str = "",
             data = {**data, "materials": {**materials, **own}}
         if kind == "cad" and base_dir is not None and isinstance(data.get("step"), str):
             step = Path(data["step"]).expanduser()
-            data = {**data, "step": str(step if step.is_absolute() else Path(base_dir) / step)}
+            data = {**data, "step": str(step if step.is_absolute() else (Path(base_dir) / step).resolve())}
         design = from_mapping(KINDS[kind], data)
     except ParameterError as exc:
         if where:

@@ -136,6 +136,13 @@ class DesignBase:
         """``(region, part, material, closed-form volume m^3)`` for every region."""
         raise NotImplementedError
 
+    def part_material(self, part: str) -> str:
+        """Material name of a part (of its first region)."""
+        for _region, p, material, _vol in self.region_table():
+            if p == part:
+                return material
+        raise ParameterError("part", part, "unknown; known: " + ", ".join(sorted(self.part_volumes())))
+
     def total_mass(self) -> float:
         """Closed-form mass of the whole design in kg."""
         return float(sum(self.part_masses().values()))

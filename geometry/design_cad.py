@@ -352,6 +352,15 @@ class CadDesign(DesignBase):
             return (f"lengths.{front[0].name}.value", f"lengths.{back[0].name}.value")
         return (f"lengths.{self.lengths[0].name}.value",)
 
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the design as TOML, atomically, its ``step`` path relative to the file's folder."""
+        from rpud_common import atomic_write_text, dump_toml
+
+        data = self.to_mapping()
+        folder = Path(path).resolve().parent
+        data["step"] = os.path.relpath(Path(self.step).resolve(), folder)
+        atomic_write_text(path, dump_toml(data))
+
     # ------------------------------------------------------------------ the resolved drawing
     def resolve(self):
         """The rules applied to the STEP file (:class:`geometry.cad.Resolved`; needs Gmsh, cached).
