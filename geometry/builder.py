@@ -17,7 +17,6 @@ gmsh is imported inside the functions, so importing this module is cheap.
 from __future__ import annotations
 
 import logging
-import math
 import os
 import signal
 import threading
@@ -34,7 +33,7 @@ from .design_cad import CadDesign
 from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .cad import apply_rules, import_step
-from .solids import make_rpud, make_stack
+from .tagging import parametric_model
 from .mesh import Electrode, Region, TaggedMesh
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, shear_wavelength
 
@@ -94,57 +93,6 @@ class BuildReport:
             "mesh_size_m": self.region_sizes, "physical_groups": self.physical_groups,
             "quality": self.quality, "timings_s": self.timings,
         }
-
-
-# ============================================================================ face selection
-
-
-def _boundary_surfaces(gmsh, vols):
-    out = gmsh.model.getBoundary([(3, v) for v in vols], combined=False, oriented=False, recursive=False)
-    return sorted({abs(t) for dim, t in out if dim == 2})
-
-
-def _planar_at(gmsh, surf, axis: str, value: float, tol: float) -> bool:
-    bb = gmsh.model.getBoundingBox(2, surf)
-    i = "xyz".index(axis)
-    lo, hi = bb[i], bb[i + 3]
-    return hi - lo < tol and abs(0.5 * (lo + hi) - value) < tol
-
-
-def _surface_rules(d: DesignBase) -> list[tuple[str, str, str, float, float]]:
-    """(facet set, region, axis, coordinate, min outer radius of the face) rules."""
-    rules = []
-    if isinstance(d, RPUDDesign):
-        ext = d.part_extents()
-        rules.append(("horn_tip", "horn", "z", ext["horn"][1], 0.0))
-        rules.append(("teeth_tops", "coupler", "z", ext["coupler"][0], 0.0))
-        r_contact = max(d.stack.outer_diameter, d.horn.back_diameter) / 2
-        zf0, zf1 = ext["flange"]
-        rules.append(("flange", "flange_disc", "z", zf0, r_contact + 1e-4))
-        rules.append(("flange", "flange_disc", "z", zf1, r_contact + 1e-4))
-        rings = {r: (z0, z1) for r, kind, z0, z1 in d.stack_layers() if kind == "ring"}
-        for name, planes in d.electrode_planes().items():
-            for axis, value in planes:
-                for ring, (z0, z1) in rings.items():
-                    if math.isclose(value, z0, abs_tol=1e-9) or math.isclose(value, z1, abs_tol=1e-9):
-                        rules.append((name, ring, axis, value, 0.0))
-    else:
-        ext = d.segment_extents()
-        zmin = min(z0 for z0, _ in ext.values())
-        zmax = max(z1 for _, z1 in ext.values())
-        for seg in d.segments:
-            z0, z1 = ext[seg.name]
-            if math.isclose(z0, zmin, abs_tol=1e-12):
-                rules.append(("bottom", seg.name, "z", zmin, 0.0))
-            if math.isclose(z1, zmax, abs_tol=1e-12):
-                rules.append(("top", seg.name, "z", zmax, 0.0))
-        bynames = {s.name: s for s in d.segments}
-        planes = d.electrode_planes()
-        for e in d.electrodes:
-            for axis, value in planes[e.name]:
-                rules.append((e.name, bynames[e.segment].name, axis, value, 0.0))
-    return rules
-
 
 # ============================================================================ build
 
@@ -309,7 +257,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             vols, labels = import_step(gmsh, design.step)
             region_vols, region_meta, facet_surfs = apply_rules(gmsh, design, vols, labels)
         else:
-            region_vols, region_meta, facet_surfs = _parametric_model(gmsh, design, layers)
+            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers)
         report.timings["geometry"] = time.perf_counter() - t0
         clash = sorted(set(region_vols) & set(facet_surfs))
         if clash:
@@ -378,56 +326,6 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     log.info("meshed %s: %d nodes, %d order-%d tetrahedra in %.2f s (min SICN %.3f)", design.name,
              tm.n_points, tm.n_cells, order, report.timings["total"], report.quality.get("min_sicn", float("nan")))
     return tm, report
-
-
-def _parametric_model(gmsh, design: DesignBase, layers):
-    """Solids of a parametric design, fragmented, with their regions and named faces.
-
-    Returns ``(region_vols, region_meta, facet_surfs)``: region -> volume tags, region ->
-    (part, material, poling), facet set -> face tags.
-    """
-    occ = gmsh.model.occ
-    pieces = make_rpud(occ, design) if isinstance(design, RPUDDesign) else make_stack(occ, design, layers)
-    all_tags = [dt for p in pieces for dt in p[4]]
-    if len(all_tags) > 1:
-        _out, out_map = occ.fragment(all_tags, [])
-    else:  # nothing to glue (OCC returns no map for a lone solid)
-        out_map = [[all_tags[0]]]
-    occ.synchronize()
-    region_vols: dict[str, list[int]] = {}
-    k = 0
-    for region, *_rest, dimtags in pieces:
-        vols = []
-        for _ in dimtags:
-            vols += [t for dim, t in out_map[k] if dim == 3]
-            k += 1
-        if not vols:
-            raise ParameterError("design", design.name, f"region {region} vanished when fragmenting")
-        region_vols[region] = sorted(set(vols))
-    claimed = [v for vs in region_vols.values() for v in vs]
-    if len(claimed) != len(set(claimed)):
-        raise ParameterError("design", design.name, "overlapping parts: two regions share a volume")
-    region_meta = {p[0]: p[1:4] for p in pieces}
-    scale = max(abs(z) for _, z in design.axial_breakpoints()) + 1e-3
-    tol = 1e-6 + 1e-6 * scale  # OCC boxes are padded by 1e-7 m
-    facet_surfs: dict[str, list[int]] = {}
-    for name, region, axis, value, rmin in _surface_rules(design):
-        for sf in _boundary_surfaces(gmsh, region_vols[region]):
-            if not _planar_at(gmsh, sf, axis, value, tol):
-                continue
-            if rmin > 0:
-                bb = gmsh.model.getBoundingBox(2, sf)
-                if max(abs(bb[0]), abs(bb[3]), abs(bb[1]), abs(bb[4])) < rmin:
-                    continue
-            facet_surfs.setdefault(name, [])
-            if sf not in facet_surfs[name]:
-                facet_surfs[name].append(sf)
-    expected = {r[0] for r in _surface_rules(design)}
-    missing = sorted(expected - set(facet_surfs))
-    if missing:
-        raise ParameterError("design", design.name, f"no surface found for {', '.join(missing)}")
-    return region_vols, region_meta, facet_surfs
-
 
 def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
     node_tags, coords, _ = gmsh.model.mesh.getNodes()

@@ -27,7 +27,7 @@ import numpy as np
 from rpud_common import ParameterError
 from rpud_common import cli as common
 
-__all__ = ["Resolved", "resolve", "import_step", "apply_rules", "gmsh_session", "face_point", "volume_point",
+__all__ = ["Resolved", "resolve", "zone_table", "import_step", "apply_rules", "gmsh_session", "face_point", "volume_point",
            "native_stdout_quiet"]
 
 log = logging.getLogger(__name__)
@@ -335,8 +335,6 @@ def _key(design) -> tuple:
 
 def resolve(design) -> Resolved:
     """Apply a CAD design's rules to its STEP file (cached per file and rules; see the module)."""
-    from .design_cad import zone_table
-
     try:
         key = _key(design)
     except OSError as exc:
@@ -393,3 +391,22 @@ def resolve(design) -> Resolved:
     log.info("resolved %s: %d solids, %d regions, %d facet sets", os.path.basename(design.step), res.n_solids,
              len(region_z), len(planes))
     return res
+
+
+def zone_table(lengths, zmin: float, zmax: float, drawn: bool = False) -> list[tuple[str, str, float, float]]:
+    """``(label, part, z0, z1)`` of the axial zones of a drawing spanning ``zmin..zmax`` (m): each
+    declared length ``length:<name>`` (at its value, or its drawn length with ``drawn``) and the
+    fixed stretches ``fixed_<k>`` between them, laid end to end from ``zmin``."""
+    z, out, k, cursor = zmin, [], 0, zmin
+    for x in sorted(lengths, key=lambda b: b.z0):
+        if x.z0 > cursor + 1e-12:
+            out.append((f"fixed_{k}", "", z, z + (x.z0 - cursor)))
+            z += x.z0 - cursor
+            k += 1
+        size = x.drawn if drawn else x.value
+        out.append((f"length:{x.name}", x.part, z, z + size))
+        z += size
+        cursor = x.z1
+    if zmax > cursor + 1e-12 or not out:
+        out.append((f"fixed_{k}", "", z, z + (zmax - cursor)))
+    return out

@@ -14,6 +14,7 @@ same solids and the same number of faces. Both files are written atomically.
 
 from __future__ import annotations
 
+import json
 import logging
 import re
 from pathlib import Path
@@ -25,7 +26,7 @@ from .design_cad import CadDesign, LengthRule
 from .design_rpud import RPUDDesign
 from .sizing import feature_caps
 
-__all__ = ["export_cad", "cad_rules", "STEP_NAME", "TOML_NAME"]
+__all__ = ["export_cad", "cad_rules", "rules_toml", "STEP_NAME", "TOML_NAME"]
 
 log = logging.getLogger(__name__)
 
@@ -68,7 +69,7 @@ def _length_rules(design: DesignBase) -> tuple[list[LengthRule], tuple[str, ...]
 
 def cad_rules(gmsh, design: DesignBase, region_vols, region_meta, facet_surfs, *, labels: dict[int, str]) -> dict:
     """The rule tables (TOML layout) that select the built model's solids and faces."""
-    from .builder import _surface_rules
+    from .tagging import surface_rules
 
     bb = gmsh.model.getBoundingBox(-1, -1)
     tol = 1e-6 + 1e-6 * max(abs(x) for x in bb)
@@ -87,7 +88,7 @@ def cad_rules(gmsh, design: DesignBase, region_vols, region_meta, facet_surfs, *
     roles = _roles(design)
     surfaces = []
     by_name: dict[str, list] = {}
-    for name, region, axis, value, rmin in _surface_rules(design):
+    for name, region, axis, value, rmin in surface_rules(design):
         by_name.setdefault(name, []).append((region, axis, value, rmin))
     for name, faces in facet_surfs.items():
         role = roles.get(name, "none")
@@ -111,6 +112,37 @@ def cad_rules(gmsh, design: DesignBase, region_vols, region_meta, facet_surfs, *
     sizes = [{"region": r, "size": float(c)} for r, c in caps.items()]
     sizes += [{"box": [float(x) for x in box], "size": float(c)} for c, box, _r in boxes.values()]
     return {"volumes": volumes, "surfaces": surfaces, "sizes": sizes}
+
+
+def _inline(value) -> str:
+    """A TOML inline value (strings, numbers, lists, tables on one line)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return json.dumps(value)
+    if isinstance(value, float):
+        return repr(round(value, 12) + 0.0)          # 1e-12 m: far below any feature; no -0.0
+    if isinstance(value, int):
+        return str(value)
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_inline(v) for v in value) + "]"
+    return "{ " + ", ".join(f"{k} = {_inline(v)}" for k, v in value.items()) + " }"
+
+
+def rules_toml(data: dict) -> str:
+    """A CAD design mapping as TOML, one line per rule field (the rule tables stay readable)."""
+    lines = []
+    for key, value in data.items():
+        if key not in ("volumes", "surfaces", "sizes", "lengths", "materials"):
+            lines.append(f"{key} = {_inline(value)}")
+    for key in ("lengths", "volumes", "surfaces", "sizes"):
+        for rule in data.get(key, ()):
+            lines.append(f"\n[[{key}]]")
+            lines += [f"{k} = {_inline(v)}" for k, v in rule.items()]
+    text = "\n".join(lines) + "\n"
+    if data.get("materials"):
+        text += "\n" + dump_toml({"materials": data["materials"]})
+    return text
 
 
 def _rename_products(step: Path, names: list[str]) -> None:
@@ -141,7 +173,7 @@ def export_cad(design: DesignBase, folder: str | Path, name: str | None = None) 
     -------
     (STEP path, TOML path)
     """
-    from .builder import _parametric_model
+    from .tagging import parametric_model
 
     if isinstance(design, CadDesign):
         raise ParameterError("--export-step", design.name, "is already a cad design (copy its STEP file)")
@@ -152,7 +184,7 @@ def export_cad(design: DesignBase, folder: str | Path, name: str | None = None) 
     with atomic_output(step_out) as tmp_step, atomic_output(toml_out) as tmp_toml:
         with gmsh_session() as gmsh:
             gmsh.option.setString("Geometry.OCCTargetUnit", "M")     # file in mm, model in m
-            region_vols, region_meta, facet_surfs = _parametric_model(gmsh, design, {})
+            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, {})
             order = [t for _d, t in gmsh.model.getEntities(3)]
             label = {}
             for region, vols in region_vols.items():
@@ -179,7 +211,8 @@ def export_cad(design: DesignBase, folder: str | Path, name: str | None = None) 
                 rule["select"].pop("name", None)
             cad = _verify(design, data, tmp_step, region_vols, facet_surfs)
         tmp_toml.write_text(f"# {cad.name}: {design.kind} design {design.name!r} exported as STEP + rules "
-                            "(python -m geometry --export-step)\n" + dump_toml(data), encoding="utf-8")
+                            "(python -m geometry --export-step); SI units (m, Hz)\n" + rules_toml(data),
+                            encoding="utf-8")
     return step_out, toml_out
 
 

@@ -40,12 +40,14 @@ from typing import Any, Literal
 import numpy as np
 
 from rpud_common import ParameterError, check_choice, check_range
+from .cad import resolve as _resolve
+from .cad import zone_table
 from .design_base import POLING_VECTORS, DesignBase
 from .design_materials import check_material_name
 from .materials import Material
 from .validate import check_count, check_frequency, check_length, check_name
 
-__all__ = ["Plane", "Selector", "VolumeRule", "SurfaceRule", "SizeRule", "LengthRule", "CadDesign", "zone_table"]
+__all__ = ["Plane", "Selector", "VolumeRule", "SurfaceRule", "SizeRule", "LengthRule", "CadDesign"]
 
 _COORD = 10.0
 """Largest |coordinate| of a selector, m."""
@@ -368,9 +370,7 @@ class CadDesign(DesignBase):
         Raises :class:`ParameterError` on a rule that matches nothing, a volume rule matching
         several solids, a solid no rule claims, or a length band outside the drawing.
         """
-        from .cad import resolve
-
-        return resolve(self)
+        return _resolve(self)
 
     def drawn(self) -> "CadDesign":
         """This design with every length at its drawn value (the geometry of the STEP file)."""
@@ -470,21 +470,3 @@ class CadDesign(DesignBase):
             raise ParameterError("design", new.name, "is drawn in another STEP file; re-mesh instead of morphing")
         return super().morph_points(points, new)
 
-
-def zone_table(lengths, zmin: float, zmax: float, drawn: bool = False) -> list[tuple[str, str, float, float]]:
-    """``(label, part, z0, z1)`` of the axial zones of a drawing spanning ``zmin..zmax`` (m): each
-    declared length ``length:<name>`` (at its value, or its drawn length with ``drawn``) and the
-    fixed stretches ``fixed_<k>`` between them, laid end to end from ``zmin``."""
-    z, out, k, cursor = zmin, [], 0, zmin
-    for x in sorted(lengths, key=lambda b: b.z0):
-        if x.z0 > cursor + 1e-12:
-            out.append((f"fixed_{k}", "", z, z + (x.z0 - cursor)))
-            z += x.z0 - cursor
-            k += 1
-        size = x.drawn if drawn else x.value
-        out.append((f"length:{x.name}", x.part, z, z + size))
-        z += size
-        cursor = x.z1
-    if zmax > cursor + 1e-12 or not out:
-        out.append((f"fixed_{k}", "", z, z + (zmax - cursor)))
-    return out
