@@ -18,7 +18,7 @@ import time
 
 import geometry.layers
 from geometry.builder import build
-from geometry.design import default_design
+from geometry.design_rpud import default_design
 from geometry.examples import bonded_sandwich
 from geometry.guard import estimate
 from geometry.report import mesh_part_volumes

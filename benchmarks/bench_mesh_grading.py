@@ -17,7 +17,7 @@ import geometry
 from _table import print_table
 from fem.assembly import assemble
 from fem.modal import modal_analysis, working_mode
-from geometry.design import default_design
+from geometry.design_rpud import default_design
 
 F_R, F_A = 19682.31, 21410.33
 

@@ -22,7 +22,7 @@ a clear error (``ParameterError``: "outside the bracket") instead of extrapolati
 
 What is reused between iterations
 ---------------------------------
-The mesh is never rebuilt: :meth:`geometry.design.DesignBase.morph_points` maps it exactly onto
+The mesh is never rebuilt: :meth:`geometry.design_base.DesignBase.morph_points` maps it exactly onto
 the design with the new length (piecewise-linear in z between the zone breakpoints), so an
 iteration is one fast assembly, one factorisation and a few eigenvectors near the target; the
 half model's cell selection is computed once. The working mode is followed from iteration to
@@ -67,7 +67,7 @@ from .modal import working_mode
 from .modeshape import surface_motion
 from .solvers import blas_threads, factorize
 
-__all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half", "nodal_plane"]
+__all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half", "nodal_plane", "default_tune"]
 
 log = logging.getLogger(__name__)
 
@@ -276,8 +276,19 @@ class MatchResult(Result):
         })
 
 
-def _side(path: str) -> str:
-    head = path.split(".")[0]
+def default_tune(design) -> tuple[str, ...]:
+    """The lengths a match tunes unless the user names others (the design's ``default_tuned``);
+    a design without any (a cad design that declares no ``[[lengths]]``) is refused in one line."""
+    tune = tuple(getattr(design, "default_tuned", ()) or ())
+    if not tune:
+        raise ParameterError("--match", getattr(design, "name", "?"), "has no lengths to tune: a cad design is "
+                             "matched on declared lengths ([[lengths]] z bands of its drawing); declare them or "
+                             "run without --match")
+    return tune
+
+
+def _side(design, path: str) -> str:
+    head = design.length_part(path) if hasattr(design, "length_part") else path.split(".")[0]
     if head in FRONT_PARTS:
         return "front"
     if head in BACK_PARTS:
@@ -361,7 +372,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
             raise ParameterError("tune", path, "unknown; tunable: " + ", ".join(design.tunable_lengths()))
     if len(settings.tune) == 2:
         front, back = settings.tune
-        if _side(front) != "front" or _side(back) != "back":
+        if _side(design, front) != "front" or _side(design, back) != "back":
             raise ParameterError("tune", settings.tune, "give a front (horn/flange) length, then a back "
                                  "(coupler/stack) length")
     else:

@@ -198,12 +198,12 @@ def main(argv=None) -> int:
     design = design_from_options(args)
     check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large, **mesh_options(args))
     if args.match:
-        from .matching import MatchSettings, match
+        from .matching import MatchSettings, default_tune, match
 
         extra = {"n_modes": args.modes} if args.modes is not None else {}
         settings = MatchSettings(
             target_hz=float(args.target or getattr(design, "target_frequency", 20e3)), tolerance=0.005 if args.tol is None else args.tol,
-            tune=tuple(args.tune.split(",")) if args.tune else getattr(design, "default_tuned", ()),
+            tune=tuple(args.tune.split(",")) if args.tune else default_tune(design),
             bracket=bracket, mesh_size=args.mesh_size, order=args.order, **mesh_options(args), **extra)
         out_design = args.out_design
         if out_design is None and outputs["tuned"]:
@@ -230,7 +230,7 @@ def main(argv=None) -> int:
         # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
         text = json_text(res_m.to_dict(), nonfinite="null") if args.json else None
         if out_design:
-            atomic_write_text(out_design, res_m.design.to_toml())
+            res_m.design.save(out_design)
             print(f"tuned design: {out_design}")
         else:
             print("tuned design not written (give --out-design FILE or --json)")

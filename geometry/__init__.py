@@ -10,13 +10,15 @@ from rpud_common.lazy import exports
 
 __all__ = ["ParameterError", "TaggedMesh", "Region", "Electrode",
            "RPUDDesign", "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign",
-           "StackDesign", "Segment", "ElectrodeSpec", "DesignBase",
+           "StackDesign", "Segment", "ElectrodeSpec", "DesignBase", "CadDesign",
            "default_design", "load_design", "design_from_mapping", "build_mesh", "build"]
 
 _LAZY = {"ParameterError": "rpud_common.errors",
-         **{name: "design" for name in ("CouplerDesign", "DesignBase", "ElectrodeSpec", "FlangeDesign",
-                                        "HornDesign", "RPUDDesign", "Segment", "StackDesign", "StackRings",
-                                        "default_design", "design_from_mapping", "load_design")},
+         **{name: "design_rpud" for name in ("CouplerDesign", "FlangeDesign", "HornDesign", "RPUDDesign",
+                                             "StackRings", "default_design")},
+         **{name: "design_stack" for name in ("ElectrodeSpec", "Segment", "StackDesign")},
+         "CadDesign": "design_cad", "DesignBase": "design_base",
+         **{name: "design" for name in ("design_from_mapping", "load_design")},
          **{name: "mesh" for name in ("Electrode", "Region", "TaggedMesh")}}
 # not one of these names: ``from geometry import builder`` falls back to the submodule import
 __getattr__, __dir__ = exports(__name__, _LAZY)

@@ -5,6 +5,8 @@ Examples::
     python -m geometry --write-default design.toml
     python -m geometry --design design.toml --mesh rpud.msh --vtu rpud.vtu --json rpud.json --png rpud.png
     python -m geometry --design geometry/examples.toml --select k31_bar --json k31.json --order 1
+    python -m geometry --export-step cad/          # cad/design.step + cad/design.toml (kind = "cad")
+    python -m geometry --design cad/design.toml --json cad.json
 """
 
 from __future__ import annotations
@@ -36,6 +38,9 @@ def _parser() -> CliParser:
 
     add_design_options(p, include=("design", "select", "materials"))
     p.add_argument("--write-default", metavar="FILE", help="write the default RPUD design as TOML and exit")
+    p.add_argument("--export-step", metavar="DIR", help="write the design's solids as DIR/design.step (mm, solids "
+                   "labelled by region) and DIR/design.toml, a kind = \"cad\" design with the rules that name its "
+                   "regions, surfaces, electrodes, size caps and tuned lengths; then exit unless a mesh output is given")
     p.add_argument("--mesh", metavar="OUT.msh", help="write the tagged mesh (Gmsh 2.2 format, physical names)")
     p.add_argument("--vtu", metavar="OUT.vtu", help="write the mesh for ParaView (region/material/poling data)")
     p.add_argument("--json", metavar="OUT.json", help="write the report: parts (mesh volume, mass), groups, "
@@ -60,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
     args = _parser().parse_args(argv)
     # warnings only by default, as every rpud CLI: stderr carries the one line of a failed run
     setup_logging(-1 if args.quiet else args.verbose - 1)
-    from .design import default_design
+    from .design_rpud import default_design
     from .options import design_from_options, design_inputs, mesh_options
 
     for key, suffix in _SUFFIX.items():
@@ -68,13 +73,26 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and Path(value).suffix.lower() != suffix:
             raise ParameterError(f"--{key.replace('_', '-')}", value, f"must end in {suffix}")
     check_options(args)
-    check_output_paths(inputs=design_inputs(args), mesh=args.mesh, vtu=args.vtu, json=args.json,
-                                 png=args.png, write_default=args.write_default)
+    check_output_paths(inputs=design_inputs(args), folders=("export_step",), mesh=args.mesh, vtu=args.vtu,
+                       json=args.json, png=args.png, write_default=args.write_default, export_step=args.export_step)
+    if args.export_step and Path(args.export_step).is_dir():
+        from .cad_export import STEP_NAME, TOML_NAME
+
+        folder = Path(args.export_step)
+        check_output_paths(inputs=design_inputs(args), **{"--export-step": folder / STEP_NAME},
+                           **{"--export-step ": folder / TOML_NAME})
     if args.write_default:
         default_design().save(args.write_default)
         log.info("wrote %s", args.write_default)
         return 0
     design = design_from_options(args)
+    if args.export_step:
+        from .cad_export import export_cad
+
+        step, toml = export_cad(design, args.export_step)
+        sys.stdout.write(f"wrote {step} and {toml}\n")
+        if not (args.mesh or args.vtu or args.json or args.png):
+            return 0
 
     from .guard import check_budget
     from .report import build_report

@@ -17,7 +17,6 @@ gmsh is imported inside the functions, so importing this module is cheap.
 from __future__ import annotations
 
 import logging
-import math
 import os
 import signal
 import threading
@@ -29,8 +28,12 @@ import numpy as np
 
 from rpud_common import cli as common
 from rpud_common import ParameterError, check_choice, check_range
-from .design import DesignBase, RPUDDesign, StackDesign
-from .solids import make_rpud, make_stack
+from .design_base import DesignBase
+from .design_cad import CadDesign
+from .design_rpud import RPUDDesign
+from .design_stack import StackDesign
+from .cad import apply_rules, import_step
+from .tagging import parametric_model
 from .mesh import Electrode, Region, TaggedMesh
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, shear_wavelength
 
@@ -91,57 +94,6 @@ class BuildReport:
             "quality": self.quality, "timings_s": self.timings,
         }
 
-
-# ============================================================================ face selection
-
-
-def _boundary_surfaces(gmsh, vols):
-    out = gmsh.model.getBoundary([(3, v) for v in vols], combined=False, oriented=False, recursive=False)
-    return sorted({abs(t) for dim, t in out if dim == 2})
-
-
-def _planar_at(gmsh, surf, axis: str, value: float, tol: float) -> bool:
-    bb = gmsh.model.getBoundingBox(2, surf)
-    i = "xyz".index(axis)
-    lo, hi = bb[i], bb[i + 3]
-    return hi - lo < tol and abs(0.5 * (lo + hi) - value) < tol
-
-
-def _surface_rules(d: DesignBase) -> list[tuple[str, str, str, float, float]]:
-    """(facet set, region, axis, coordinate, min outer radius of the face) rules."""
-    rules = []
-    if isinstance(d, RPUDDesign):
-        ext = d.part_extents()
-        rules.append(("horn_tip", "horn", "z", ext["horn"][1], 0.0))
-        rules.append(("teeth_tops", "coupler", "z", ext["coupler"][0], 0.0))
-        r_contact = max(d.stack.outer_diameter, d.horn.back_diameter) / 2
-        zf0, zf1 = ext["flange"]
-        rules.append(("flange", "flange_disc", "z", zf0, r_contact + 1e-4))
-        rules.append(("flange", "flange_disc", "z", zf1, r_contact + 1e-4))
-        rings = {r: (z0, z1) for r, kind, z0, z1 in d.stack_layers() if kind == "ring"}
-        for name, planes in d.electrode_planes().items():
-            for axis, value in planes:
-                for ring, (z0, z1) in rings.items():
-                    if math.isclose(value, z0, abs_tol=1e-9) or math.isclose(value, z1, abs_tol=1e-9):
-                        rules.append((name, ring, axis, value, 0.0))
-    else:
-        ext = d.segment_extents()
-        zmin = min(z0 for z0, _ in ext.values())
-        zmax = max(z1 for _, z1 in ext.values())
-        for seg in d.segments:
-            z0, z1 = ext[seg.name]
-            if math.isclose(z0, zmin, abs_tol=1e-12):
-                rules.append(("bottom", seg.name, "z", zmin, 0.0))
-            if math.isclose(z1, zmax, abs_tol=1e-12):
-                rules.append(("top", seg.name, "z", zmax, 0.0))
-        bynames = {s.name: s for s in d.segments}
-        planes = d.electrode_planes()
-        for e in d.electrodes:
-            for axis, value in planes[e.name]:
-                rules.append((e.name, bynames[e.segment].name, axis, value, 0.0))
-    return rules
-
-
 # ============================================================================ build
 
 
@@ -177,6 +129,11 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     if common.native_code_running():
         raise ParameterError("design", getattr(design, "name", design),
                              "an abandoned Gmsh run is still going in this process; start a new one")
+    if isinstance(design, CadDesign):
+        if grade:
+            raise ParameterError("--grade", True, "is not available for cad designs (the re-entrant edges of a "
+                                 "drawing are not known); use --refine or [[sizes]] rules")
+        design.resolve()        # the rules checked, in one line, before Gmsh meshes anything
     box: dict[str, Any] = {}
     # Set by the worker after its last native call (gmsh.finalize): the only reliable sign that
     # Gmsh stopped, since Thread.is_alive() lies after a join interrupted by a signal.
@@ -230,7 +187,11 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
                              "coarser --mesh-size or allow more time (--gmsh-timeout / RPUD_GMSH_TIMEOUT, s)")
     if "error" in box:
         raise box["error"]
-    return box["result"]
+    tm, report = box["result"]
+    if isinstance(design, CadDesign) and design.drawn() is not design:
+        # declared lengths away from the drawing: the drawing's mesh, stretched band by band
+        tm = tm.replace(points=design.drawn().morph_points(tm.points, design))
+    return tm, report
 
 
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
@@ -241,7 +202,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
 
     Parameters
     ----------
-    design : RPUDDesign or StackDesign
+    design : RPUDDesign, StackDesign or CadDesign
     mesh_size : float, optional
         Base element size in m for every region, replacing the elements-per-wavelength rule
         (feature caps, layers, edge grading and the curvature rule still apply).
@@ -272,8 +233,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     if order not in (1, 2) or isinstance(order, bool):
         raise ParameterError("order", order, "must be 1 or 2")
     check_choice("algorithm", algorithm, tuple(ALGORITHMS))
-    if not isinstance(design, (RPUDDesign, StackDesign)):
-        raise ParameterError("design", type(design).__name__, "must be an RPUDDesign or a StackDesign")
+    if not isinstance(design, (RPUDDesign, StackDesign, CadDesign)):
+        raise ParameterError("design", type(design).__name__, "must be an RPUDDesign, a StackDesign or a CadDesign")
     sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
@@ -288,58 +249,21 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             gmsh.option.setNumber(f"Mesh.MaxNumThreads{dim}", 1)
         gmsh.option.setNumber("Mesh.RandomSeed", 1)
         gmsh.model.add(design.name)
-        occ = gmsh.model.occ
 
-        # ---- solids
+        # ---- solids and their names
         t0 = time.perf_counter()
         layers = mesh_layers(design, mesh_size, elements_per_wavelength, refine)
-        pieces = make_rpud(occ, design) if isinstance(design, RPUDDesign) else make_stack(occ, design, layers)
-        all_tags = [dt for p in pieces for dt in p[4]]
-        if len(all_tags) > 1:
-            _out, out_map = occ.fragment(all_tags, [])
-        else:  # nothing to glue (OCC returns no map for a lone solid)
-            out_map = [[all_tags[0]]]
-        occ.synchronize()
-        region_vols: dict[str, list[int]] = {}
-        k = 0
-        for region, *_rest, dimtags in pieces:
-            vols = []
-            for _ in dimtags:
-                vols += [t for dim, t in out_map[k] if dim == 3]
-                k += 1
-            if not vols:
-                raise ParameterError("design", design.name, f"region {region} vanished when fragmenting")
-            region_vols[region] = sorted(set(vols))
-        claimed = [v for vs in region_vols.values() for v in vs]
-        if len(claimed) != len(set(claimed)):
-            raise ParameterError("design", design.name, "overlapping parts: two regions share a volume")
+        if isinstance(design, CadDesign):
+            vols, labels = import_step(gmsh, design.step)
+            region_vols, region_meta, facet_surfs = apply_rules(gmsh, design, vols, labels)
+        else:
+            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers)
         report.timings["geometry"] = time.perf_counter() - t0
-
-        # ---- physical groups
-        region_meta = {p[0]: p[1:4] for p in pieces}
-        clash = sorted(set(region_vols) & {r[0] for r in _surface_rules(design)})
+        clash = sorted(set(region_vols) & set(facet_surfs))
         if clash:
             raise ParameterError("design", design.name, f"region name(s) {', '.join(clash)} clash with surface names")
         for region, vols in region_vols.items():
             gmsh.model.addPhysicalGroup(3, vols, name=region)
-        scale = max(abs(z) for _, z in design.axial_breakpoints()) + 1e-3
-        tol = 1e-6 + 1e-6 * scale  # OCC boxes are padded by 1e-7 m
-        facet_surfs: dict[str, list[int]] = {}
-        for name, region, axis, value, rmin in _surface_rules(design):
-            for sf in _boundary_surfaces(gmsh, region_vols[region]):
-                if not _planar_at(gmsh, sf, axis, value, tol):
-                    continue
-                if rmin > 0:
-                    bb = gmsh.model.getBoundingBox(2, sf)
-                    if max(abs(bb[0]), abs(bb[3]), abs(bb[1]), abs(bb[4])) < rmin:
-                        continue
-                facet_surfs.setdefault(name, [])
-                if sf not in facet_surfs[name]:
-                    facet_surfs[name].append(sf)
-        expected = {r[0] for r in _surface_rules(design)}
-        missing = sorted(expected - set(facet_surfs))
-        if missing:
-            raise ParameterError("design", design.name, f"no surface found for {', '.join(missing)}")
         for name, surfs in facet_surfs.items():
             gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
 
@@ -402,7 +326,6 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     log.info("meshed %s: %d nodes, %d order-%d tetrahedra in %.2f s (min SICN %.3f)", design.name,
              tm.n_points, tm.n_cells, order, report.timings["total"], report.quality.get("min_sicn", float("nan")))
     return tm, report
-
 
 def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
     node_tags, coords, _ = gmsh.model.mesh.getNodes()

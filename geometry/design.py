@@ -1,833 +1,60 @@
-"""Design data: the RPUD composition and generic coaxial stacks, as frozen dataclasses (SI units).
+"""Loading designs: the design kinds by their ``kind`` key, from a mapping or a TOML file.
 
-Two design kinds share one interface (:class:`DesignBase`):
+The kinds live in modules of their own, on the shared base :class:`~geometry.design_base.DesignBase`:
 
-- :class:`RPUDDesign` -- the rotary-percussive composition of the article (Fig. 1-2): a V-LT
-  coupler on the back (-z), a stack of piezoceramic rings, a mounting flange and a percussive
-  horn on the front (+z, tip face hit by the free mass).
-- :class:`StackDesign` -- any list of coaxial :class:`Segment` (cylinder, annulus, cone,
-  rectangular box) placed along z, each with a material and, for piezoceramics, a poling
-  direction; electrodes are named faces of segments (:class:`ElectrodeSpec`). Textbook cases
-  (k33 rod, k31 bar, Langevin sandwich, slender rod) are built with :mod:`geometry.examples`.
+- ``kind = "rpud"`` -- :class:`~geometry.design_rpud.RPUDDesign`, the rotary-percussive
+  composition of the article (coupler, rings, flange, horn; :mod:`geometry.design_rpud`);
+- ``kind = "stack"`` -- :class:`~geometry.design_stack.StackDesign`, coaxial segments along z
+  (:mod:`geometry.design_stack`);
+- ``kind = "cad"`` -- :class:`~geometry.design_cad.CadDesign`, a STEP file with a rule table that
+  names its volumes and faces (:mod:`geometry.design_cad`).
 
-Every design validates itself on construction (a :class:`~rpud_common.errors.ParameterError`
-names the offending field by its dotted path), converts to and from TOML, exposes a dotted-path
-API (``design.get("horn.length")``, ``design.replace({"horn.length": 0.062})``), closed-form
-part volumes and masses, the axial extent of every part and an exact axial morph of mesh
-points between two designs that differ only in lengths (:meth:`DesignBase.morph_points`).
-
-Coordinates: drill axis z. For the RPUD, z = 0 is the interface between the coupler and the
-first ring; the coupler's teeth are at the -z end, the horn tip at the +z end.
+Every name these modules export is also importable from here (``from geometry.design import
+RPUDDesign`` keeps working).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import logging
-import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from typing import Any, ClassVar, Literal
+from pathlib import Path
+from typing import Any
 
-import numpy as np
-
-from rpud_common import ParameterError, check_choice, check_range, from_mapping, load_toml
-from .design_base import DesignBase
-from .design_materials import check_material_name, own_records
+from rpud_common import ParameterError, check_choice, from_mapping, load_toml
+from .design_base import MIN_WALL, POLING_VECTORS, DesignBase
+from .design_cad import CadDesign, LengthRule, SizeRule, SurfaceRule, VolumeRule
+from .design_materials import own_records
+from .design_rpud import CouplerDesign, FlangeDesign, HornDesign, RPUDDesign, StackRings, default_design
+from .design_stack import ElectrodeSpec, Segment, StackDesign
 from .materials import Material
-from .validate import (MIN_LAYER, check_bore, check_count, check_frequency, check_length, check_name,
-                       design_table, finite_or_none)
+from .validate import design_table
 
 __all__ = [
     "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign", "RPUDDesign",
     "Segment", "ElectrodeSpec", "StackDesign", "DesignBase",
-    "load_design", "design_from_mapping", "default_design", "POLING_VECTORS",
+    "CadDesign", "VolumeRule", "SurfaceRule", "SizeRule", "LengthRule",
+    "load_design", "design_from_mapping", "default_design", "POLING_VECTORS", "MIN_WALL", "KINDS",
 ]
 
-log = logging.getLogger(__name__)
-
-POLING_VECTORS: dict[str, tuple[float, float, float] | None] = {
-    "none": None,
-    "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0),
-    "+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0),
-    "+y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0),
-}
-"""Poling keywords of a segment and their unit vectors."""
-
-_MIN_WALL = 0.5e-3
-"""Smallest metal wall (m) left by a bore, a slot or a tooth gap: below it Gmsh needs sliver elements."""
-
-
-_material = check_material_name
-
-
-def _annulus(d_out: float, d_in: float) -> float:
-    return math.pi / 4.0 * (d_out ** 2 - d_in ** 2)
-
-
-# ============================================================================ RPUD parts
-
-
-@dataclass(frozen=True)
-class HornDesign:
-    """Percussive horn on the front (+z) of the stack; its tip face is hit by the free mass.
-
-    Attributes
-    ----------
-    material : str
-        Material name (default titanium alloy Ti-6Al-4V).
-    profile : {"stepped", "conical", "exponential"}
-        Stepped: a cylinder of ``back_diameter`` over ``step_fraction * length`` then a cylinder
-        of ``tip_diameter``. Conical: a straight cone. Exponential: diameter
-        ``back_diameter * N**(-s/length)`` (N = back/tip ratio), lofted through circles.
-    length : float
-        Axial length from the flange to the tip face, m (tuned by resonance matching).
-    back_diameter, tip_diameter : float
-        Diameters at the back (flange side) and at the tip, m.
-    step_fraction : float
-        Stepped profile only: back-section length as a fraction of ``length`` (0.5 = the
-        classic two quarter-wave sections).
-    """
-
-    _prefix: ClassVar[str] = "horn"
-    material: str = "ti6al4v"
-    profile: Literal["stepped", "conical", "exponential"] = "stepped"
-    length: float = 0.0671
-    back_diameter: float = 0.024
-    tip_diameter: float = 0.011
-    step_fraction: float = 0.5
-
-    def __post_init__(self):
-        p = self._prefix
-        _material(f"{p}.material", self.material)
-        check_choice(f"{p}.profile", self.profile, ("stepped", "conical", "exponential"))
-        check_length(f"{p}.length", self.length)
-        check_length(f"{p}.back_diameter", self.back_diameter)
-        check_length(f"{p}.tip_diameter", self.tip_diameter)
-        check_range(f"{p}.step_fraction", self.step_fraction, 0.05, 0.95)
-        if self.profile == "exponential" and math.isclose(self.back_diameter, self.tip_diameter):
-            raise ParameterError(f"{p}.tip_diameter", self.tip_diameter,
-                                 "must differ from back_diameter for an exponential profile (use stepped)")
-
-    def diameter_at(self, s: np.ndarray | float) -> np.ndarray:
-        """Outer diameter (m) at distance ``s`` (m) from the horn's back face."""
-        s = np.asarray(s, dtype=float)
-        if self.profile == "stepped":
-            return np.where(s <= self.step_fraction * self.length, self.back_diameter, self.tip_diameter)
-        if self.profile == "conical":
-            return self.back_diameter + (self.tip_diameter - self.back_diameter) * s / self.length
-        ratio = self.back_diameter / self.tip_diameter
-        return self.back_diameter * ratio ** (-s / self.length)
-
-    def volume(self, bore: float) -> float:
-        """Closed-form volume in m^3 with a central through-bore of diameter ``bore``."""
-        L, D0, Dt = self.length, self.back_diameter, self.tip_diameter
-        if self.profile == "stepped":
-            l1 = self.step_fraction * L
-            v = math.pi / 4 * (D0 ** 2 * l1 + Dt ** 2 * (L - l1))
-        elif self.profile == "conical":
-            v = math.pi * L / 12 * (D0 ** 2 + D0 * Dt + Dt ** 2)
-        else:
-            a = math.log(D0 / Dt) / L  # r = r0 exp(-a s)
-            v = math.pi * (D0 / 2) ** 2 * (1 - math.exp(-2 * a * L)) / (2 * a)
-        return v - math.pi / 4 * bore ** 2 * L
-
-
-@dataclass(frozen=True)
-class StackRings:
-    """The piezoceramic stack: ``n_rings`` rings alternately poled along +-z.
-
-    Attributes
-    ----------
-    material : str
-        Piezoceramic (default PZT-8).
-    n_rings : int
-        Number of rings (even, so both stack ends are ground electrodes touching metal).
-    outer_diameter, inner_diameter, ring_thickness : float
-        Ring dimensions, m.
-    electrode_shims : bool
-        Insert copper shims (part ``electrodes``) at every electrode plane.
-    shim_thickness : float
-        Shim thickness, m.
-    shim_material : str
-    """
-
-    _prefix: ClassVar[str] = "stack"
-    material: str = "PZT-8"
-    n_rings: int = 4
-    outer_diameter: float = 0.035
-    inner_diameter: float = 0.015
-    ring_thickness: float = 0.005
-    electrode_shims: bool = False
-    shim_thickness: float = 0.0003
-    shim_material: str = "copper"
-
-    def __post_init__(self):
-        p = self._prefix
-        _material(f"{p}.material", self.material)
-        check_count(f"{p}.n_rings", self.n_rings, 2, even=True)
-        check_length(f"{p}.outer_diameter", self.outer_diameter)
-        check_bore(f"{p}.inner_diameter", self.inner_diameter)
-        if self.inner_diameter >= self.outer_diameter - 2 * _MIN_WALL:
-            raise ParameterError(f"{p}.inner_diameter", self.inner_diameter,
-                                 f"must be < outer_diameter - {2 * _MIN_WALL:g} = {self.outer_diameter - 2 * _MIN_WALL:g} m")
-        check_length(f"{p}.ring_thickness", self.ring_thickness)
-        check_length(f"{p}.shim_thickness", self.shim_thickness)
-        _material(f"{p}.shim_material", self.shim_material)
-
-    @property
-    def length(self) -> float:
-        """Axial length of the stack (rings and shims), m."""
-        shims = (self.n_rings + 1) * self.shim_thickness if self.electrode_shims else 0.0
-        return self.n_rings * self.ring_thickness + shims
-
-    def ring_volume(self) -> float:
-        return _annulus(self.outer_diameter, self.inner_diameter) * self.ring_thickness
-
-
-@dataclass(frozen=True)
-class FlangeDesign:
-    """Mounting flange: a disc between the stack and the horn, near the nodal plane.
-
-    Attributes
-    ----------
-    material : str
-    thickness, outer_diameter : float
-        m. The flange is clamped on its two annular faces outside the stack and horn
-        (facet set ``flange``).
-    """
-
-    _prefix: ClassVar[str] = "flange"
-    material: str = "ti6al4v"
-    thickness: float = 0.003
-    outer_diameter: float = 0.045
-
-    def __post_init__(self):
-        p = self._prefix
-        _material(f"{p}.material", self.material)
-        check_length(f"{p}.thickness", self.thickness)
-        check_length(f"{p}.outer_diameter", self.outer_diameter)
-
-
-@dataclass(frozen=True)
-class CouplerDesign:
-    """V-type longitudinal-torsional (V-LT) coupler on the back (-z) of the stack.
-
-    A thick tube; from the stack backwards: a plain base (length fixed by ``length``), a
-    zone of ``n_slots`` surface slots inclined at ``slot_angle_deg`` to the axis (helical, so
-    the slot keeps its cross-section along z), a plain gap of ``slot_offset`` and ``n_teeth``
-    driving teeth (castellations) of height ``tooth_height`` whose top faces touch the rotor.
-
-    Attributes
-    ----------
-    material : str
-    length : float
-        Overall axial length including the teeth, m (tuned by resonance matching).
-    outer_diameter, inner_diameter : float
-        Tube diameters, m (the bore is ``max(inner_diameter, RPUDDesign.bore_diameter)``).
-    n_slots : int
-        Number of slots (0 = none).
-    slot_profile : {"v", "rectangular"}
-        Cross-section perpendicular to the axis: "v" a V groove (apex at ``slot_depth``
-        below the surface), "rectangular" an annular sector with radial walls.
-    slot_width : float
-        Arc width of a slot at the outer surface, in a plane normal to the axis, m.
-    slot_depth : float
-        Radial depth, m (< wall thickness).
-    slot_length : float
-        Axial length of the slotted zone, m.
-    slot_angle_deg : float
-        Inclination of the slots to the axis, degrees (0 = axial slots: no torsion).
-    slot_offset : float
-        Axial gap between the teeth roots and the slotted zone, m.
-    n_teeth : int
-        Number of driving teeth (0 = plain end face).
-    tooth_width : float
-        Arc width of a tooth at the outer surface, m.
-    tooth_height : float
-        Axial height of the teeth, m.
-    """
-
-    _prefix: ClassVar[str] = "coupler"
-    material: str = "ti6al4v"
-    length: float = 0.0499
-    outer_diameter: float = 0.035
-    inner_diameter: float = 0.015
-    n_slots: int = 6
-    slot_profile: Literal["v", "rectangular"] = "v"
-    slot_width: float = 0.004
-    slot_depth: float = 0.005
-    slot_length: float = 0.02
-    slot_angle_deg: float = 30.0
-    slot_offset: float = 0.004
-    n_teeth: int = 6
-    tooth_width: float = 0.008
-    tooth_height: float = 0.003
-
-    def __post_init__(self):
-        p = self._prefix
-        _material(f"{p}.material", self.material)
-        check_length(f"{p}.length", self.length)
-        check_length(f"{p}.outer_diameter", self.outer_diameter)
-        check_bore(f"{p}.inner_diameter", self.inner_diameter)
-        for name in ("n_slots", "n_teeth"):
-            check_count(f"{p}.{name}", getattr(self, name))
-        check_choice(f"{p}.slot_profile", self.slot_profile, ("v", "rectangular"))
-        check_length(f"{p}.slot_width", self.slot_width)
-        check_length(f"{p}.slot_depth", self.slot_depth)
-        check_length(f"{p}.slot_length", self.slot_length)
-        check_range(f"{p}.slot_angle_deg", self.slot_angle_deg, -60.0, 60.0, "degrees")
-        check_bore(f"{p}.slot_offset", self.slot_offset)
-        check_length(f"{p}.tooth_width", self.tooth_width)
-        check_length(f"{p}.tooth_height", self.tooth_height)
-        self.check_bore(self.inner_diameter, f"{p}.inner_diameter")
-        if self.n_teeth and self.inner_diameter <= 0:
-            raise ParameterError(f"{p}.inner_diameter", self.inner_diameter,
-                                 "must be > 0 m with teeth: the teeth are castellations of a tube")
-        R = self.outer_diameter / 2
-        if self.n_slots:
-            per = 2 * math.pi * R / self.n_slots
-            if self.slot_width > per - _MIN_WALL:
-                raise ParameterError(f"{p}.slot_width", self.slot_width,
-                                     f"must be < {per - _MIN_WALL:g} m so that {self.n_slots} slots leave "
-                                     f"a {_MIN_WALL * 1e3:g} mm land between them")
-            if self.slot_width >= 2 * R * 0.9:
-                raise ParameterError(f"{p}.slot_width", self.slot_width, f"must be < 0.9 x outer diameter = {1.8 * R:g} m")
-        if self.n_teeth:
-            per = 2 * math.pi * R / self.n_teeth
-            if self.tooth_width > per / 1.2:
-                raise ParameterError(f"{p}.n_teeth", self.n_teeth,
-                                     f"more teeth than fit: {self.n_teeth} x tooth_width {self.tooth_width:g} m "
-                                     f"needs gaps of >= 20 % of a tooth on the circumference {2 * math.pi * R:.4g} m")
-        used = (self.tooth_height if self.n_teeth else 0.0) + (self.slot_offset + self.slot_length if self.n_slots else 0.0)
-        if self.length <= used + _MIN_WALL:
-            raise ParameterError(f"{p}.length", self.length,
-                                 f"must exceed teeth + slot offset + slotted zone = {used:g} m by "
-                                 f">= {_MIN_WALL:g} m (the zones would overlap the stack)")
-
-    def check_bore(self, bore: float, name: str) -> None:
-        """Raise unless the wall left by a bore of diameter ``bore`` holds the slots."""
-        wall = (self.outer_diameter - bore) / 2
-        if wall < _MIN_WALL:
-            raise ParameterError(name, bore, f"must be < coupler.outer_diameter - {2 * _MIN_WALL:g} m")
-        if self.n_slots and self.slot_depth > wall - _MIN_WALL:
-            raise ParameterError(f"{self._prefix}.slot_depth", self.slot_depth,
-                                 f"must be < wall thickness {wall:g} m minus {_MIN_WALL:g} m")
-
-    @property
-    def slot_twist(self) -> float:
-        """Rotation (rad) of a slot about the axis over the slotted zone."""
-        return self.slot_length * math.tan(math.radians(self.slot_angle_deg)) / (self.outer_diameter / 2)
-
-    def slot_area(self) -> float:
-        """Cross-section area (m^2) of one slot in a plane normal to the axis."""
-        R = self.outer_diameter / 2
-        alpha = self.slot_width / (2 * R)
-        if self.slot_profile == "rectangular":
-            return alpha * (R ** 2 - (R - self.slot_depth) ** 2)
-        return alpha * R ** 2 - R * (R - self.slot_depth) * math.sin(alpha)
-
-    def volume(self, bore: float) -> float:
-        """Closed-form volume in m^3 (slots and tooth gaps subtracted)."""
-        bore = max(bore, self.inner_diameter)
-        ring = _annulus(self.outer_diameter, bore)
-        h = self.tooth_height if self.n_teeth else 0.0
-        v = ring * (self.length - h)
-        if self.n_teeth:
-            R, Ri = self.outer_diameter / 2, bore / 2
-            v += self.n_teeth * 0.5 * (self.tooth_width / R) * (R ** 2 - Ri ** 2) * h
-        if self.n_slots:
-            v -= self.n_slots * self.slot_area() * self.slot_length
-        return v
-
-
-@dataclass(frozen=True)
-class RPUDDesign(DesignBase):
-    """The rotary-percussive composition: coupler (-z) | rings | flange | horn (+z).
-
-    Attributes
-    ----------
-    kind : "rpud"
-    name : str
-    target_frequency : float
-        Working frequency, Hz (sets the elements-per-wavelength mesh size).
-    elements_per_wavelength : float
-        Elements per shear wavelength of each material at ``target_frequency``.
-    bore_diameter : float
-        Central through-bore of the flange and horn (and the coupler, if larger than its own
-        bore), m; 0 = solid. Must not exceed the rings' inner diameter.
-    horn, stack, flange, coupler : part designs
-    """
-
-    kind: Literal["rpud"] = "rpud"
-    name: str = "rpud-default"
-    target_frequency: float = 20000.0
-    elements_per_wavelength: float = 14.0
-    bore_diameter: float = 0.0
-    horn: HornDesign = field(default_factory=HornDesign)
-    stack: StackRings = field(default_factory=StackRings)
-    flange: FlangeDesign = field(default_factory=FlangeDesign)
-    coupler: CouplerDesign = field(default_factory=CouplerDesign)
-    materials: Mapping[str, Material] = field(default_factory=dict, hash=False)
-
-    default_tuned: ClassVar[tuple[str, ...]] = ("horn.length", "coupler.length")
-
-    def __post_init__(self):
-        check_choice("kind", self.kind, ("rpud",))
-        check_name("name", self.name)
-        check_frequency("target_frequency", self.target_frequency)
-        check_range("elements_per_wavelength", self.elements_per_wavelength, 1.0, 200.0)
-        check_bore("bore_diameter", self.bore_diameter)
-        for name, cls in (("horn", HornDesign), ("stack", StackRings), ("flange", FlangeDesign),
-                          ("coupler", CouplerDesign)):
-            if not isinstance(getattr(self, name), cls):
-                raise ParameterError(name, getattr(self, name), f"must be a {cls.__name__}")
-        b, s, h, f, c = self.bore_diameter, self.stack, self.horn, self.flange, self.coupler
-        if b > s.inner_diameter:
-            raise ParameterError("bore_diameter", b,
-                                 f"bore larger than the ring: must be <= stack.inner_diameter {s.inner_diameter:g} m")
-        if b > 0:
-            tip_min = float(np.min(h.diameter_at(np.linspace(0, h.length, 65))))
-            if b > tip_min - 2 * _MIN_WALL:
-                raise ParameterError("bore_diameter", b,
-                                     f"must leave a {_MIN_WALL * 1e3:g} mm wall in the horn (smallest horn diameter {tip_min:g} m)")
-            c.check_bore(b, "bore_diameter")
-        if s.inner_diameter > 0 and h.back_diameter <= s.inner_diameter:
-            raise ParameterError("horn.back_diameter", h.back_diameter,
-                                 f"must exceed stack.inner_diameter {s.inner_diameter:g} m to carry the rings")
-        if c.inner_diameter >= s.outer_diameter:
-            raise ParameterError("coupler.inner_diameter", c.inner_diameter,
-                                 f"bore larger than the ring: must be < stack.outer_diameter {s.outer_diameter:g} m")
-        biggest = max(s.outer_diameter, h.back_diameter)
-        if f.outer_diameter <= biggest + 2 * _MIN_WALL:
-            raise ParameterError("flange.outer_diameter", f.outer_diameter,
-                                 f"must exceed the stack and horn diameters ({biggest:g} m) by >= {2 * _MIN_WALL:g} m")
-        self._check_materials()
-
-    def material_uses(self) -> list[tuple[str, str, Any]]:
-        s = self.stack
-        uses = [("horn.material", self.horn.material, None), ("stack.material", s.material, "piezo"),
-                ("flange.material", self.flange.material, None), ("coupler.material", self.coupler.material, None)]
-        if s.electrode_shims:
-            uses.append(("stack.shim_material", s.shim_material, None))
-        return uses
-
-    # ------------------------------------------------------------------ layout
-    def tunable_lengths(self) -> tuple[str, ...]:
-        out = ["horn.length", "coupler.length", "flange.thickness", "stack.ring_thickness",
-               "coupler.slot_length", "coupler.slot_offset", "coupler.tooth_height"]
-        if self.stack.electrode_shims:
-            out.append("stack.shim_thickness")
-        return tuple(out)
-
-    @property
-    def coupler_bore(self) -> float:
-        """Bore of the coupler, m."""
-        return max(self.coupler.inner_diameter, self.bore_diameter)
-
-    def stack_layers(self) -> list[tuple[str, str, float, float]]:
-        """``(region, kind, z0, z1)`` of rings (kind "ring") and shims (kind "shim"), m."""
-        s = self.stack
-        z = 0.0
-        out = []
-        for k in range(s.n_rings + 1):
-            if s.electrode_shims:
-                out.append((f"shim_{k}", "shim", z, z + s.shim_thickness))
-                z += s.shim_thickness
-            if k < s.n_rings:
-                out.append((f"ring_{k + 1}", "ring", z, z + s.ring_thickness))
-                z += s.ring_thickness
-        return out
-
-    def ring_poling(self, k: int) -> tuple[float, float, float]:
-        """Poling of ring ``k`` (1-based): parallel to the field of a positive hot electrode.
-
-        Electrodes alternate ground, hot, ground, ... from z = 0, so ring 1 sees the field
-        pointing to -z, ring 2 to +z, and so on: all rings expand together.
-        """
-        return (0.0, 0.0, -1.0) if k % 2 else (0.0, 0.0, 1.0)
-
-    def electrode_roles(self) -> dict[str, str]:
-        return {f"electrode_{k}": ("ground" if k % 2 == 0 else "hot") for k in range(self.stack.n_rings + 1)}
-
-    def electrode_planes(self) -> dict[str, list[tuple[str, float]]]:
-        """Electrode name -> planes ``("z", z m)`` of the ceramic faces forming it (2 with shims)."""
-        rings = [l for l in self.stack_layers() if l[1] == "ring"]
-        out: dict[str, list[float]] = {}
-        for k in range(self.stack.n_rings + 1):
-            planes = []
-            if k > 0:
-                planes.append(rings[k - 1][3])
-            if k < self.stack.n_rings:
-                planes.append(rings[k][2])
-            out[f"electrode_{k}"] = [("z", p) for p in sorted(set(round(p, 15) for p in planes))]
-        return out
-
-    def _zones(self) -> list[tuple[str, str, float, float]]:
-        c = self.coupler
-        z = -c.length
-        zones = []
-        if c.n_teeth:
-            zones.append(("coupler.teeth", "coupler", z, z + c.tooth_height))
-            z += c.tooth_height
-        if c.n_slots:
-            if c.slot_offset > 0:
-                zones.append(("coupler.gap", "coupler", z, z + c.slot_offset))
-                z += c.slot_offset
-            zones.append(("coupler.slots", "coupler", z, z + c.slot_length))
-            z += c.slot_length
-        zones.append(("coupler.base", "coupler", z, 0.0))
-        part = {"ring": "stack", "shim": "electrodes"}
-        for region, kind, z0, z1 in self.stack_layers():
-            zones.append((region, part[kind], z0, z1))
-        zs = self.stack.length
-        zones.append(("flange_disc", "flange", zs, zs + self.flange.thickness))
-        z0 = zs + self.flange.thickness
-        zones.append(("horn", "horn", z0, z0 + self.horn.length))
-        return zones
-
-    def region_table(self) -> list[tuple[str, str, str, float]]:
-        s = self.stack
-        rows = [("coupler", "coupler", self.coupler.material, self.coupler.volume(self.bore_diameter))]
-        for region, kind, z0, z1 in self.stack_layers():
-            if kind == "ring":
-                rows.append((region, "stack", s.material, s.ring_volume()))
-            else:
-                rows.append((region, "electrodes", s.shim_material,
-                             _annulus(s.outer_diameter, s.inner_diameter) * s.shim_thickness))
-        rows.append(("flange_disc", "flange", self.flange.material,
-                     _annulus(self.flange.outer_diameter, self.bore_diameter) * self.flange.thickness))
-        rows.append(("horn", "horn", self.horn.material, self.horn.volume(self.bore_diameter)))
-        return rows
-
-    def sections_1d(self, n_taper: int = 200) -> list[tuple[float, float, str]]:
-        """The composition as uniform 1-D slices ``(length m, area m^2, material)`` from -z to +z.
-
-        Slots reduce the area by their cross-section; the teeth count with their area
-        fraction; tapered horns are cut into ``n_taper`` slices (midpoint diameters).
-        """
-        c, s = self.coupler, self.stack
-        out = []
-        bore_c = self.coupler_bore
-        full = _annulus(c.outer_diameter, bore_c)
-        if c.n_teeth:
-            R, Ri = c.outer_diameter / 2, bore_c / 2
-            out.append((c.tooth_height, c.n_teeth * 0.5 * (c.tooth_width / R) * (R ** 2 - Ri ** 2), c.material))
-        if c.n_slots:
-            if c.slot_offset > 0:
-                out.append((c.slot_offset, full, c.material))
-            out.append((c.slot_length, full - c.n_slots * c.slot_area(), c.material))
-        base = [z for z in self._zones() if z[0] == "coupler.base"][0]
-        out.append((base[3] - base[2], full, c.material))
-        for region, kind, z0, z1 in self.stack_layers():
-            mat = s.material if kind == "ring" else s.shim_material
-            out.append((z1 - z0, _annulus(s.outer_diameter, s.inner_diameter), mat))
-        f = self.flange
-        out.append((f.thickness, _annulus(f.outer_diameter, self.bore_diameter), f.material))
-        h = self.horn
-        if h.profile == "stepped":
-            l1 = h.step_fraction * h.length
-            out.append((l1, _annulus(h.back_diameter, self.bore_diameter), h.material))
-            out.append((h.length - l1, _annulus(h.tip_diameter, self.bore_diameter), h.material))
-        else:
-            ds = h.length / n_taper
-            for i in range(n_taper):
-                d = float(h.diameter_at((i + 0.5) * ds))
-                out.append((ds, _annulus(d, self.bore_diameter), h.material))
-        return out
-
-
-def default_design() -> RPUDDesign:
-    """The default RPUD composition (see the README's geometry section for the choices)."""
-    return RPUDDesign()
-
-
-# ============================================================================ generic coaxial stack
-
-
-_FACES = ("bottom", "top", "outer", "+x", "-x", "+y", "-y")
-
-
-@dataclass(frozen=True)
-class Segment:
-    """One coaxial piece of a :class:`StackDesign`, from ``start`` to ``start + length`` on z.
-
-    Attributes
-    ----------
-    name : str
-        Unique name; also the mesh region name.
-    length : float
-        Axial length, m (down to MIN_LAYER = 10 um: thin layers, see geometry.layers).
-    kind : {"cylinder", "cone", "box"}
-        Cylinder (or annulus with ``inner_diameter`` > 0); cone (truncated, from
-        ``outer_diameter`` at the -z end to ``end_diameter`` at the +z end); box (rectangular
-        bar: ``thickness`` along x, ``width`` along y, centred on the axis).
-    material : str
-    outer_diameter, end_diameter, inner_diameter : float
-        m; ``end_diameter`` only for cones; ``inner_diameter`` a central bore (0 = solid).
-    thickness, width : float
-        Box cross-section, m.
-    poling : {"none", "+z", "-z", "+x", "-x", "+y", "-y"}
-        Poling of a piezoceramic segment (required for piezo materials, forbidden otherwise).
-    part : str
-        Part name (defaults to the segment name); several segments may form one part.
-    start : float or None
-        z of the -z face, m; ``None`` continues from the previous segment (the first starts
-        at 0). A start before the previous segment's end is an overlap error.
-    """
-
-    name: str
-    length: float
-    kind: Literal["cylinder", "cone", "box"] = "cylinder"
-    material: str = "steel_45"
-    outer_diameter: float = 0.0
-    end_diameter: float = 0.0
-    inner_diameter: float = 0.0
-    thickness: float = 0.0
-    width: float = 0.0
-    poling: Literal["none", "+z", "-z", "+x", "-x", "+y", "-y"] = "none"
-    part: str = ""
-    start: float | None = None
-
-    def __post_init__(self):
-        check_name("segments.name", self.name, dots=False)
-        p = f"segments.{self.name}"
-        check_length(f"{p}.length", self.length, MIN_LAYER)  # thin layers: geometry.layers
-        check_choice(f"{p}.kind", self.kind, ("cylinder", "cone", "box"))
-        _material(f"{p}.material", self.material)
-        check_choice(f"{p}.poling", self.poling, tuple(POLING_VECTORS))
-        if self.kind == "box":
-            check_length(f"{p}.thickness", self.thickness)
-            check_length(f"{p}.width", self.width)
-        else:
-            check_length(f"{p}.outer_diameter", self.outer_diameter)
-            check_bore(f"{p}.inner_diameter", self.inner_diameter)
-            smallest = self.outer_diameter
-            if self.kind == "cone":
-                check_length(f"{p}.end_diameter", self.end_diameter)
-                smallest = min(smallest, self.end_diameter)
-            if self.inner_diameter > 0 and self.inner_diameter >= smallest - 2 * _MIN_WALL:
-                raise ParameterError(f"{p}.inner_diameter", self.inner_diameter,
-                                     f"bore larger than the segment: must be < {smallest - 2 * _MIN_WALL:g} m")
-        if self.part != "":
-            check_name(f"{p}.part", self.part, dots=False)
-        else:
-            object.__setattr__(self, "part", self.name)
-        finite_or_none(f"{p}.start", self.start)
-
-    @property
-    def poling_vector(self) -> tuple[float, float, float] | None:
-        return POLING_VECTORS[self.poling]
-
-    def area_at(self, s: float) -> float:
-        """Cross-section area (m^2) at distance ``s`` (m) from the -z face."""
-        if self.kind == "box":
-            return self.thickness * self.width
-        d = self.outer_diameter
-        if self.kind == "cone":
-            d = self.outer_diameter + (self.end_diameter - self.outer_diameter) * s / self.length
-        return _annulus(d, self.inner_diameter)
-
-    def volume(self) -> float:
-        """Closed-form volume, m^3."""
-        if self.kind == "box":
-            return self.thickness * self.width * self.length
-        if self.kind == "cone":
-            D0, D1 = self.outer_diameter, self.end_diameter
-            return math.pi * self.length / 12 * (D0 ** 2 + D0 * D1 + D1 ** 2) - _annulus(self.inner_diameter, 0) * self.length
-        return _annulus(self.outer_diameter, self.inner_diameter) * self.length
-
-    def max_radius(self) -> float:
-        if self.kind == "box":
-            return 0.5 * math.hypot(self.thickness, self.width)
-        return 0.5 * max(self.outer_diameter, self.end_diameter if self.kind == "cone" else 0.0)
-
-
-@dataclass(frozen=True)
-class ElectrodeSpec:
-    """An electrode: face ``face`` of segment ``segment``, wired as ``role``.
-
-    Attributes
-    ----------
-    name : str
-        Facet-set name (e.g. ``"electrode_0"``).
-    segment : str
-        Name of the (piezoceramic) segment whose face it is.
-    face : {"bottom", "top", "+x", "-x", "+y", "-y"}
-        "bottom"/"top" are the -z/+z end faces; "+x" etc. the flat sides of a box.
-    role : {"hot", "ground"}
-    """
-
-    name: str
-    segment: str
-    face: Literal["bottom", "top", "+x", "-x", "+y", "-y"] = "top"
-    role: Literal["hot", "ground"] = "hot"
-
-    def __post_init__(self):
-        p = f"electrodes.{self.name}"
-        check_name("electrodes.name", self.name, dots=False)
-        if not isinstance(self.segment, str):
-            raise ParameterError(f"{p}.segment", self.segment, "must be a segment name")
-        check_choice(f"{p}.face", self.face, ("bottom", "top", "+x", "-x", "+y", "-y"))
-        check_choice(f"{p}.role", self.role, ("hot", "ground"))
-
-
-@dataclass(frozen=True)
-class StackDesign(DesignBase):
-    """A generic coaxial stack of segments along z (Langevin transducers, test rods and bars).
-
-    Attributes
-    ----------
-    kind : "stack"
-    name : str
-    segments : tuple of Segment
-        From -z to +z.
-    electrodes : tuple of ElectrodeSpec
-    target_frequency : float
-        Hz, for the elements-per-wavelength mesh size.
-    elements_per_wavelength : float
-    """
-
-    kind: Literal["stack"] = "stack"
-    name: str = "stack"
-    segments: tuple[Segment, ...] = ()
-    electrodes: tuple[ElectrodeSpec, ...] = ()
-    target_frequency: float = 20000.0
-    elements_per_wavelength: float = 14.0
-    materials: Mapping[str, Material] = field(default_factory=dict, hash=False)
-
-    def __post_init__(self):
-        check_choice("kind", self.kind, ("stack",))
-        check_name("name", self.name)
-        check_frequency("target_frequency", self.target_frequency)
-        check_range("elements_per_wavelength", self.elements_per_wavelength, 1.0, 200.0)
-        object.__setattr__(self, "segments", tuple(self.segments))
-        object.__setattr__(self, "electrodes", tuple(self.electrodes))
-        if not self.segments:
-            raise ParameterError("segments", [], "need at least one segment")
-        check_count("segments", len(self.segments), 1)
-        check_count("electrodes", len(self.electrodes), 0, 2 * 64)
-        names = [s.name for s in self.segments]
-        dup = sorted({n for n in names if names.count(n) > 1})
-        if dup:
-            raise ParameterError(f"segments.{dup[0]}.name", dup[0], "segment names must be unique")
-        self._check_materials()
-        end = None
-        for seg, (z0, z1) in zip(self.segments, self.segment_extents().values()):
-            if end is not None and z0 < end[1] - 1e-12:
-                raise ParameterError(f"segments.{seg.name}.start", z0,
-                                     f"overlapping parts: starts before segment '{end[0]}' ends at {end[1]:g} m")
-            if end is not None and z0 > end[1] + 1e-12:
-                log.warning("segment %s starts %.3g m after %s: the mesh will have separate bodies",
-                            seg.name, z0 - end[1], end[0])
-            end = (seg.name, z1)
-        parts = {}
-        for seg in self.segments:
-            parts.setdefault(seg.part, []).append(seg.name)
-        enames = [e.name for e in self.electrodes]
-        dup = sorted({n for n in enames if enames.count(n) > 1})
-        if dup:
-            raise ParameterError(f"electrodes.{dup[0]}.name", dup[0], "electrode names must be unique")
-        bynames = {s.name: s for s in self.segments}
-        for e in self.electrodes:
-            p = f"electrodes.{e.name}"
-            if e.segment not in bynames:
-                raise ParameterError(f"{p}.segment", e.segment, "unknown segment; known: " + ", ".join(names))
-            seg = bynames[e.segment]
-            if seg.poling == "none":
-                raise ParameterError(f"{p}.segment", e.segment, "must be a piezoceramic segment")
-            if e.face in ("+x", "-x", "+y", "-y") and seg.kind != "box":
-                raise ParameterError(f"{p}.face", e.face, "side faces exist on box segments only; use 'bottom' or 'top'")
-            if e.name in names:
-                raise ParameterError(f"{p}.name", e.name, "must differ from every segment name")
-        for seg in self.segments:
-            if seg.poling != "none" and not any(e.segment == seg.name for e in self.electrodes):
-                log.info("piezo segment %s has no electrode (its potential floats)", seg.name)
-
-    def material_uses(self) -> list[tuple[str, str, Any]]:
-        return [(f"segments.{s.name}.material", s.material, ("poling", f"segments.{s.name}.poling", s.poling))
-                for s in self.segments]
-
-    # ------------------------------------------------------------------ layout
-    def segment_extents(self) -> dict[str, tuple[float, float]]:
-        """Segment name -> (z0, z1), m."""
-        out = {}
-        z = 0.0
-        for seg in self.segments:
-            z0 = z if seg.start is None else float(seg.start)
-            out[seg.name] = (z0, z0 + seg.length)
-            z = z0 + seg.length
-        return out
-
-    def tunable_lengths(self) -> tuple[str, ...]:
-        return tuple(f"segments.{s.name}.length" for s in self.segments)
-
-    @property
-    def default_tuned(self) -> tuple[str, ...]:  # type: ignore[override]
-        return tuple(f"segments.{s.name}.length" for s in self.segments if s.poling == "none")[:2]
-
-    def _zones(self) -> list[tuple[str, str, float, float]]:
-        ext = self.segment_extents()
-        return [(s.name, s.part, *ext[s.name]) for s in self.segments]
-
-    def axial_breakpoints(self) -> list[tuple[str, float]]:
-        # with explicit starts, gaps are zones too (the map stays piecewise linear)
-        pts = []
-        for label, _part, z0, z1 in self._zones():
-            pts.append((f"{label}:start", z0))
-            pts.append((f"{label}:end", z1))
-        return pts
-
-    def region_table(self) -> list[tuple[str, str, str, float]]:
-        return [(s.name, s.part, s.material, s.volume()) for s in self.segments]
-
-    def electrode_planes(self) -> dict[str, list[tuple[str, float]]]:
-        """Electrode name -> ``[(axis "x"/"y"/"z", coordinate m)]`` of its plane."""
-        ext = self.segment_extents()
-        bynames = {s.name: s for s in self.segments}
-        out = {}
-        for e in self.electrodes:
-            seg = bynames[e.segment]
-            z0, z1 = ext[seg.name]
-            if e.face == "bottom":
-                out[e.name] = [("z", z0)]
-            elif e.face == "top":
-                out[e.name] = [("z", z1)]
-            else:
-                half = seg.thickness / 2 if e.face[1] == "x" else seg.width / 2
-                out[e.name] = [(e.face[1], half if e.face[0] == "+" else -half)]
-        return out
-
-    def sections_1d(self, n_taper: int = 200) -> list[tuple[float, float, str]]:
-        """Uniform 1-D slices ``(length m, area m^2, material)`` from -z to +z (gaps skipped)."""
-        out = []
-        for s in self.segments:
-            if s.kind == "cone":
-                ds = s.length / n_taper
-                out += [(ds, s.area_at((i + 0.5) * ds), s.material) for i in range(n_taper)]
-            else:
-                out.append((s.length, s.area_at(0.0), s.material))
-        return out
-
-
-# ============================================================================ loading
-
-
-_KINDS = {"rpud": RPUDDesign, "stack": StackDesign}
+KINDS: dict[str, type[DesignBase]] = {"rpud": RPUDDesign, "stack": StackDesign, "cad": CadDesign}
+"""The design kinds by their ``kind`` key."""
 
 
 def design_from_mapping(data: Mapping[str, Any], where: str = "",
-                        materials: Mapping[str, Material] | None = None) -> DesignBase:
-    """Build a design from a mapping with a ``kind`` key ("rpud" or "stack").
+                        materials: Mapping[str, Material] | None = None,
+                        base_dir: str | os.PathLike | None = None) -> DesignBase:
+    """Build a design from a mapping with a ``kind`` key ("rpud", "stack" or "cad").
 
     ``materials``: extra records (a user's material file) the design's names may resolve in;
     those it uses are added to its own table (see :mod:`geometry.design_materials`).
+    ``base_dir``: folder a CAD design's relative ``step`` path is taken from (the TOML file's
+    folder when loaded from a file; default the working directory).
     """
     if not isinstance(data, Mapping):
         raise ParameterError(where or "design", data, "must be a table")
     kind = data.get("kind", "rpud")
-    check_choice(f"{where}.kind" if where else "kind", kind, tuple(_KINDS))
+    check_choice(f"{where}.kind" if where else "kind", kind, tuple(KINDS))
     try:
         own = own_records(data.get("materials"))
         if materials:
@@ -836,7 +63,10 @@ def design_from_mapping(data: Mapping[str, Any], where: str = "",
                     raise ParameterError(f"materials.{name}", name, "is defined differently in the design's "
                                          "[materials] table and in the --materials file: rename one of them")
             data = {**data, "materials": {**materials, **own}}
-        design = from_mapping(_KINDS[kind], data)
+        if kind == "cad" and base_dir is not None and isinstance(data.get("step"), str):
+            step = Path(data["step"]).expanduser()
+            data = {**data, "step": str(step if step.is_absolute() else (Path(base_dir) / step).resolve())}
+        design = from_mapping(KINDS[kind], data)
     except ParameterError as exc:
         if where:
             raise ParameterError(f"{where}: {exc.name}", exc.value, exc.allowed) from None
@@ -844,6 +74,13 @@ def design_from_mapping(data: Mapping[str, Any], where: str = "",
     if materials:
         keep = set(own) | {name for _p, name, _r in design.material_uses()}
         design = dataclasses.replace(design, materials={k: v for k, v in design.materials.items() if k in keep})
+    if isinstance(design, CadDesign):
+        try:
+            design.resolve()            # the rules against the drawing: one line now, not after meshing
+        except ParameterError as exc:
+            if where:
+                raise ParameterError(f"{where}: {exc.name}", exc.value, exc.allowed) from None
+            raise
     return design
 
 
@@ -854,9 +91,10 @@ def load_design(path: str | os.PathLike, select: str | None = None,
     A file is either one design (top-level ``kind`` key, or RPUD tables ``[horn]``...) or a
     collection of designs, one table each (``[k33_rod]``, ``[k31_bar]``...) from which
     ``select`` picks one. A design may carry its own ``[materials]`` table; ``materials`` adds
-    the records of a user's material file (``geometry.materials.load_library``).
+    the records of a user's material file (``geometry.materials.load_library``). A CAD design's
+    ``step`` path is relative to the TOML file's folder.
     """
     data = load_toml(path, "design")
-    known = {f.name for cls in _KINDS.values() for f in dataclasses.fields(cls)}
+    known = {f.name for cls in KINDS.values() for f in dataclasses.fields(cls)}
     table, where = design_table(data, str(path), select, known)
-    return design_from_mapping(table, where=where, materials=materials)
+    return design_from_mapping(table, where=where, materials=materials, base_dir=Path(path).parent)

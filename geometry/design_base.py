@@ -1,11 +1,15 @@
 """The shared interface of design kinds (:class:`DesignBase`): dotted paths, TOML, volumes and
-masses, axial extents, the exact axial morph, and the design's own material library.
+masses, axial extents, the exact axial morph, and the design's own material library; and the
+constants the kinds share (poling keywords, smallest wall).
 
-Concrete kinds live in :mod:`geometry.design` (RPUD composition, generic coaxial stack).
+Each kind is a module of its own: :mod:`geometry.design_rpud` (the RPUD composition),
+:mod:`geometry.design_stack` (generic coaxial stack), :mod:`geometry.design_cad` (a STEP file and
+a rule table); :mod:`geometry.design` loads any of them from TOML.
 """
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Mapping
 from typing import Any, ClassVar
@@ -17,7 +21,23 @@ from .design_materials import own_records, resolve_uses
 from .dotted import _child, _radial_signature, _replace_path
 from .materials import Material, builtin_library
 
-__all__ = ["DesignBase"]
+__all__ = ["DesignBase", "POLING_VECTORS", "MIN_WALL", "annulus"]
+
+POLING_VECTORS: dict[str, tuple[float, float, float] | None] = {
+    "none": None,
+    "+z": (0.0, 0.0, 1.0), "-z": (0.0, 0.0, -1.0),
+    "+x": (1.0, 0.0, 0.0), "-x": (-1.0, 0.0, 0.0),
+    "+y": (0.0, 1.0, 0.0), "-y": (0.0, -1.0, 0.0),
+}
+"""Poling keywords of a piezoceramic piece and their unit vectors."""
+
+MIN_WALL = 0.5e-3
+"""Smallest metal wall (m) left by a bore, a slot or a tooth gap: below it Gmsh needs sliver elements."""
+
+
+def annulus(d_out: float, d_in: float) -> float:
+    """Area (m^2) of an annulus of outer and inner diameter ``d_out``, ``d_in`` (m)."""
+    return math.pi / 4.0 * (d_out ** 2 - d_in ** 2)
 
 
 class DesignBase:
@@ -53,6 +73,11 @@ class DesignBase:
 
     default_tuned: ClassVar[tuple[str, ...]] = ()
     """Lengths tuned by resonance matching unless the user names others."""
+
+    def length_part(self, path: str) -> str:
+        """The part a tunable length belongs to (resonance matching tunes a front and a back
+        part): the head of its dotted path (``"horn.length"`` -> ``"horn"``)."""
+        return path.split(".")[0]
 
     # ------------------------------------------------------------------ TOML
     def to_mapping(self) -> dict:
@@ -110,6 +135,13 @@ class DesignBase:
     def region_table(self) -> list[tuple[str, str, str, float]]:
         """``(region, part, material, closed-form volume m^3)`` for every region."""
         raise NotImplementedError
+
+    def part_material(self, part: str) -> str:
+        """Material name of a part (of its first region)."""
+        for _region, p, material, _vol in self.region_table():
+            if p == part:
+                return material
+        raise ParameterError("part", part, "unknown; known: " + ", ".join(sorted(self.part_volumes())))
 
     def total_mass(self) -> float:
         """Closed-form mass of the whole design in kg."""

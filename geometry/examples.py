@@ -1,13 +1,14 @@
 """Constructors of textbook designs (generic coaxial stacks) used by tests and users.
 
-All return a validated :class:`~geometry.design.StackDesign`; ``examples.toml`` beside this
+All return a validated :class:`~geometry.design_stack.StackDesign`; ``examples.toml`` beside this
 module holds the same designs with default arguments (``python -m geometry --design
 geometry/examples.toml --select k31_bar``).
 """
 
 from __future__ import annotations
 
-from .design import ElectrodeSpec, RPUDDesign, Segment, StackDesign, default_design
+from .design_rpud import RPUDDesign, default_design
+from .design_stack import ElectrodeSpec, Segment, StackDesign
 
 __all__ = ["k33_rod", "k31_bar", "langevin_sandwich", "slender_rod", "bonded_sandwich", "EXAMPLES", "all_examples"]
 

@@ -78,7 +78,8 @@ class Estimate:
 
 def _regions(design) -> list[tuple[str, float, float, float]]:
     """``(region, volume m^3, axial length m, radius m)`` of every region."""
-    from .design import RPUDDesign
+    from .design_cad import CadDesign
+    from .design_rpud import RPUDDesign
 
     out = []
     if isinstance(design, RPUDDesign):
@@ -92,6 +93,12 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
             radii[region] = s.outer_diameter / 2
         for region, _part, _mat, vol in design.region_table():
             out.append((region, vol, lengths[region], radii[region]))
+    elif isinstance(design, CadDesign):
+        boxes = design.resolve().region_box
+        for region, _part, _mat, vol in design.region_table():
+            b = boxes[region]
+            # the bounding box's smaller half-width stands for the radius of a round piece
+            out.append((region, vol, b[5] - b[2], 0.5 * min(b[3] - b[0], b[4] - b[1])))
     else:
         for seg in design.segments:
             if seg.kind == "box":
@@ -109,7 +116,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
 
     Parameters
     ----------
-    design : RPUDDesign or StackDesign
+    design : RPUDDesign, StackDesign or CadDesign
     mesh_size : float, optional
         Base element size, m (as ``build``).
     order : {1, 2}
@@ -124,7 +131,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
     Estimate
     """
     from .layers import layer_element_estimate
-    from .sizing import graded_edges, mesh_layers, region_sizes
+    from .sizing import feature_caps, graded_edges, mesh_layers, region_sizes
 
     sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
     layers = mesh_layers(design, mesh_size, elements_per_wavelength, refine)
@@ -142,12 +149,18 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         n += TETS_PER_CUBE * vol / h ** 3
     for key, h in sizes.items():
         # refinement boxes around slots and teeth: their zone of the coupler at the feature size
-        if key.startswith("@"):
+        if key in ("@slots", "@teeth"):
             c = design.coupler
             zone = c.slot_length if key == "@slots" else c.tooth_height
             shell = math.pi / 4 * (c.outer_diameter ** 2 - design.coupler_bore ** 2) * zone
             smallest = min(smallest, h)
             n += TETS_PER_CUBE * shell / h ** 3
+        elif key.startswith("@"):
+            # a size box of a CAD design: the box, at most the whole solid (an upper bound)
+            box = feature_caps(design)[1][key][1]
+            inside = min(math.prod(box[i + 3] - box[i] for i in range(3)), sum(r[1] for r in _regions(design)))
+            smallest = min(smallest, h)
+            n += TETS_PER_CUBE * inside / h ** 3
     for e in (graded_edges(design, sizes, refine) if grade else []):
         # a torus of 270 degrees around the edge with h(d) = h_edge + g d:
         # integral of 2 pi r (3 pi / 2) d dd / h^3 over d > 0 = 3 pi^2 r / (2 g^2 h_edge)

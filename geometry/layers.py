@@ -9,7 +9,7 @@ each prism split into three tetrahedra
 size is that of the thick neighbours it is bonded to, whose deformation it follows.
 
 Which segments are layers (:func:`layer_plan`): cylinders and boxes of a
-:class:`~geometry.design.StackDesign` thinner than :data:`LAYER_RATIO` times their in-plane
+:class:`~geometry.design_stack.StackDesign` thinner than :data:`LAYER_RATIO` times their in-plane
 size. Layers that touch each other form a *run*; every layer of a run is imprinted with the
 outlines (circles, rectangles) of every member of the run and of the thick segments at its two
 ends, so that its bottom and top faces have the same edges and the conformal fragment of the
@@ -36,7 +36,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .design import DesignBase, Segment, StackDesign
+from .design_base import DesignBase
+from .design_stack import Segment, StackDesign
 
 __all__ = ["Layer", "layer_plan", "make_layer", "rim_fields", "edge_fraction", "layer_element_estimate",
            "LAYER_RATIO", "LAYER_ELEMENTS", "LAYER_ELEMENTS_EDGE", "LAYER_KINDS", "RIM_SIZE", "RIM_GROWTH",

@@ -158,8 +158,8 @@ def _shape(props, f, z0, nsamp) -> Mode1D:
 
 
 def design_modes(design, f_max: float | None = None, electrical: Literal["short", "open"] = "short") -> list[Mode1D]:
-    """1-D longitudinal modes of a design (:class:`~geometry.design.RPUDDesign` or
-    :class:`~geometry.design.StackDesign`), searched up to ``f_max`` (default 3 x target)."""
+    """1-D longitudinal modes of a design (:class:`~geometry.design_rpud.RPUDDesign` or
+    :class:`~geometry.design_stack.StackDesign`), searched up to ``f_max`` (default 3 x target)."""
     f_max = 3.0 * design.target_frequency if f_max is None else f_max
     z0 = design.axial_breakpoints()[0][1]
     return longitudinal_modes(design.sections_1d(), f_max=f_max, z0=z0, electrical=electrical,

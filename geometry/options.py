@@ -109,7 +109,8 @@ def design_from_options(ns):
     resolve the design's names; those the design uses go into its own table (so its TOML, JSON
     and results carry them).
     """
-    from .design import default_design, load_design
+    from .design import load_design
+    from .design_rpud import default_design
     from .design_materials import with_records
     from .materials import records_from_mapping
 

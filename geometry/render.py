@@ -8,7 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from rpud_common import atomic_output
-from .design import DesignBase, RPUDDesign
+from .design_base import DesignBase
+from .design_rpud import RPUDDesign
 from .mesh import TaggedMesh
 
 __all__ = ["render_png", "design_title", "offscreen_plotter"]
@@ -30,6 +31,11 @@ def design_title(design: DesignBase) -> str:
                 f"flange D {f.outer_diameter * mm:.0f} x {f.thickness * mm:.1f} mm; coupler {c.length * mm:.1f} mm, "
                 f"D {c.outer_diameter * mm:.0f}/{design.coupler_bore * mm:.0f} mm, {c.n_slots} {c.slot_profile}-slots "
                 f"at {c.slot_angle_deg:g} deg, {c.n_teeth} teeth")
+    if not hasattr(design, "segments"):       # a drawing: its STEP file and regions
+        from pathlib import Path
+
+        regions = ", ".join(f"{r} ({rule.material})" for r, rule in design.region_rules().items())
+        return f"{design.name}: {Path(design.step).name}; {regions}"
     parts = []
     for seg in design.segments:
         if seg.kind == "box":

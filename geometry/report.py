@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from .builder import build
-from .design import DesignBase
+from .design_base import DesignBase
 from .mesh import TaggedMesh
 
 __all__ = ["build_report", "mesh_part_volumes"]
@@ -48,18 +48,19 @@ def build_report(design: DesignBase, **build_kw: Any) -> tuple[TaggedMesh, dict]
             "volume_error": volumes[part] / closed[part] - 1.0,
             "mass_kg": masses[part],
         }
-    onedim = None
-    try:
-        modes = design_modes(design)
-        f1 = modes[0].frequency if modes else None
-        nodes = list(modes[0].nodes) if modes else []
-        if modes:
-            onedim = {"f1_hz": f1, **check_1d(design, modes[0]).as_dict()}
-            if not onedim["valid"]:
-                f1, nodes = None, []     # not a reference for this design: said why in "onedim"
-    except Exception as exc:  # the 1-D reference is informative only
-        log.warning("1-D reference failed: %s", exc)
-        f1, nodes = None, []
+    onedim, f1, nodes = None, None, []
+    if hasattr(design, "sections_1d"):    # a drawing (kind "cad") has no 1-D bar chain
+        try:
+            modes = design_modes(design)
+            f1 = modes[0].frequency if modes else None
+            nodes = list(modes[0].nodes) if modes else []
+            if modes:
+                onedim = {"f1_hz": f1, **check_1d(design, modes[0]).as_dict()}
+                if not onedim["valid"]:
+                    f1, nodes = None, []     # not a reference for this design: said why in "onedim"
+        except Exception as exc:  # the 1-D reference is informative only
+            log.warning("1-D reference failed: %s", exc)
+            f1, nodes = None, []
     d = rep.as_dict()
     report = {
         "design": {"name": design.name, "kind": design.kind, "parameters": design.to_mapping()},

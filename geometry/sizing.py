@@ -31,11 +31,14 @@ from dataclasses import dataclass
 import numpy as np
 
 from rpud_common import ParameterError, check_positive, check_range
-from .design import DesignBase, RPUDDesign, StackDesign
+from .design_base import DesignBase
+from .design_cad import CadDesign
+from .design_rpud import RPUDDesign
+from .design_stack import StackDesign
 from .layers import Layer, layer_plan, rim_fields
 from .materials import Material, get_material
 
-__all__ = ["region_sizes", "mesh_layers", "shear_wavelength", "graded_edges", "GradedEdge", "apply_fields",
+__all__ = ["region_sizes", "mesh_layers", "feature_caps", "shear_wavelength", "graded_edges", "GradedEdge", "apply_fields",
            "REFINE_RANGE", "CURVATURE_ELEMENTS", "EDGE_FRACTION", "GROWTH", "MAJOR_STEP",
            "check_refine"]
 
@@ -123,24 +126,54 @@ def _free_sizes(design, mesh_size, elements_per_wavelength):
     for region, part, material, _vol in design.region_table():
         sizes[region] = base(material)
     own = dict(sizes)
+    caps, boxes = feature_caps(design)
+    for region, cap in caps.items():
+        sizes[region] = min(sizes[region], cap)
+    for key, (cap, _box, region) in boxes.items():
+        sizes[key] = min(sizes[region], cap) if region else cap
+    return own, sizes
+
+
+def feature_caps(design: DesignBase) -> tuple[dict[str, float], dict[str, tuple[float, tuple, str]]]:
+    """The thin-feature caps of a design at ``refine`` 1, m.
+
+    Returns
+    -------
+    region caps : dict region -> largest element size
+    box caps : dict key (``@...``) -> (largest size, box (xmin, ymin, zmin, xmax, ymax, zmax) m,
+        region whose size also bounds it or "")
+    """
+    caps: dict[str, float] = {}
+    boxes: dict[str, tuple[float, tuple, str]] = {}
     if isinstance(design, RPUDDesign):
         s, c = design.stack, design.coupler
         for region, kind, z0, z1 in design.stack_layers():
-            cap = s.ring_thickness if kind == "ring" else 4 * s.shim_thickness
-            sizes[region] = min(sizes[region], cap)
-        sizes["flange_disc"] = min(sizes["flange_disc"], 1.5 * design.flange.thickness)
+            caps[region] = s.ring_thickness if kind == "ring" else 4 * s.shim_thickness
+        caps["flange_disc"] = 1.5 * design.flange.thickness
+        R = c.outer_diameter / 2 + 1e-3
+        zones = {z[0]: z for z in design._zones()}
         if c.n_slots:
-            sizes["@slots"] = min(sizes["coupler"], 0.6 * c.slot_width, 1.2 * c.slot_depth)
+            _l, _p, z0, z1 = zones["coupler.slots"]
+            boxes["@slots"] = (min(0.6 * c.slot_width, 1.2 * c.slot_depth), (-R, -R, z0 - 1e-4, R, R, z1 + 1e-4),
+                               "coupler")
         if c.n_teeth:
-            sizes["@teeth"] = min(sizes["coupler"], max(0.8 * c.tooth_height, 0.5 * c.tooth_width))
+            _l, _p, z0, z1 = zones["coupler.teeth"]
+            boxes["@teeth"] = (max(0.8 * c.tooth_height, 0.5 * c.tooth_width), (-R, -R, z0 - 1e-4, R, R, z1 + 1e-4),
+                               "coupler")
+    elif isinstance(design, CadDesign):
+        for rule in design.sizes:
+            if rule.region:
+                caps[rule.region] = min(caps.get(rule.region, math.inf), rule.size)
+        for k, rule in enumerate(r for r in design.sizes if r.box is not None):
+            boxes[f"@box_{k}"] = (rule.size, rule.box, "")
     else:
         for seg in design.segments:
             dims = [seg.length]
             if seg.kind == "box":
                 dims += [seg.thickness, seg.width]
             # at least ~2 elements across the smallest dimension of a thin piece
-            sizes[seg.name] = min(sizes[seg.name], max(min(dims) / 2, 0.25 * max(dims) / 20))
-    return own, sizes
+            caps[seg.name] = max(min(dims) / 2, 0.25 * max(dims) / 20)
+    return caps, boxes
 
 
 # ============================================================================ graded edges
@@ -258,19 +291,13 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
         field.setNumbers(fid, "VolumesList", vols)
         field.setNumber(fid, "IncludeBoundary", 1)
         fields.append(fid)
-    if isinstance(design, RPUDDesign):
-        c = design.coupler
-        R = c.outer_diameter / 2 + 1e-3
-        zones = {z[0]: z for z in design._zones()}
-        for key, zone in (("@slots", "coupler.slots"), ("@teeth", "coupler.teeth")):
-            if key in sizes:
-                _lab, _part, z0, z1 = zones[zone]
-                fid = field.add("Box")
-                for opt, val in (("VIn", sizes[key]), ("VOut", 1e22), ("XMin", -R), ("XMax", R),
-                                 ("YMin", -R), ("YMax", R), ("ZMin", z0 - 1e-4), ("ZMax", z1 + 1e-4),
-                                 ("Thickness", 2.0 * sizes[key])):
-                    field.setNumber(fid, opt, val)
-                fields.append(fid)
+    for key, (_cap, box, _region) in feature_caps(design)[1].items():
+        fid = field.add("Box")
+        for opt, val in (("VIn", sizes[key]), ("VOut", 1e22), ("XMin", box[0]), ("XMax", box[3]),
+                         ("YMin", box[1]), ("YMax", box[4]), ("ZMin", box[2]), ("ZMax", box[5]),
+                         ("Thickness", 2.0 * sizes[key])):
+            field.setNumber(fid, opt, val)
+        fields.append(fid)
     if layers:
         fields += rim_fields(gmsh, layers, region_vols)
     for e in (graded_edges(design, sizes, refine) if grade else []):

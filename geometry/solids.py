@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 
-from .design import RPUDDesign, StackDesign
+from .design_rpud import RPUDDesign
+from .design_stack import StackDesign
 from .layers import Layer, make_layer
 
 __all__ = ["make_rpud", "make_stack"]

@@ -307,7 +307,7 @@ def history_csv(res) -> str:
 
 
 def contact_from_design(design, m_free: float, restitution: float, free_mass_material: str = "steel_45"):
-    """Hunt-Crossley horn contact from the design: the horn tip's material (``design.horn.material``)
+    """Hunt-Crossley horn contact from the design: the horn tip's material (``design.part_material("horn")``)
     against a free mass taken as a sphere of ``free_mass_material`` with the mass ``m_free`` (its
     radius is the contact radius; the tip face is flat).
 
@@ -318,7 +318,7 @@ def contact_from_design(design, m_free: float, restitution: float, free_mass_mat
     from geometry.materials import get_material
     from impact.contact import HuntCrossley, hertz_stiffness
 
-    horn = get_material(design.horn.material, design.library)
+    horn = get_material(design.part_material("horn"), design.library)
     ball = get_material(free_mass_material, design.library)
     radius = (3.0 * m_free / (4.0 * np.pi * ball.density)) ** (1.0 / 3.0)
     k = hertz_stiffness(horn.youngs_modulus, horn.poisson_ratio, ball.youngs_modulus, ball.poisson_ratio, radius)

@@ -294,7 +294,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     import geometry
     from geometry.report import mesh_part_volumes
     from fem.harmonic import LossModel, harmonic_sweep, modal_basis, working_point
-    from fem.matching import MatchSettings, match, working_mode
+    from fem.matching import MatchSettings, default_tune, match, working_mode
     from fem.modal import modal_analysis
     from fem.transient import ring_up
     from impact.model import simulate
@@ -305,6 +305,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     from . import figures
     from .report import write_report
 
+    tune = default_tune(design) if settings.match else ()      # refused now, not after meshing
     out = Path(out_dir)
     (out / "figures").mkdir(parents=True, exist_ok=True)
     say = progress or (lambda msg: log.info("%s", msg))
@@ -329,7 +330,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
             say(f"      {rec['stage']:5s} {rec['parameter']} = {rec['value_m'] * 1e3:8.4f} mm -> {rec['f_hz']:10.2f} Hz")
 
         m = match(design, MatchSettings(target_hz=target, mesh_size=settings.mesh_size, refine=settings.refine,
-                                        grade=settings.grade), mesh=mesh, progress=show)
+                                        grade=settings.grade, tune=tune), mesh=mesh, progress=show)
         design, mesh, system, modal, w = m.design, m.mesh, m.system, m.modal, m.working_index
         match_json = m.to_dict()
     else:

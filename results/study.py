@@ -158,7 +158,7 @@ class Study:
     def base_design(self):
         """The base design object (geometry is imported here, not at module import)."""
         if self.design == "default":
-            from geometry.design import default_design
+            from geometry.design_rpud import default_design
 
             return default_design()
         from geometry.design import load_design
