@@ -129,6 +129,15 @@ class SeriesModel:
         lam = np.append(self.lam, 1j * W)
         return lam, np.ascontiguousarray(G1), np.ascontiguousarray(G2)
 
+    def unloaded(self, horn) -> dict:
+        """Steady operation without impacts: tip amplitude (m), electrode voltage amplitude (V), mean
+        source power (W) and RMS source current (A)."""
+        n = self.n
+        vs = -1j * horn.voltage
+        i = (vs - self.X[2 * n]) / self.R
+        return {"tip_amplitude_m": float(abs(horn.tip @ self.X[:n])), "electrode_voltage_v": float(abs(self.X[2 * n])),
+                "source_power_w": float(0.5 * (vs * np.conj(i)).real), "source_current_rms_a": float(abs(i) / math.sqrt(2))}
+
     def modal_energy(self, horn, x: np.ndarray) -> np.ndarray:
         """Modal kinetic + strain energy of physical states (k, N), J."""
         n = self.n

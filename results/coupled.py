@@ -164,8 +164,12 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, fr
 
 
 def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, intervals: int = 5,
-                    series_resistance: float = 0.0) -> dict:
+                    series_resistance: float = 0.0, unloaded: dict | None = None) -> dict:
     """Ring-up from rest with the free mass in place: one coupled run of ``t_end`` s.
+
+    ``series_resistance`` (ohm) puts the source behind a resistor; ``unloaded`` (``tip_amplitude_m``,
+    ``power_w``) is the steady operation without impacts quoted beside the run (default: the FE
+    working point of ``fe``).
 
     Returns a dict: ``result`` (:class:`impact.coupled.CoupledResult`, with series), ``lines``
     (terminal summary), ``json`` (envelope, energy balance per interval, drive power and current,
@@ -184,9 +188,10 @@ def coupled_history(fe: FeTransducer, params, voltage: float, t_end: float, inte
     amp_tail = res.mean_amplitude(*tail)
     imp = res.impact
     series = series_resistance > 0
+    unloaded = unloaded or {"tip_amplitude_m": fe.tip_amplitude_m, "power_w": fe.power_w}
     lines = [f"      {imp.tool_impacts} tool and {imp.horn_impacts} horn impacts; tip amplitude over the last "
-             f"{(tail[1] - tail[0]) * 1e3:.0f} ms {amp_tail * 1e6:.3f} um (unloaded {fe.tip_amplitude_m * 1e6:.3f} um); "
-             f"{'source' if series else 'drive'} {power:.2f} W, {i_rms:.3f} A rms (unloaded {fe.power_w:.2f} W)"
+             f"{(tail[1] - tail[0]) * 1e3:.0f} ms {amp_tail * 1e6:.3f} um (unloaded {unloaded['tip_amplitude_m'] * 1e6:.3f} um); "
+             f"{'source' if series else 'drive'} {power:.2f} W, {i_rms:.3f} A rms (unloaded {unloaded['power_w']:.2f} W)"
              + (f"; {series_resistance:g} ohm in series" if series else ""),
              "      energy per interval (mJ): " + "  ".join(
                  ["electrical"] + (["source loss"] if series else []) + ["to modes", "damping", "stored", "to free mass",

@@ -117,6 +117,17 @@ def main(argv=None) -> int:
                           freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say,
                           **mesh_options(ns))
     p = p.with_(freq=fe.freq_hz)
+    unloaded = {"tip_amplitude_m": fe.tip_amplitude_m, "power_w": fe.power_w}
+    if ns.series_resistance > 0:
+        from impact.drive import series_model
+
+        horn_r = horn_from_reduced(fe.reduced, ns.voltage, series_resistance=ns.series_resistance)
+        u = series_model(horn_r, fe.freq_hz).unloaded(horn_r)
+        unloaded = {"tip_amplitude_m": u["tip_amplitude_m"], "power_w": u["source_power_w"],
+                    "electrode_voltage_v": u["electrode_voltage_v"], "source_current_rms_a": u["source_current_rms_a"]}
+        say(f"      behind {ns.series_resistance:g} ohm, unloaded: tip {u['tip_amplitude_m'] * 1e6:.3f} um, electrodes "
+            f"{u['electrode_voltage_v']:.1f} V amplitude, source {u['source_power_w']:.2f} W, "
+            f"{u['source_current_rms_a']:.3f} A rms (voltage drive: tip {fe.tip_amplitude_m * 1e6:.3f} um)")
     contact = None
     hist = None
     if ns.contact == "hunt-crossley":
@@ -126,7 +137,7 @@ def main(argv=None) -> int:
     else:
         say(f"[2/3] ring-up from rest with the {p.m_free * 1e3:g} g free mass in place, {ns.history * 1e3:g} ms")
         hist = coupled_history(fe, p.with_(spring_force=sc.spring_force), ns.voltage, ns.history,
-                               series_resistance=ns.series_resistance)
+                               series_resistance=ns.series_resistance, unloaded=unloaded)
         for line in hist["lines"]:
             print(line)
     say(f"[3/3] statistics, {sc.name} scenario, steady operation")
@@ -138,11 +149,13 @@ def main(argv=None) -> int:
     for name, unit, text in COUPLED_QUANTITIES:
         scale, u = {"m": (1e6, "um"), "W": (1.0, "W")}[unit]
         print(f"  {text:<66} {st.estimates[name].scaled(scale)} {u}")
-    print(f"  unloaded (harmonic working point): tip {fe.tip_amplitude_m * 1e6:.3f} um, power {fe.power_w:.2f} W")
+    print(f"  unloaded ({'series-resistance drive' if ns.series_resistance > 0 else 'harmonic working point'}): tip "
+          f"{unloaded['tip_amplitude_m'] * 1e6:.3f} um, power {unloaded['power_w']:.2f} W")
     if ns.json:
         doc = {"reduced_transducer": fe.reduced.to_dict(), "fe": fe.info, "drive": {"voltage_v": ns.voltage,
                "freq_hz": fe.freq_hz, "series_resistance_ohm": ns.series_resistance, "f_r_hz": fe.f_r_hz, "f_a_hz": fe.f_a_hz,
-               "unloaded_tip_amplitude_m": fe.tip_amplitude_m, "unloaded_power_w": fe.power_w},
+               "unloaded_tip_amplitude_m": unloaded["tip_amplitude_m"], "unloaded_power_w": unloaded["power_w"],
+               "unloaded": unloaded},
                "params": p.to_dict(), "history": hist["json"] if hist else None, "statistics": st.to_dict(),
                "contact": ({"law": "hunt-crossley", "stiffness_n_per_m1p5": contact.stiffness, "chi": contact.chi,
                             "restitution": contact.restitution} if contact else {"law": "newton"})}
@@ -156,7 +169,7 @@ def main(argv=None) -> int:
         from .coupled_figures import tip_envelope
 
         d = Path(ns.plots)
-        save_figure(tip_envelope(hist["result"], fe.tip_amplitude_m), d / "tip_envelope.png")
+        save_figure(tip_envelope(hist["result"], unloaded["tip_amplitude_m"]), d / "tip_envelope.png")
         save_figure(plot_history(hist["result"].impact,
                                  title=f"coupled model, {fe.reduced.n_modes} modes, {ns.voltage:g} V: one sample "
                                        f"(chaotic)"), d / "displacement.png")

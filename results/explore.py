@@ -103,7 +103,7 @@ def stage_mesh(study: Study, design_values: dict) -> dict:
 
 def stage_match(study: Study, prev: dict) -> dict:
     from fem.assembly import assemble
-    from fem.matching import MatchSettings, match, working_mode
+    from fem.matching import MatchSettings, default_tune, match, working_mode
     from fem.modal import modal_analysis
 
     t0 = time.perf_counter()
@@ -111,7 +111,8 @@ def stage_match(study: Study, prev: dict) -> dict:
     target = float(design.target_frequency)
     rec: dict[str, Any] = {}
     if study.settings.match:
-        m = match(design, MatchSettings(target_hz=target, mesh_size=study.settings.mesh_size or None), mesh=mesh)
+        m = match(design, MatchSettings(target_hz=target, mesh_size=study.settings.mesh_size or None,
+                                        tune=default_tune(design)), mesh=mesh)
         design, mesh, system, modal, w = m.design, m.mesh, m.system, m.modal, m.working_index
         rec["matched"] = float(m.converged)
         rec.update({f"tuned.{k}": float(v) for k, v in m.tuned.items()})

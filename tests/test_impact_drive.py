@@ -103,6 +103,11 @@ def test_steady_state_equals_frequency_domain_solution():
     assert m.X[2 * n] == pytest.approx(sol[n], rel=1e-9)
     tip_ref = h.tip @ sol[:n]
     assert complex(m.tip @ m.steady) == pytest.approx(tip_ref, rel=1e-9)
+    i = (rhs[n] * R - sol[n]) / R
+    u = m.unloaded(h)
+    assert u["tip_amplitude_m"] == pytest.approx(abs(tip_ref), rel=1e-9)
+    assert u["source_power_w"] == pytest.approx(0.5 * (rhs[n] * R * np.conj(i)).real, rel=1e-9)
+    assert u["source_current_rms_a"] == pytest.approx(abs(i) / math.sqrt(2), rel=1e-9)
 
 
 @pytest.mark.parametrize("R", [5.0, 500.0])
