@@ -1,0 +1,30 @@
+"""Opt-in pipeline stage (``python -m results --load rock --wob 7``): drilling under load with the
+horn amplitude the FE chain computed (issue 16).
+
+Each free mass drills with the pipeline's loaded tip amplitude for that mass (A0 from the FE
+working point under the no-load impact load, the same hand-off as the impact stage) at the
+working frequency; 0 g drills with the unloaded amplitude (no free mass, no blows). The model,
+its assumptions and the rock values are in :mod:`impact.drilling`."""
+
+from __future__ import annotations
+
+import logging
+
+log = logging.getLogger(__name__)
+
+
+def drilling_stage(base, masses, amplitudes: dict, wob: float, seed: int, no_load_rows=None, say=None) -> dict:
+    """Run the drilling sweep. ``base``: the impact stage's ImpactParams (freq, horn mass);
+    ``amplitudes``: free mass (kg) -> A0 (m). Returns {"json", "result"}."""
+    from impact.drilling import DrillParams, DrillSettings, DrillSweep, drilling_sweep
+
+    p = DrillParams(impact=base.with_(spring_force=5.0), wob=wob)
+    a0 = [amplitudes.get(m, base.A0) for m in masses]
+    rows = drilling_sweep(p, masses, DrillSettings(seed=seed), A0_values=a0)
+    res = DrillSweep(rows=rows, params=p)
+    if say is not None:
+        top = rows[-1]
+        say(f"      drilling at WOB {wob:g} N: {top.m_free * 1e3:g} g -> "
+            f"{top['drilling_rate_m_s'].scaled(6e4)} mm/min, depth after {p.drill_time:g} s "
+            f"{top.depth_m.scaled(1e3)} mm (95 % CI)")
+    return {"json": res.to_dict(), "result": res}
