@@ -14,7 +14,8 @@ Bodies (x along the drill, horn -> rock; see :mod:`impact.drilling` for the mode
   rod's top force ``N_top = Z (x' - 2 b)`` (b: incoming wave), solved in closed form over a step
   with the spring force and the housing velocity frozen at the step start;
 * rod: exact wave propagation (:mod:`impact.rod`), ring buffers;
-* bit: :func:`impact.rock.rock_step`.
+* bit: :func:`impact.rock.rock_step`; every blow (free-mass impact on the collar) clears the
+  crater's memory (:func:`impact.rock.rock_new_blow`).
 
 Fixed step ``dt = L / (cells c)``. Impacts inside a step are located by bisection on the
 closed-form gaps (free flight, the collar's exponential relaxation, the housing's parabola and
@@ -29,7 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .rock import R_E, R_FMAX, R_N, R_P, rock_step
+from .rock import R_E, R_FMAX, R_N, R_P, rock_new_blow, rock_step
 
 # packed parameters
 (D_M_FREE, D_A0, D_OM, D_E1, D_E2, D_M_COLLAR, D_K0, D_C, D_GAP, D_G, D_V0, D_SPRING, D_Z, D_DT,
@@ -39,8 +40,8 @@ N_DPARAMS = 28
 
 # per-member window statistics
 (S_BLOWS, S_HORN, S_PEN, S_ROCK_WORK, S_HORN_WORK, S_FDT, S_FPEAK_SUM, S_KE_COLLAR, S_STATUS,
- S_EVENTS, S_STEPS, S_T, S_P_FROM, S_P_END) = range(14)
-N_DSTATS = 14
+ S_EVENTS, S_STEPS, S_T, S_P_FROM, S_P_END, S_T_CONTACT) = range(15)
+N_DSTATS = 15
 
 # recorded columns
 (C_T, C_N_TOP, C_N_BIT, C_V_COLLAR, C_V_BIT, C_D, C_P, C_X_HOUSING, C_W, C_F_ROCK) = range(10)
@@ -241,6 +242,8 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
                         stats[S_FPEAK_SUM] += fpeak
                     fpeak = 0.0
                     vc, wd = vn, wn
+                    if rock_on:
+                        rock_new_blow(rs, kl, ku, fth)      # each blow meets fresh rock
         n_ev_total += n_ev
         vbar = (xc - xc_start) / dt
         if unilateral and in_contact and vbar - 2.0 * b0 < 0.0:
@@ -261,6 +264,8 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
         if started:
             stats[S_FDT] += n_bit * dt
             stats[S_T] += dt
+            if f_rock_end > 0.0:
+                stats[S_T_CONTACT] += dt
         if rec_every > 0 and (n + 1) % rec_every == 0 and n_rec < rec.shape[0]:
             rec[n_rec, C_T] = t + dt
             rec[n_rec, C_N_TOP] = Z * (a0 - b0)

@@ -63,6 +63,7 @@ DRILL_QUANTITIES = (
     ("horn_power_w", "W", "work of the horn on the free mass per second"),
     ("peak_force_per_blow_n", "N", "largest rock force between two blows, mean over blows"),
     ("mean_rock_force_n", "N", "time-mean rock force (momentum: WOB + free-mass weight)"),
+    ("contact_fraction", "-", "fraction of the time the bit touches the rock"),
 )
 DRIVING = ("drilling_rate_m_s", "blow_rate_hz")
 
@@ -239,6 +240,7 @@ def _estimates(raw, T):
         "horn_power_w": mean_ci(horn / T),
         "peak_force_per_blow_n": ratio_ci(raw[:, K.S_FPEAK_SUM], blows),
         "mean_rock_force_n": mean_ci(raw[:, K.S_FDT] / raw[:, K.S_T]),
+        "contact_fraction": mean_ci(raw[:, K.S_T_CONTACT] / raw[:, K.S_T]),
     }
 
 

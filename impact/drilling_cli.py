@@ -77,13 +77,14 @@ def print_table(rows, no_load=None) -> None:
     if no_load is not None:
         ke = {round(r.params.m_free, 9): r.estimates["mean_tool_ke_after_j"].scaled(1e3) for r in no_load.rows}
     print(f"{'m_free g':>8} {'blows Hz':>12} {'pen/blow um':>14} {'rate mm/min':>14} {'depth mm':>14} "
-          f"{'efficiency %':>14} {'peak F N':>10} {'no-load KE mJ':>14} {'members':>8}")
+          f"{'efficiency %':>14} {'peak F N':>10} {'contact %':>10} {'no-load KE mJ':>14} {'members':>8}")
     for r in rows:
         e = r.estimates
         k = ke.get(round(r.m_free, 9))
         print(f"{r.m_free * 1e3:8.3g} {format(e['blow_rate_hz']):>12} {format(e['penetration_per_blow_m'].scaled(1e6)):>14} "
               f"{format(e['drilling_rate_m_s'].scaled(6e4)):>14} {format(r.depth_m.scaled(1e3)):>14} "
               f"{format(e['efficiency'].scaled(100)):>14} {format(e['peak_force_per_blow_n']):>10} "
+              f"{format(e['contact_fraction'].scaled(100)):>10} "
               f"{format(k) if k is not None else '-':>14} {r.members:8d}"
               + ("" if r.converged else "  (NOT converged)"))
 

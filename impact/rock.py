@@ -19,12 +19,14 @@ surface, p: permanent penetration, the crater floor):
 * unloading and reloading below ``F_max``: ``F = F_th + k_unload (e - e_th)`` down to F_th,
   then ``k_load e``.
 
-A blow that peaks at ``F_peak > F_th`` therefore leaves
+A blow that peaks at ``F_peak > F_th`` on fresh rock leaves
 ``p_blow = (F_peak - F_th)(1/k_load - 1/k_unload)`` (0 below the threshold), continuously.
-When the force falls below the threshold the crater's memory is cleared (``F_max = F_th``): the
-next blow meets fresh rock (the bit rotates / indexes and the chips are cleared between blows;
-a stated assumption). With a weight on bit above F_th the memory is never cleared and the rock
-crushes under the static load until ``F_max`` reaches it.
+The reflections of one blow (the stress wave rings in the rod) reload its own crater and crush
+further only beyond that blow's largest force. When a new blow starts (the free mass strikes the
+tool) the crater's memory is cleared, ``F_max = max(F_th, F)`` (:func:`rock_new_blow`): each blow
+meets fresh rock. That is an assumption: the bit indexes between blows (rotary-percussive mode)
+and the chips of the last blow are cleared; re-crushing of chips is not modelled. With a weight
+on bit above F_th the rock crushes under the static load until ``F_max`` reaches it.
 
 Rod coupling
 ------------
@@ -55,7 +57,7 @@ from numba import njit
 
 from rpud_common import ParameterError, check_range
 
-__all__ = ["RockLaw", "rock_step", "rock_response", "R_E", "R_P", "R_FMAX", "R_N"]
+__all__ = ["RockLaw", "rock_step", "rock_new_blow", "rock_response", "R_E", "R_P", "R_FMAX", "R_N"]
 
 # rock state vector: elastic penetration e = d - p, permanent penetration p (the crater floor
 # below the original surface), the crater's largest force F_max
@@ -236,13 +238,19 @@ def rock_step(a, Z, kl, ku, fth, st, dt, acc):
         if crush:
             st[R_P] = p + dd * (1.0 - frac)
             st[R_FMAX] = F0 + kl * dd
-        elif tb == t_lo and lo == eth:
-            # the force fell to the threshold (or to 0 with no threshold): fresh rock next blow
-            st[R_FMAX] = fth
         s += tb
         if tb == h:
             break
     return st[R_E] + st[R_P] - d_start
+
+
+@njit(cache=True)
+def rock_new_blow(st, kl, ku, fth):
+    """A new blow starts: clear the crater's memory, F_max = max(F_th, current force)."""
+    f = _force(st[R_E], kl, ku, fth, st[R_FMAX])
+    st[R_FMAX] = max(fth, f)
+    if f > fth:
+        st[R_E] = fth / kl + (f - fth) / ku        # the same force, now at the top of the elastic curve
 
 
 @njit(cache=True)

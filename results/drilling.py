@@ -13,14 +13,17 @@ import logging
 log = logging.getLogger(__name__)
 
 
-def drilling_stage(base, masses, amplitudes: dict, wob: float, seed: int, no_load_rows=None, say=None) -> dict:
+def drilling_stage(base, masses, amplitudes: dict, wob: float, seed: int, say=None, settings=None,
+                   window=(0.02, 0.22)) -> dict:
     """Run the drilling sweep. ``base``: the impact stage's ImpactParams (freq, horn mass);
-    ``amplitudes``: free mass (kg) -> A0 (m). Returns {"json", "result"}."""
+    ``amplitudes``: free mass (kg) -> A0 (m), the others (0 g) get ``base.A0``; ``settings``: a
+    :class:`impact.drilling.DrillSettings` (default: 5 %% rule, the given seed); ``window``:
+    statistics window (s). Returns {"json", "result"}."""
     from impact.drilling import DrillParams, DrillSettings, DrillSweep, drilling_sweep
 
-    p = DrillParams(impact=base.with_(spring_force=5.0), wob=wob)
+    p = DrillParams(impact=base.with_(spring_force=5.0), wob=wob, t_from=window[0], t_end=window[1])
     a0 = [amplitudes.get(m, base.A0) for m in masses]
-    rows = drilling_sweep(p, masses, DrillSettings(seed=seed), A0_values=a0)
+    rows = drilling_sweep(p, masses, settings or DrillSettings(seed=seed), A0_values=a0)
     res = DrillSweep(rows=rows, params=p)
     if say is not None:
         top = rows[-1]

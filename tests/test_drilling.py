@@ -181,6 +181,23 @@ def test_depth_grows_with_free_mass_and_reruns_identically():
     assert again.depth_m.mean == r8.depth_m.mean and again.members == r8.members
 
 
+def test_pipeline_stage_uses_the_amplitude_per_mass():
+    """results.drilling.drilling_stage (the opt-in pipeline stage): one row per mass, each run
+    with its own A0 (0 g with the base amplitude), JSON without NaN; a larger A0 drills deeper."""
+    import json
+
+    from results.drilling import drilling_stage
+
+    base = ImpactParams(A0=20e-6, freq=19.95e3)
+    out = drilling_stage(base, [0.0, 0.006, 0.008], {0.006: 14e-6, 0.008: 22e-6}, 7.0, 20260,
+                         settings=_FAST, window=(0.01, 0.07))
+    rows = out["json"]["rows"]
+    assert [r["A0_m"] for r in rows] == [20e-6, 14e-6, 22e-6]
+    assert rows[0]["drilling_rate_m_s"]["mean"] == 0.0
+    assert rows[2]["depth_after_drill_time_m"]["ci95"][0] > rows[1]["depth_after_drill_time_m"]["ci95"][1]
+    json.dumps(out["json"], allow_nan=False)
+
+
 def test_bad_input_is_refused():
     with pytest.raises(ParameterError, match="k_unload"):
         RockLaw(k_load=1e8, k_unload=1e7)
