@@ -55,23 +55,15 @@ def test_rod_struck_by_rigid_mass_gives_saint_venant_pulse():
 
 
 def test_rod_pulse_converges_with_the_cell_count():
-    """The pulse's error falls as the cells grow (the boundary is sampled once per step)."""
+    """The rod is exact; the separation is resolved to one step, so the exit speed's error is first
+    order in dt: four times the cells, at least half the error."""
     errs = []
     for cells in (16, 64):
         p, pv = _striker_case(cells)
-        _, rec = K.run_record(pv, 1.5 * p.rod.transit, 1)
-        vexit = rec[-1, K.C_V_COLLAR]
-        errs.append(abs(vexit - saint_venant_exit_speed(1.0, pv[K.D_M_COLLAR], p.rod)))
-        del rec
-    # the collar is still in contact at 1.5 L/c: compare its speed with V exp(-Z t / M) instead
-    errs = []
-    for cells in (16, 64):
-        p, pv = _striker_case(cells)
-        _, rec = K.run_record(pv, 1.5 * p.rod.transit, 1)
-        t = rec[-1, K.C_T]
-        M, Z = pv[K.D_M_COLLAR], p.rod.impedance
-        errs.append(abs(rec[-1, K.C_V_COLLAR] - math.exp(-Z * t / M)))
-    assert errs[1] < errs[0] or errs[1] < 1e-12
+        _, rec = K.run_record(pv, 2.5 * p.rod.transit, 1)
+        errs.append(abs(rec[-1, K.C_V_COLLAR] - saint_venant_exit_speed(1.0, pv[K.D_M_COLLAR], p.rod)))
+    assert errs[1] < 0.5 * errs[0]
+    assert errs[1] < 0.01
 
 
 def _rect_pulse(a0, n_on, n_total):
