@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
-from .rock import R_E, R_FMAX, R_N, R_P, rock_new_blow, rock_step
+from .rock import R_E, R_FMAX, R_N, R_P, rock_new_blow, rock_step_fast
 
 # packed parameters
 (D_M_FREE, D_A0, D_OM, D_E1, D_E2, D_M_COLLAR, D_K0, D_C, D_GAP, D_G, D_V0, D_SPRING, D_Z, D_DT,
@@ -136,6 +136,10 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
     w = A0
     wd = pv[D_V0]
     n_steps = int(math.ceil(t_end / dt - 1e-9))
+    em_l = -math.expm1(-kl / Z * dt)
+    em_u = -math.expm1(-ku / Z * dt)
+    lam_on = (Z + c) / mc
+    em_on = -math.expm1(-lam_on * dt)
     work_rock_from = 0.0
     work_horn = 0.0
     work_horn_from = 0.0
@@ -160,7 +164,7 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
         b0 = ringB[slot]
         # ---- bit end
         if rock_on:
-            dd = rock_step(aN, Z, kl, ku, fth, rs, dt, racc)
+            dd = rock_step_fast(aN, Z, kl, ku, fth, rs, dt, racc, em_l, em_u, False)
         else:
             dd = 2.0 * aN * dt
             rs[R_E] += dd
@@ -183,12 +187,25 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
             if h <= 0.0:
                 break
             tt = t + s
-            gh, gc = _gaps(h, tt, xc, vc, fext, lam, mc, X, V, Ah, w, wd, aw, A0, om, free_on)
+            # the bodies at the step end, no impact (one closed form each; the gaps from them)
+            if h == dt and lam == lam_on:
+                # a whole step in contact with the rod (the common case): precomputed exponential
+                vinf = fext / (lam * mc)
+                xce, vce = xc + vinf * h + (vc - vinf) * em_on / lam, vinf + (vc - vinf) * (1.0 - em_on)
+            else:
+                xce, vce = _collar_x(xc, vc, fext, lam, mc, h)
+            Xe = X + h * (V + 0.5 * Ah * h)
+            we = w + h * (wd + 0.5 * aw * h)
+            if free_on:
+                gh = we - Xe - A0 * math.cos(om * (tt + h))
+                gc = xce - we
+            else:
+                gh, gc = 1.0, 1.0
             if (gh >= 0.0 and gc >= 0.0) or n_ev >= _MAX_EV:
-                xc, vc = _collar_x(xc, vc, fext, lam, mc, h)
-                X, V = X + h * (V + 0.5 * Ah * h), V + Ah * h
+                xc, vc = xce, vce
+                X, V = Xe, V + Ah * h
                 if free_on:
-                    w, wd = w + h * (wd + 0.5 * aw * h), wd + aw * h
+                    w, wd = we, wd + aw * h
                     if n_ev >= _MAX_EV:
                         status = STATUS_PLASTIC
                         # chattering step: closed plastically (no interpenetration left)

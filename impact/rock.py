@@ -165,6 +165,13 @@ def _refl_energy(a, F0, kap, Z, s):
 
 @njit(cache=True)
 def rock_step(a, Z, kl, ku, fth, st, dt, acc):
+    """Advance the bit penetration over one step with the incident wave ``a`` (m/s) constant
+    (:func:`rock_step_fast` with the reflected energy integrated and no precomputed exponentials)."""
+    return rock_step_fast(a, Z, kl, ku, fth, st, dt, acc, -math.expm1(-kl / Z * dt), -math.expm1(-ku / Z * dt), True)
+
+
+@njit(cache=True)
+def rock_step_fast(a, Z, kl, ku, fth, st, dt, acc, em_l, em_u, refl):
     """Advance the bit penetration over one step with the incident wave ``a`` (m/s) constant.
 
     Parameters
@@ -181,7 +188,12 @@ def rock_step(a, Z, kl, ku, fth, st, dt, acc):
         Step, s.
     acc : ndarray (2,)
         ``acc[0]`` += work done on the rock (J), ``acc[1]`` += energy of the reflected wave (J,
-        exact integral; used by the tests to close the energy balance).
+        exact integral; used by the tests to close the energy balance; only with ``refl``).
+    em_l, em_u : float
+        ``1 - exp(-k dt / Z)`` for k_load and k_unload: a whole step on one branch (the common
+        case) needs no exponential.
+    refl : bool
+        Integrate the reflected energy.
 
     Returns
     -------
@@ -201,11 +213,13 @@ def rock_step(a, Z, kl, ku, fth, st, dt, acc):
             if a > 0.0 and -e < 2.0 * a * h:
                 tc = -e / (2.0 * a)
                 st[R_E] = 0.0
-                acc[A_REFL] += Z * a * a * tc
+                if refl:
+                    acc[A_REFL] += Z * a * a * tc
                 s += tc
                 continue
             st[R_E] = e + 2.0 * a * h
-            acc[A_REFL] += Z * a * a * h
+            if refl:
+                acc[A_REFL] += Z * a * a * h
             break
         etop = eth + (fmax - fth) / ku
         F0 = _force(e, kl, ku, fth, fmax)
@@ -225,7 +239,10 @@ def rock_step(a, Z, kl, ku, fth, st, dt, acc):
         t_hi = _t_reach(e, e + ddinf * frac, kap, hi) if hi < math.inf else math.inf
         t_lo = _t_reach(e, e + ddinf * frac, kap, lo) if not crush else math.inf
         tb = min(t_hi, t_lo, h)
-        dd = ddinf * -math.expm1(-kap * tb)
+        if tb == dt:
+            dd = ddinf * (em_l if k == kl else em_u)
+        else:
+            dd = ddinf * -math.expm1(-kap * tb)
         if tb == t_hi:
             e1 = hi
         elif tb == t_lo:
@@ -233,7 +250,8 @@ def rock_step(a, Z, kl, ku, fth, st, dt, acc):
         else:
             e1 = e + dd * frac
         acc[A_WORK] += F0 * dd + 0.5 * k * dd * dd
-        acc[A_REFL] += _refl_energy(a, F0, kap, Z, tb)
+        if refl:
+            acc[A_REFL] += _refl_energy(a, F0, kap, Z, tb)
         st[R_E] = e1
         if crush:
             st[R_P] = p + dd * (1.0 - frac)
