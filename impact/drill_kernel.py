@@ -44,8 +44,9 @@ N_DPARAMS = 28
 N_DSTATS = 15
 
 # recorded columns
-(C_T, C_N_TOP, C_N_BIT, C_V_COLLAR, C_V_BIT, C_D, C_P, C_X_HOUSING, C_W, C_F_ROCK) = range(10)
-N_REC = 10
+(C_T, C_N_TOP, C_N_BIT, C_V_COLLAR, C_V_BIT, C_D, C_P, C_X_HOUSING, C_W, C_F_ROCK, C_ENERGY,
+ C_ROCK_WORK, C_HORN_WORK) = range(13)
+N_REC = 13
 
 STATUS_OK, STATUS_PLASTIC = 0, 1
 _MAX_EV = 16
@@ -111,6 +112,7 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
     free_on = m_w > 0.0
     housing_free = math.isfinite(Mh)
     aw = g - Fs / m_w if free_on else 0.0
+    mu_h = m_w * Mh / (m_w + Mh) if housing_free else m_w
     Fs_h = Fs if free_on else 0.0
 
     for j in range(stats.shape[0]):
@@ -232,14 +234,15 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
                 ap = hv - wd
                 w = hx
                 if ap > 0.0:
-                    wn = hv + e2 * ap
-                    if e2 * ap < v_stick:
-                        wn = hv
-                    J = m_w * (wn - wd)
+                    # Newton's law between the free mass and the housing that carries the horn
+                    # (effective mass mu; the horn's vibration is imposed): momentum and, for
+                    # e2 = 1 and a still horn, energy are exact
+                    ee = e2 if e2 * ap >= v_stick else 0.0
+                    J = mu_h * (1.0 + ee) * ap
                     work_horn += J * hv
                     if housing_free:
                         V -= J / Mh
-                    wd = wn
+                    wd = wd + J / m_w
                     if started:
                         stats[S_HORN] += 1.0
             else:
@@ -294,6 +297,26 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
             rec[n_rec, C_X_HOUSING] = X
             rec[n_rec, C_W] = w
             rec[n_rec, C_F_ROCK] = f_rock_end
+            # mechanical energy (J): kinetic, spring k0, rod waves, rock's elastic energy (the
+            # elastic curve), potentials of the WOB, gravity on the free mass, restoring spring
+            q = xc - X - L0
+            e = rs[R_E]
+            if e <= 0.0:
+                er = 0.0
+            elif e <= fth / kl:
+                er = 0.5 * kl * e * e
+            else:
+                eth = fth / kl
+                er = 0.5 * fth * eth + fth * (e - eth) + 0.5 * ku * (e - eth) ** 2
+            en = (0.5 * mc * vc * vc + 0.5 * k0 * q * q + Z * dt * ((ringA * ringA).sum() + (ringB * ringB).sum())
+                  + er - wob * X)
+            if housing_free:
+                en += 0.5 * Mh * V * V
+            if free_on:
+                en += 0.5 * m_w * wd * wd - m_w * g * w + Fs * (w - X)
+            rec[n_rec, C_ENERGY] = en
+            rec[n_rec, C_ROCK_WORK] = racc[0]
+            rec[n_rec, C_HORN_WORK] = work_horn
             n_rec += 1
     if t_from <= 0.0:
         stats[S_P_FROM] = m_w * pv[D_V0] + mc * pv[D_COLLAR_V0]

@@ -118,6 +118,24 @@ def test_rock_lifts_off_and_recontacts():
     assert abs(e_in - work - refl) <= 1e-6 * e_in
 
 
+def test_energy_is_conserved_without_drive_or_losses_and_converges():
+    """Still horn (A0 = 0), elastic impacts (e1 = e2 = 1), no damper, elastic rock (k_unload =
+    k_load, no crushing), WOB and restoring spring on: the mechanical energy (kinetic, k0, rod
+    waves, rock, WOB / gravity / spring potentials) stays constant over 50 ms (8-9 blows) but for
+    the first-order error of sampling an impact inside a step: < 5 % of the free mass's launch
+    energy at 32 cells (measured 3.1 %), at least 3x less at 128 cells (0.8 %)."""
+    errs = []
+    for cells in (32, 128):
+        ip = ImpactParams(A0=0.0, e1=1.0, e2=1.0, c=0.0, freq=19.95e3, spring_force=5.0)
+        p = DrillParams(impact=ip, rock=RockLaw(4.8e7, 4.8e7, 1e6), rod=ToolRod(cells=cells))
+        st, rec = K.run_record(pack(p, 0.008), 0.05, 50)
+        assert st[K.S_BLOWS] >= 5
+        e = rec[:, K.C_ENERGY]
+        errs.append(np.max(np.abs(e - e[0])) / (0.5 * 0.008 * 4.0 ** 2))
+    assert errs[0] < 0.05
+    assert errs[1] < errs[0] / 3.0
+
+
 def test_wob_alone_settles_to_the_static_equilibrium():
     """No drive, no free mass, cold start (nothing stressed): the WOB pushes the housing until the
     spring carries wob (q = -wob / k0) and the rock bears wob (e = wob / k_load)."""
