@@ -7,8 +7,8 @@ Bodies (x along the drill, horn -> rock; see :mod:`impact.drilling` for the mode
   collar through the support spring k0 and damper c; the free mass's restoring spring pushes
   the housing by ``spring_force`` while the free mass flies (its reaction);
 * free mass (point, flight under ``g - spring_force / m_free``), Newton impacts on the horn
-  (restitution e2, kinematic horn, the impulse taken from the housing) and on the collar
-  (restitution e1, momentum conserved);
+  (restitution e2 against the housing that carries the horn, the horn's vibration imposed on
+  top) and on the collar (restitution e1), momentum conserved in both;
 * collar: rigid, bonded to the top of the rod (or, for the Saint-Venant check, a unilateral
   striker); between impacts ``m_c x'' = -k0 q - c q' - N_top`` with ``q = x - X - gap`` and the
   rod's top force ``N_top = Z (x' - 2 b)`` (b: incoming wave), solved in closed form over a step
