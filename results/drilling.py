@@ -31,3 +31,25 @@ def drilling_stage(base, masses, amplitudes: dict, wob: float, seed: int, say=No
             f"{top['drilling_rate_m_s'].scaled(6e4)} mm/min, depth after {p.drill_time:g} s "
             f"{top.depth_m.scaled(1e3)} mm (95 % CI)")
     return {"json": res.to_dict(), "result": res}
+
+
+def report_lines(d: dict) -> list[str]:
+    """Markdown section of ``report.md`` from ``summary.json``'s ``drilling`` block."""
+    from .report import _ci
+
+    p = d["params"]
+    lines = ["", "## Drilling under load (bit on sandstone)", "",
+             f"WOB {p['wob_n']:g} N, tool rod {p['rod']['diameter_m'] * 1e3:g} x {p['rod']['length_m'] * 1e3:g} mm, "
+             f"rock k_load {p['rock']['k_load_n_per_m']:.3g} N/m, k_unload {p['rock']['k_unload_n_per_m']:.3g} N/m, "
+             f"threshold {p['rock']['f_threshold_n']:g} N (assumed sandstone values); depth = drilling rate x "
+             f"{p['drill_time_s']:g} s; means with 95 % CIs over seeded members. The absolute depths rest on the "
+             "assumed rock law (see the README); the trend with the free mass is the result to compare with the "
+             "article's Fig. 14.", "",
+             "| free mass (g) | A0 (um) | blows (Hz) | penetration per blow (um) | drilling rate (mm/min) "
+             "| depth (mm) | efficiency (%) | members |", "|---|---|---|---|---|---|---|---|"]
+    for r in d["rows"]:
+        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {r['A0_m'] * 1e6:.2f} | {_ci(r['blow_rate_hz'])} "
+                     f"| {_ci(r['penetration_per_blow_m'], 1e6)} | {_ci(r['drilling_rate_m_s'], 6e4)} "
+                     f"| {_ci(r['depth_after_drill_time_m'], 1e3)} | {_ci(r['efficiency'], 100)} | {r['members']}"
+                     + ("" if r["converged"] else " (cap)") + " |")
+    return lines
