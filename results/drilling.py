@@ -35,7 +35,15 @@ def drilling_stage(base, masses, amplitudes: dict, wob: float, seed: int, say=No
 
 def report_lines(d: dict) -> list[str]:
     """Markdown section of ``report.md`` from ``summary.json``'s ``drilling`` block."""
-    from .report import _ci
+    import math
+
+    from impact.stats import Estimate
+
+    def _ci(est, scale=1.0):          # as results.report._ci (which imports this module)
+        if est["mean"] is None:
+            return "n/a"
+        hw = est["ci95_half_width"]
+        return format(Estimate(est["mean"] * scale, math.nan if hw is None else hw * scale, est["members"]))
 
     p = d["params"]
     lines = ["", "## Drilling under load (bit on sandstone)", "",
