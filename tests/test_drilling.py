@@ -206,6 +206,10 @@ def test_pipeline_stage_uses_the_amplitude_per_mass():
     assert rows[0]["drilling_rate_m_s"]["mean"] == 0.0
     assert rows[2]["depth_after_drill_time_m"]["ci95"][0] > rows[1]["depth_after_drill_time_m"]["ci95"][1]
     json.dumps(out["json"], allow_nan=False)
+    from results.drilling import report_lines
+
+    table = [ln for ln in report_lines(out["json"]) if ln.startswith("| ") and ln[2].isdigit()]
+    assert len(table) == 3 and table[2].startswith("| 8 | 22.00 |")
 
 
 def test_bad_input_is_refused():
