@@ -12,7 +12,8 @@ Public API (loaded on first use, so ``import impact`` stays light)::
 See :mod:`impact.model` (the model and its corrections to the article), :mod:`impact.stats`
 (ensembles, confidence intervals, scenarios) and :mod:`impact.sweeps`; :mod:`impact.coupled`
 runs the model with a modal horn (:class:`impact.horn.ModalHorn`, e.g. the FE transducer reduced
-by ``fem.reduced``) in place of the kinematic tip.
+by ``fem.reduced``) in place of the kinematic tip; :mod:`impact.drilling` presses the drill on
+rock with a weight on bit (elastic tool rod :mod:`impact.rod`, bit-rock law :mod:`impact.rock`).
 """
 
 from rpud_common.lazy import exports
@@ -22,6 +23,9 @@ _WHERE = {"ImpactParams": "params", "simulate": "model", "ImpactResult": "model"
           "SCENARIOS": "stats", "StatsSettings": "stats", "sweep": "sweeps", "SweepResult": "sweeps",
           "reproduce": "article", "plot_history": "plots", "plot_spectrum": "plots", "plot_ke_vs_mass": "plots",
           "plot_tool_ke_history": "plots", "ModalHorn": "horn", "simulate_coupled": "coupled",
-          "CoupledResult": "coupled", "coupled_batch": "coupled", "HuntCrossley": "contact"}
+          "CoupledResult": "coupled", "coupled_batch": "coupled", "HuntCrossley": "contact",
+          "DrillParams": "drilling", "DrillSettings": "drilling", "drilling_sweep": "drilling",
+          "drilling_statistics": "drilling", "RockLaw": "rock", "ToolRod": "rod",
+          "plot_depth_vs_mass": "drilling_plots"}
 __all__ = list(_WHERE)
 __getattr__, __dir__ = exports(__name__, _WHERE)

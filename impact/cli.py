@@ -304,6 +304,11 @@ def _wants_fem_horn(argv) -> bool:
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if any(a == "--load" or a.startswith("--load=") for a in argv):
+        # drilling under load (issue 16); named, not imported: drilling_cli uses this module's helpers
+        import importlib
+
+        return importlib.import_module("impact.drilling_cli").main(argv)
     if argv and argv[0] not in ("sweep", "article") and _wants_fem_horn(argv):
         # the FE transducer: built outside impact (which never imports fem); the module is named,
         # not imported, as rpud_common.launch names every entry point

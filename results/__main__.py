@@ -46,6 +46,9 @@ def build_parser() -> CliParser:
                    help="skip the coupled model (FE transducer in the impact loop); kinematic-horn results only")
     p.add_argument("--coupled-modes", type=int, default=None, metavar="N",
                    help="modes of the reduced transducer in the coupled model (default: tip-participation rule)")
+    p.add_argument("--load", choices=["rock"], default=None,
+                   help="also predict drilling under load: bit on sandstone, depth vs free mass (impact.drilling)")
+    p.add_argument("--wob", type=float, default=7.0, metavar="N", help="weight on bit with --load, N (default 7)")
     p.add_argument("--no-render", action="store_true", help="skip the mode-shape PNGs and the VTU")
     p.add_argument("--allow-large", action="store_true",
                    help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
@@ -68,6 +71,7 @@ def check_options(args) -> None:
     check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
     if args.coupled_modes is not None:
         check_integer("--coupled-modes", args.coupled_modes, 1, 12)
+    check_range("--wob", args.wob, 0.0, 1e4, "N")
 
 
 def main(argv=None) -> int:
@@ -88,7 +92,8 @@ def main(argv=None) -> int:
                                 mesh_size=args.mesh_size, **mesh_options(args), match=not args.no_match,
                                 couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                                 impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
-                                coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes)
+                                coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes,
+                                load=args.load, wob=args.wob)
     design = design_from_options(args)
     if args.out is not None:
         out = Path(args.out)

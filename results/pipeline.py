@@ -81,6 +81,8 @@ class PipelineSettings:
     coupled_model : run the coupled model (FE transducer in the impact loop) beside the kinematic horn
     coupled_modes : modes of the reduced transducer (None: the tip-participation rule of fem.reduced)
     coupled_history_s : length of the coupled ring-up history with the reference free mass, s
+    load : None, or "rock": also predict drilling under load (results.drilling; issue 16)
+    wob : weight on bit of the drilling stage, N
     """
 
     voltage: float = 225.0
@@ -102,6 +104,8 @@ class PipelineSettings:
     coupled_model: bool = True
     coupled_modes: int | None = None
     coupled_history_s: float = 0.05
+    load: str | None = None
+    wob: float = 7.0
 
     def __post_init__(self):
         check_positive("voltage", self.voltage, "V")
@@ -126,6 +130,9 @@ class PipelineSettings:
         if self.coupled_modes is not None:
             check_integer("coupled_modes", self.coupled_modes, 1, 64)
         check_range("coupled_history_s", self.coupled_history_s, 1e-3, 1.0, "s")
+        if self.load not in (None, "rock"):
+            raise ParameterError("load", self.load, "must be None or 'rock'")
+        check_range("wob", self.wob, 0.0, 1e4, "N")
 
     def impact_settings(self):
         """The ensemble rule of the impact statistics."""
@@ -415,6 +422,14 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
             n_modes=settings.coupled_modes, history_s=settings.coupled_history_s,
             reference_m_free=settings.reference_m_free, say=say)
     timings["coupled_s"] = time.perf_counter() - t0
+    drilling = None
+    if settings.load == "rock":                # opt-in: drilling under load (issue 16)
+        from .drilling import drilling_stage
+
+        t0 = time.perf_counter()
+        drilling = drilling_stage(base, list(settings.m_free_values), {m: coupled[m].A0 for m in masses},
+                                  settings.wob, settings.seed, say=say)
+        timings["drilling_s"] = time.perf_counter() - t0
     top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in sweeps.items()}
     say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']}, "
         f"article scenario {top['article_fe']} (FE A0), {top['article_15um']} (A0 = 15 um)")
@@ -453,6 +468,11 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
                                          "ke_vs_free_mass_three_horn_models.png")
         drawn["coupled_drive_power"] = (cf.drive_power(coupled_model["stats"], wp.power_w),
                                         "drive_power_vs_free_mass.png")
+    if drilling is not None:
+        from impact.drilling_plots import plot_depth_vs_mass
+
+        drilling["result"].no_load = sweeps["device_fe"]
+        drawn["drilling"] = (plot_depth_vs_mass(drilling["result"]), "depth_vs_free_mass.png")
     figs = {key: save_figure(axes, fig_dir / name) for key, (axes, name) in drawn.items()}
     ke_table = ke_rows(sweeps, 0.0 in settings.m_free_values, coupled)
     timings["figures_s"] = time.perf_counter() - t0
@@ -492,6 +512,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
                                         **hist_ref.summary()}},
         "kinetic_energy_table": ke_table,
         "coupled_model": coupled_model["json"] if coupled_model is not None else None,
+        **({"drilling": drilling["json"]} if drilling is not None else {}),
         "files": {"figures": {k: str(Path(v).relative_to(out)) for k, v in figs.items()},
                   "renders": [str(Path(p).relative_to(out)) for p in renders],
                   "vtu": str(Path(vtu).relative_to(out)) if vtu else None},
