@@ -21,7 +21,9 @@ voltage ``V(t) = V0 sin(W t)`` each kept modal coordinate obeys::
   response at the drive, ``2 zeta_i omega_i = eta_i omega_i^2 / W`` (as :func:`fem.transient.ring_up`);
 * tip participation ``s_i = a^T phi_i`` (m per unit modal coordinate), ``a`` the area-mean axial
   displacement row of the tip surface (:func:`fem.harmonic.surface_functional`), so that a tip
-  impulse ``J`` (N s, along +z on the horn) changes ``q_i'`` by ``s_i J`` (modal mass 1).
+  impulse ``J`` (N s, along +z on the horn) changes ``q_i'`` by ``s_i J`` (modal mass 1); each mode's
+  sign is chosen so that ``s_i >= 0`` (the same numbers in every run, whichever sign the
+  eigen-solver returned).
 
 Residual (static correction). The modes left out (other basis modes and the truncated space of
 the basis' residual) respond to the drive quasi-statically; at the drive frequency their tip
@@ -222,10 +224,14 @@ def reduce_transducer(system: PiezoSystem, basis: ModalBasis, freq_hz: float, *,
     charge_full = complex(_charge_row(system, L) @ x)
     blocked = charge_full - complex(gam @ q_keep)
     w_pos = int(np.flatnonzero(idx == working)[0])
+    # a mode's sign is arbitrary (eigen-solvers may return either from run to run); the sign with a
+    # positive tip participation makes the reduced transducer the same numbers in every run
+    sign = np.where(s_all[idx] < 0, -1.0, 1.0)
+    gam = sign * gam
     log.info("reduced transducer: %d modes (%s), residual %.3g of the tip response", len(idx), rule,
              abs(residual) / abs(tip_full) if tip_full else 0.0)
     return ReducedTransducer(
         freq_hz=float(freq_hz), omega=omega, modal_mass=np.ones(len(idx)), stiffness=lam.copy(), eta=eta.copy(),
-        zeta=zeta, coupling_re=gam.real.copy(), coupling_im=gam.imag.copy(), tip=s_all[idx].copy(),
+        zeta=zeta, coupling_re=gam.real.copy(), coupling_im=gam.imag.copy(), tip=sign * s_all[idx],
         mode_index=idx, working=w_pos, residual_re=residual.real, residual_im=residual.imag,
         blocked_charge_re=blocked.real, blocked_charge_im=blocked.imag, tip_surface=tip_surface, rule=rule)
