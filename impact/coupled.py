@@ -130,66 +130,78 @@ class CoupledResult:
         to the drill tool at tool impacts; ``riding_j``: work of the tip on a free mass riding it
         (sticking phases ending in the interval; not drawn from the modes, see the module
         docstring). ``residual_j`` = drive - damping - stored change - to_free_mass (0 up to
-        round-off).
+        round-off). With a series-resistance drive the port adds ``source_loss_j``,
+        ``electrode_change_j`` and ``electric_residual_j`` (:func:`impact.drive_result.port_terms`).
         """
         if self.extra.get("compliant"):
             raise ParameterError("energy_balance", "compliant contact",
                                  "needs closed-form segments; not available with the Hunt-Crossley option")
-        if self.horn.series_resistance > 0:
-            from . import drive_result as drive
-
-            return drive.energy_balance(self, edges)
         edges = np.asarray(edges, float)
-        p = self.impact.params
-        t_end = p.t_end
-        ends = np.append(self.seg_t0[1:], t_end)
         rows = []
-        W = 2 * math.pi * self.freq_hz
-        r = self.horn.residual_phasor()
-        ev_t = self.impact.t
-        horn_ev = ~self.impact.is_tool
-        # work of the residual (a driven displacement) on the free mass at horn impacts
-        res_vel = (1j * W * r * np.exp(1j * W * ev_t)).real
         for a, b in zip(edges[:-1], edges[1:]):
-            lo = np.maximum(self.seg_t0, a)
-            hi = np.minimum(ends, b)
-            sel = hi > lo
-            integ = segment_integrals(self.horn, self.freq_hz, self.seg_t0[sel], self.seg_q[sel], self.seg_qd[sel],
-                                      lo[sel] - self.seg_t0[sel], hi[sel] - self.seg_t0[sel])
-            inw = (ev_t >= a) & (ev_t < b)
-            J = self.impulse
-            hw = horn_ev & inw
-            q_a, qd_a = self.state_at(a)
-            q_b, qd_b = self.state_at(b)
-            to_free = float(np.sum(J[hw] * 0.5 * (self.tip_v_before[hw] + self.tip_v_after[hw])))
-            drive = float(integ["drive_j"].sum() + np.sum(J[hw] * res_vel[hw]))
-            damp = float(integ["damping_j"].sum())
-            stored = float(self.stored_energy(q_b, qd_b) - self.stored_energy(q_a, qd_a))
-            imp = self.impact
-            rel_h = imp.w_before[hw] - self.tip_v_before[hw]
-            mu_h = 1.0 / (1.0 / p.m_free + 1.0 / self.horn.tip_mass)
-            tw = imp.is_tool & inw
-            rel_t = imp.w_before[tw] - imp.v_before[tw]
-            mu_t = p.m_free * p.m_tool / (p.m_free + p.m_tool)
-            riding = 0.0
-            for s0, s1, body in imp.stick:
-                if body == "horn" and a <= s1 < b and s1 < t_end:
-                    (qa_, qda_), (qb_, qdb_) = self.state_at(s0), self.state_at(s1)
-                    u0_, ud0_ = _tip_of(self, s0, qa_, qda_)
-                    u1_, ud1_ = _tip_of(self, s1, qb_, qdb_)
-                    riding += (0.5 * p.m_free * ud1_ ** 2 - p.m_free * p.a_free * u1_) - \
-                              (0.5 * p.m_free * ud0_ ** 2 - p.m_free * p.a_free * u0_)
-            rows.append({
-                "t_from_s": float(a), "t_to_s": float(b), "electric_j": float(integ["electric_j"].sum()),
-                "drive_j": drive, "damping_j": damp,
-                "stored_change_j": stored, "to_free_mass_j": to_free,
+            if self.horn.series_resistance > 0:
+                from . import drive_result
+
+                row = drive_result.port_terms(self, a, b)
+            else:
+                row = self._voltage_terms(a, b)
+            row.update(self._impact_terms(a, b))
+            row["residual_j"] = row["drive_j"] - row["damping_j"] - row["stored_change_j"] - row["to_free_mass_j"]
+            rows.append({"t_from_s": float(a), "t_to_s": float(b), **row})
+        return rows
+
+    def _voltage_terms(self, a: float, b: float) -> dict:
+        """Electrical input, work on the modes, damping loss and stored change over [a, b] (voltage drive)."""
+        ends = np.append(self.seg_t0[1:], self.impact.params.t_end)
+        lo = np.maximum(self.seg_t0, a)
+        hi = np.minimum(ends, b)
+        sel = hi > lo
+        integ = segment_integrals(self.horn, self.freq_hz, self.seg_t0[sel], self.seg_q[sel], self.seg_qd[sel],
+                                  lo[sel] - self.seg_t0[sel], hi[sel] - self.seg_t0[sel])
+        # the residual is a driven displacement: the source's work on the free mass at horn impacts
+        W = 2 * math.pi * self.freq_hz
+        imp = self.impact
+        hw = ~imp.is_tool & (imp.t >= a) & (imp.t < b)
+        res_vel = (1j * W * self.horn.residual_phasor() * np.exp(1j * W * imp.t[hw])).real
+        q_a, qd_a = self.state_at(a)
+        q_b, qd_b = self.state_at(b)
+        return {"electric_j": float(integ["electric_j"].sum()),
+                "drive_j": float(integ["drive_j"].sum() + np.sum(self.impulse[hw] * res_vel)),
+                "damping_j": float(integ["damping_j"].sum()),
+                "stored_change_j": float(self.stored_energy(q_b, qd_b) - self.stored_energy(q_a, qd_a))}
+
+    def tip_at(self, t: float) -> tuple[float, float]:
+        """Tip displacement (m) and velocity (m/s) at time t."""
+        if self.horn.series_resistance > 0:
+            from . import drive_result
+
+            u, ud = drive_result.tip_series(self, [t])
+            return float(u[0]), float(ud[0])
+        return _tip_of(self, t, *self.state_at(t))
+
+    def _impact_terms(self, a: float, b: float) -> dict:
+        """Work on the free mass, restitution losses, energy to the tool and riding work over [a, b]."""
+        p = self.impact.params
+        imp = self.impact
+        inw = (imp.t >= a) & (imp.t < b)
+        hw = ~imp.is_tool & inw
+        tw = imp.is_tool & inw
+        J = self.impulse
+        rel_h = imp.w_before[hw] - self.tip_v_before[hw]
+        mu_h = 1.0 / (1.0 / p.m_free + 1.0 / self.horn.tip_mass)
+        rel_t = imp.w_before[tw] - imp.v_before[tw]
+        mu_t = p.m_free * p.m_tool / (p.m_free + p.m_tool)
+        riding = 0.0
+        for s0, s1, body in imp.stick:
+            if body == "horn" and a <= s1 < b and s1 < p.t_end:
+                (u0, ud0), (u1, ud1) = self.tip_at(s0), self.tip_at(s1)
+                riding += (0.5 * p.m_free * ud1 ** 2 - p.m_free * p.a_free * u1) - \
+                          (0.5 * p.m_free * ud0 ** 2 - p.m_free * p.a_free * u0)
+        return {"to_free_mass_j": float(np.sum(J[hw] * 0.5 * (self.tip_v_before[hw] + self.tip_v_after[hw]))),
                 "restitution_horn_j": float(np.sum(0.5 * mu_h * (1 - p.e2 ** 2) * rel_h ** 2)),
                 "restitution_tool_j": float(np.sum(0.5 * mu_t * (1 - p.e1 ** 2) * rel_t ** 2)),
                 "to_tool_j": float(np.sum(0.5 * p.m_tool * (imp.v_after[tw] ** 2 - imp.v_before[tw] ** 2))),
-                "riding_j": float(riding),
-                "residual_j": drive - damp - stored - to_free,
-            })
-        return rows
+                "riding_j": float(riding)}
 
     def envelope(self, cycles: int = 4) -> tuple[np.ndarray, np.ndarray]:
         """Running amplitude of the tip: the fundamental at the drive over consecutive windows of

@@ -11,7 +11,7 @@ import numpy as np
 from .drive import SeriesModel, pack_series, physical_states, series_model
 from .kernel_modal import _integrals_series
 
-__all__ = ["model_of", "tip_series", "fundamental", "drive_power", "energy_balance", "physical"]
+__all__ = ["model_of", "tip_series", "fundamental", "drive_power", "port_terms", "physical"]
 
 
 def model_of(res) -> SeriesModel:
@@ -70,55 +70,19 @@ def drive_power(res, t_from: float, t_to: float, dt: float | None = None) -> tup
     return float(np.mean(vs * i)), float(np.sqrt(np.mean(i ** 2)))
 
 
-def energy_balance(res, edges) -> list[dict]:
-    """Energy per interval between consecutive ``edges`` (s), every term in J (series drive).
+def port_terms(res, a: float, b: float) -> dict:
+    """The series drive's energy terms over [a, b], J (the impact terms are the voltage drive's).
 
     ``electric_j``: the source's work ``int V_s i dt``; ``source_loss_j``: resistor and dielectric
-    loss ``int (R i^2 + G V_p^2) dt``; ``electrode_change_j``: change of ``C0 V_p^2 / 2``; ``drive_j``:
-    the conversion to mechanics ``int V_p sum theta_i q_i' dt``; ``damping_j``: modal damping loss;
-    ``stored_change_j``: modal energy change; ``to_free_mass_j``, ``restitution_*``, ``to_tool_j``,
-    ``riding_j`` as for the voltage drive. Two residuals (0 up to round-off):
-    ``residual_j`` = drive - damping - stored change - to free mass (the modes) and
-    ``electric_residual_j`` = electric - source loss - electrode change - drive (the port).
+    loss ``int (R i^2 + G V_p^2) dt``; ``electrode_change_j``: change of ``C0 V_p^2 / 2``;
+    ``drive_j``: the conversion to mechanics ``int V_p sum theta_i q_i' dt``; ``damping_j``: modal
+    damping loss; ``stored_change_j``: modal energy change; ``electric_residual_j`` = electric -
+    source loss - electrode change - drive (the port's balance, 0 up to round-off).
     """
     m = model_of(res)
-    p = res.impact.params
-    imp = res.impact
-    edges = np.asarray(edges, float)
-    rows = []
-    ev_t = imp.t
-    horn_ev = ~imp.is_tool
-    J = res.impulse
-    for a, b in zip(edges[:-1], edges[1:]):
-        src, loss, conv, damp, _ = (float(v.real) for v in _segment_sums(res, a, b))
-        xa, xb = physical(res, [a, b])[0]
-        mech = m.modal_energy(res.horn, np.vstack([xa, xb]))
-        elec = 0.5 * m.C0 * np.array([xa[-1], xb[-1]]) ** 2
-        inw = (ev_t >= a) & (ev_t < b)
-        hw = horn_ev & inw
-        to_free = float(np.sum(J[hw] * 0.5 * (res.tip_v_before[hw] + res.tip_v_after[hw])))
-        rel_h = imp.w_before[hw] - res.tip_v_before[hw]
-        mu_h = 1.0 / (1.0 / p.m_free + 1.0 / res.horn.tip_mass)
-        tw = imp.is_tool & inw
-        rel_t = imp.w_before[tw] - imp.v_before[tw]
-        mu_t = p.m_free * p.m_tool / (p.m_free + p.m_tool)
-        riding = 0.0
-        for s0, s1, body in imp.stick:
-            if body == "horn" and a <= s1 < b and s1 < p.t_end:
-                (u0, ud0), (u1, ud1) = (np.array(v) for v in zip(*tip_series(res, [s0, s1])))
-                riding += (0.5 * p.m_free * ud1 ** 2 - p.m_free * p.a_free * u1) - \
-                          (0.5 * p.m_free * ud0 ** 2 - p.m_free * p.a_free * u0)
-        stored = float(mech[1] - mech[0])
-        de = float(elec[1] - elec[0])
-        rows.append({
-            "t_from_s": float(a), "t_to_s": float(b), "electric_j": src, "source_loss_j": loss,
-            "electrode_change_j": de, "drive_j": conv, "damping_j": damp, "stored_change_j": stored,
-            "to_free_mass_j": to_free,
-            "restitution_horn_j": float(np.sum(0.5 * mu_h * (1 - p.e2 ** 2) * rel_h ** 2)),
-            "restitution_tool_j": float(np.sum(0.5 * mu_t * (1 - p.e1 ** 2) * rel_t ** 2)),
-            "to_tool_j": float(np.sum(0.5 * p.m_tool * (imp.v_after[tw] ** 2 - imp.v_before[tw] ** 2))),
-            "riding_j": float(riding),
-            "residual_j": conv - damp - stored - to_free,
-            "electric_residual_j": src - loss - de - conv,
-        })
-    return rows
+    src, loss, conv, damp, _ = (float(v.real) for v in _segment_sums(res, a, b))
+    xa, xb = physical(res, [a, b])[0]
+    mech = m.modal_energy(res.horn, np.vstack([xa, xb]))
+    de = float(0.5 * m.C0 * (xb[-1] ** 2 - xa[-1] ** 2))
+    return {"electric_j": src, "source_loss_j": loss, "electrode_change_j": de, "drive_j": conv, "damping_j": damp,
+            "stored_change_j": float(mech[1] - mech[0]), "electric_residual_j": src - loss - de - conv}
