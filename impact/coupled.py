@@ -150,14 +150,18 @@ class CoupledResult:
             rows.append({"t_from_s": float(a), "t_to_s": float(b), **row})
         return rows
 
-    def _voltage_terms(self, a: float, b: float) -> dict:
-        """Electrical input, work on the modes, damping loss and stored change over [a, b] (voltage drive)."""
+    def _integrals(self, a: float, b: float) -> dict:
+        """:func:`impact.horn.segment_integrals` summed over the parts of the segments in [a, b]."""
         ends = np.append(self.seg_t0[1:], self.impact.params.t_end)
         lo = np.maximum(self.seg_t0, a)
         hi = np.minimum(ends, b)
         sel = hi > lo
-        integ = segment_integrals(self.horn, self.freq_hz, self.seg_t0[sel], self.seg_q[sel], self.seg_qd[sel],
-                                  lo[sel] - self.seg_t0[sel], hi[sel] - self.seg_t0[sel])
+        return segment_integrals(self.horn, self.freq_hz, self.seg_t0[sel], self.seg_q[sel], self.seg_qd[sel],
+                                 lo[sel] - self.seg_t0[sel], hi[sel] - self.seg_t0[sel])
+
+    def _voltage_terms(self, a: float, b: float) -> dict:
+        """Electrical input, work on the modes, damping loss and stored change over [a, b] (voltage drive)."""
+        integ = self._integrals(a, b)
         # the residual is a driven displacement: the source's work on the free mass at horn impacts
         W = 2 * math.pi * self.freq_hz
         imp = self.impact
@@ -218,12 +222,7 @@ class CoupledResult:
             from . import drive_result as drive
 
             return drive.fundamental(self, a, b)
-        ends = np.append(self.seg_t0[1:], self.impact.params.t_end)
-        lo = np.maximum(self.seg_t0, a)
-        hi = np.minimum(ends, b)
-        sel = hi > lo
-        integ = segment_integrals(self.horn, self.freq_hz, self.seg_t0[sel], self.seg_q[sel], self.seg_qd[sel],
-                                  lo[sel] - self.seg_t0[sel], hi[sel] - self.seg_t0[sel])
+        integ = self._integrals(a, b)
         return complex(integ["fundamental"].sum())
 
     def mean_amplitude(self, t_from: float, t_to: float) -> float:
