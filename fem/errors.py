@@ -18,9 +18,11 @@ of the representative element sizes ``h = DOFs^(-1/3)`` and an assumed order ``p
 (:func:`fem.convergence.estimator_order`: 1 on an ungraded mesh of a design with re-entrant
 edges, whose 270-degree corners limit the rate to h^1.1; 2 graded or without such edges; both
 below the observed rates, so the estimate errs on the large side). Validated against exact
-answers in ``tests/test_discretisation_error.py`` (between 1x and 5x the true error). Both solves
-are deterministic (fixed-seed single-thread meshing, MKL's reproducible mode), so the same
-command gives the same estimate.
+answers in ``tests/test_discretisation_error.py`` (between 1x and 5x the true error). The same
+command gives the same estimate: the solvers are deterministic (MKL's reproducible mode), and
+the coarse values are kept to 4 significant digits of their difference from the fine ones and
+the errors to 2 significant digits, because gmsh's high-order optimiser, which runs on coarse
+curved meshes, moves nodes by ~1e-8 m from one build to the next (1e-10 in f_r).
 
 A refinement study (``--converge TOL``, :func:`fem.convergence.study`) gives the observed order
 and a Richardson estimate instead; ``benchmarks/study_discretisation_error.py`` compares the two
@@ -51,6 +53,18 @@ __all__ = ["QUANTITIES", "ErrorEstimate", "estimate", "estimate_from_levels", "h
 
 QUANTITIES = ("f_r_hz", "f_a_hz", "k_eff", "tip_per_volt_m", "teeth_ellipse_ratio")
 """Quantities with an estimated discretisation error (the keys of the JSON of every module)."""
+
+ERROR_DIGITS = 2
+"""Significant digits of an error estimate (all it means; also what makes it reproducible)."""
+
+DIFFERENCE_DIGITS = 4
+"""Significant digits kept of a coarse value's difference from the fine value."""
+
+
+def _round_sig(x: float, digits: int) -> float:
+    if x == 0 or not math.isfinite(x):
+        return float(x)
+    return float(f"{x:.{digits - 1}e}")
 
 
 @dataclass(frozen=True)
@@ -132,11 +146,16 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
         raise ParameterError("coarse", coarse.ndof, f"must have fewer DOFs than the fine mesh ({fine.ndof})")
     ratio = (fine.ndof / coarse.ndof) ** (1 / 3)
     p = estimator_order(grade, corners) if order is None else float(order)
-    errors = {q: two_level_error(fine.values[q], coarse.values[q], ratio, p)
-              for q in QUANTITIES if q in fine.values and q in coarse.values
-              and math.isfinite(fine.values[q]) and math.isfinite(coarse.values[q])}
-    return ErrorEstimate(errors, {q: float(v) for q, v in fine.values.items()},
-                         {q: float(v) for q, v in coarse.values.items()}, int(fine.ndof), int(coarse.ndof),
+    # reproducible to the digit: the coarse value enters through its difference from the fine one,
+    # kept to DIFFERENCE_DIGITS, and the error to ERROR_DIGITS (gmsh's high-order optimiser moves a
+    # coarse mesh's nodes by ~1e-8 m from one build to the next: 1e-10 in f_r)
+    near = {q: (float(fine.values[q]) + _round_sig(float(v) - float(fine.values[q]), DIFFERENCE_DIGITS)
+                if q in fine.values and math.isfinite(fine.values[q]) and math.isfinite(v) else float(v))
+            for q, v in coarse.values.items()}
+    errors = {q: _round_sig(two_level_error(fine.values[q], near[q], ratio, p), ERROR_DIGITS)
+              for q in QUANTITIES if q in fine.values and q in near
+              and math.isfinite(fine.values[q]) and math.isfinite(near[q])}
+    return ErrorEstimate(errors, {q: float(v) for q, v in fine.values.items()}, near, int(fine.ndof), int(coarse.ndof),
                          float(fine.refine), float(coarse.refine), float(ratio), p, bool(grade), bool(corners),
                          coarse.seconds)
 
