@@ -1,8 +1,8 @@
 """The pipeline's discretisation-error stage and where its numbers go in ``summary.json``.
 
 :func:`estimate_stage` runs :func:`fem.errors.estimate` on the tuned design: one solve on a mesh
-1.4x coarser than the pipeline's (modal, 4 modes, and one direct harmonic solve at the coarse
-mesh's own f_r with the pipeline's losses), about 1/3 of a fine solve. :func:`annotate_summary`
+1.4x coarser than the pipeline's (modal, 4 modes, and the harmonic working point at the coarse
+mesh's own f_r with the pipeline's losses, on those modes + residual as the fine one). :func:`annotate_summary`
 puts the errors beside the values (``X`` -> ``X_error``, same units; :mod:`fem.errors`):
 
 - ``working_mode``: ``f_r_hz``, ``f_a_hz``, ``k_eff``; ``matching``: ``matched_hz``;

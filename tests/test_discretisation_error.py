@@ -73,9 +73,6 @@ def test_estimate_record(axisym_estimate):
     d = est.to_dict()
     assert d["errors"]["f_r_hz"] == est.error("f_r_hz") and "order 1 assumed" in d["method"]
     assert d["coarse"]["f_r_hz"] == est.coarse["f_r_hz"]
-    # deterministic: the same coarse solve gives the same numbers
-    again = estimate(no_slots(), fine.values, fine.ndof, refine=1.0)
-    assert again.errors == est.errors
 
 
 def test_annotate_and_plus_minus():
@@ -87,10 +84,10 @@ def test_annotate_and_plus_minus():
     rec = annotate({"f_r_hz": 100.0, "used_m": 4.0, "k_eff": 0.3}, est,
                    {"f_r_hz": "f_r_hz", "used_m": "tip_per_volt_m", "k_eff": "k_eff"})
     assert rec["f_r_hz_error"] == 0.33 and rec["used_m_error"] == pytest.approx(4.0 * 0.067 / 2)
-    # the coarse value is kept to 4 significant digits of its difference: rounding jitter of 1e-9 is gone
-    a, b = (estimate_from_levels(Level(1.0, 8000, {"f_r_hz": 20000.0}), Level(1.4, 1000, {"f_r_hz": 20100.123456 + j}),
-                                 grade=False, corners=True) for j in (0.0, 1e-9))
-    assert a.coarse == b.coarse == {"f_r_hz": 20100.1} and a.errors == b.errors == {"f_r_hz": 100.0}
+    # the coarse value is kept to 2 significant digits of its difference: a jitter of the coarse mesh is gone
+    a, b = (estimate_from_levels(Level(1.0, 8000, {"f_r_hz": 20000.0}), Level(1.4, 1000, {"f_r_hz": 20061.23 + j}),
+                                 grade=False, corners=True) for j in (0.0, 0.04))
+    assert a.coarse == b.coarse == {"f_r_hz": 20061.0} and a.errors == b.errors == {"f_r_hz": 61.0}
     assert rec["k_eff_error"] is None                                    # not estimated: stated as such
     assert annotate({"f_r_hz": 1.0}, None, {"f_r_hz": "f_r_hz"}) == {"f_r_hz": 1.0, "f_r_hz_error": None}
     assert plus_minus(19996.8, 90.4, "Hz") == "19 997 ± 90 Hz"
