@@ -338,32 +338,22 @@ def _match_record(res_m, est) -> dict:
 
 
 def _error_estimate(args, design, system, res, near):
-    """``--error``: one coarser solve, the two-level estimate of the working mode's error."""
-    import geometry
+    """``--error``: one coarser solve, the two-level estimate of the working mode's error
+    (:func:`fem.errors.estimate`; the JSON block keeps its earlier keys beside the new ones)."""
+    from .errors import estimate
+    from .modal import working_mode
 
-    from .assembly import assemble
-    from .convergence import ESTIMATOR_RATIO, estimator_order, two_level_error
-    from .modal import modal_analysis, working_mode
+    def pick(r, n):
+        return working_mode(r.system, r.f_r_hz, r.vectors, max(n, 1.0))
 
-    w = working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0))
-    coarse_refine = args.refine * ESTIMATOR_RATIO
-    from geometry.sizing import graded_edges, region_sizes
-
-    corners = bool(graded_edges(design, region_sizes(design, args.mesh_size, refine=args.refine), args.refine))
-    p = estimator_order(args.grade, corners)
-    mesh_c = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, refine=coarse_refine,
-                                 grade=args.grade)
-    sys_c = assemble(mesh_c, order=args.order)
-    res_c = modal_analysis(sys_c, near, 8, backend=None if args.solver in (None, "auto") else args.solver)
-    wc = working_mode(sys_c, res_c.f_r_hz, res_c.vectors, max(near, 1.0))
-    ratio = (system.ndof / sys_c.ndof) ** (1 / 3)        # h ratio from the representative sizes
-    err = {"mode": int(w + 1), "f_r_err_hz": two_level_error(res.f_r_hz[w], res_c.f_r_hz[wc], ratio, p),
-           "f_a_err_hz": two_level_error(res.f_a_hz[w], res_c.f_a_hz[wc], ratio, p),
-           "k_eff_err": two_level_error(res.k_eff[w], res_c.k_eff[wc], ratio, p),
-           "method": f"two-level: refine {args.refine:g} and {coarse_refine:g} ({sys_c.ndof} DOFs), "
-                     f"{'graded' if args.grade else 'ungraded'}, "
-                     f"{'re-entrant edges' if corners else 'no re-entrant edges'}, order {p:g} assumed",
-           "coarse_f_r_hz": float(res_c.f_r_hz[wc]), "coarse_f_a_hz": float(res_c.f_a_hz[wc])}
+    w = pick(res, near)
+    values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w]), "k_eff": float(res.k_eff[w])}
+    with _solver(args.solver):
+        est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
+                       order=args.order, near_hz=near, harmonic=False, n_modes=8, select=pick)
+    err = {"mode": int(w + 1), "f_r_err_hz": est.error("f_r_hz"), "f_a_err_hz": est.error("f_a_hz"),
+           "k_eff_err": est.error("k_eff"), "coarse_f_r_hz": est.coarse["f_r_hz"],
+           "coarse_f_a_hz": est.coarse["f_a_hz"], **est.to_dict()}
     return {w: err}, err
 
 
