@@ -41,6 +41,15 @@ def build_parser():
                         "mode with the largest electromechanical coupling k_eff near the frequency")
     p.add_argument("--ring-up", type=float, metavar="S",
                    help="also integrate the ring-up for S seconds (0: six time constants)")
+    p.add_argument("--error", action="store_true",
+                   help="estimate the discretisation error of f_r, f_a, k_eff, the tip amplitude and the teeth "
+                        "ellipse ratio from one extra solve on a mesh 1.4x coarser (fem.errors); prints value +- "
+                        "error and adds X_error keys and a discretisation_error block to the JSON")
+    p.add_argument("--converge", type=float, metavar="TOL",
+                   help="mesh-convergence study instead: refine by 0.8 per level from --refine until f_r, f_a, "
+                        "k_eff, the tip amplitude per volt and the teeth ellipse ratio change by less than TOL "
+                        "(relative, 1e-7..0.1) between levels; prints each level, the observed order, the "
+                        "Richardson estimate and the error; exit 1 if not converged within the DOF budget")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON")
     p.add_argument("--plots", metavar="DIR", help="write admittance / tip response / ring-up PNGs into DIR")
     p.add_argument("--allow-large", action="store_true",
@@ -76,6 +85,18 @@ def _check_options(args) -> None:
     check_design_options(args)
     if args.ring_up is not None:
         check_range("--ring-up", args.ring_up, 0.0, MAX_RING_UP, "s (0: six time constants)")
+    if args.converge is not None:
+        check_range("--converge", args.converge, 1e-7, 0.1)
+        for opt in ("error", "plots", "ring_up", "freq", "band", "mode"):
+            if getattr(args, opt) not in (None, False):
+                raise ParameterError("--converge", args.converge, f"cannot be combined with --{opt.replace('_', '-')}")
+    if args.error:
+        # the estimate compares each mesh's own resonance and its driven mode (largest k_eff)
+        for opt in ("freq", "mode"):
+            if getattr(args, opt) is not None:
+                raise ParameterError("--error", True, f"estimates the response at the mode's own f_r: drop --{opt}")
+        if args.refine * 1.4 > 5.0:
+            raise ParameterError("--refine", args.refine, "must be <= 3.5 with --error (its coarse mesh is 1.4x coarser)")
     if args.json is not None and not args.json.endswith(".json"):
         raise ParameterError("--json", args.json, "must end in .json")
     check_output_paths(inputs=design_inputs(args), folders=("plots",), json=args.json, plots=args.plots)
@@ -130,8 +151,10 @@ def main(argv=None) -> int:
         mesh.facets(s)                                  # unknown names: a clear error before solving
     if not surfaces:
         raise ParameterError("--surface", None, "the design has no horn_tip; name a surface")
-    system = assemble(mesh)
     near = float(args.freq or getattr(design, "target_frequency", 20e3))
+    if args.converge is not None:
+        return _converge(args, design, near, loss, surfaces)
+    system = assemble(mesh)
     modal = modal_analysis(system, near, args.modes)
     if args.mode is not None and args.mode > modal.n_modes:
         raise ParameterError("--mode", args.mode, f"must be <= {modal.n_modes}, the modes computed")
@@ -166,13 +189,27 @@ def main(argv=None) -> int:
           f"{args.points} points, modal superposition of {res.basis_modes} modes + residual)")
     if ring is not None:
         print(f"ring-up: steady {ring.steady_amplitude(surfaces[0]) * 1e6:.3f} um after {ring.t[-1] * 1e3:.2f} ms")
+    est = None
+    if args.error:
+        from .errors import estimate
+        from .errors_cli import error_lines
+
+        values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
+                  "tip_per_volt_m": wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
+        est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
+                       near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode)
+        print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
     text = None
     if args.json:
-        data = {"design": str(args.design or "default"), "working_mode": {
+        from .errors import annotate
+        from .errors_cli import MODE_KEYS, POINT_KEYS
+
+        data = {"design": str(args.design or "default"), "working_mode": annotate({
             "index": w, "f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
-            "label": modal.labels[w]}, "drive_hz": f_w,
-            "working_point": wp.to_dict(), "sweep": res.to_dict(),
-            "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof}
+            "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w,
+            "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
+            "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
+            "discretisation_error": est.to_dict() if est is not None else None}
         text = json_text(data, nonfinite="null")
     if args.plots:
         from pathlib import Path
@@ -188,3 +225,22 @@ def main(argv=None) -> int:
     if text is not None:
         atomic_write_text(args.json, text)
     return 0
+
+
+def _converge(args, design, near: float, loss, surfaces) -> int:
+    """``--converge TOL``: the refinement study of the driven mode with its harmonic response."""
+    from .convergence import working_mode_level
+    from .errors_cli import run_study
+
+    def level(refine):
+        return working_mode_level(design, refine, mesh_size=args.mesh_size, near_hz=near, n_modes=args.modes,
+                                  grade=args.grade, loss=loss, surfaces=surfaces, select=driven_mode)
+
+    def describe(lev):
+        v = lev.values
+        return (f"f_r {v['f_r_hz']:.2f} Hz, f_a {v['f_a_hz']:.2f} Hz, {surfaces[0]} {v['tip_per_volt_m'] * 1e9:.3f} nm/V"
+                + (f", ellipse {v['teeth_ellipse_ratio']:.4f}" if "teeth_ellipse_ratio" in v else ""))
+
+    return run_study(args, design, near, level, describe,
+                     {"design": str(args.design or "default"), "voltage_v": args.voltage,
+                      "q_mech": args.q_mech, "tan_delta": args.tan_delta, "surfaces": list(surfaces)})

@@ -58,7 +58,8 @@ def build_parser(prog="python -m fem.modal"):
     g.add_argument("--error", action="store_true",
                    help="estimate the working mode's discretisation error from one extra solve on a mesh "
                         "1.4x coarser (--refine x 1.4) and an assumed order in h (fem.convergence.estimator_order: "
-                        "1 on an ungraded mesh with re-entrant edges, else 2); prints f_r +- err, f_a +- err and adds them to the JSON")
+                        "1 on an ungraded mesh with re-entrant edges, else 2); prints f_r +- err, f_a +- err and adds them to the JSON; "
+                        "with --match: of the matched mode on the tuned design (and its teeth ellipse ratio)")
     g.add_argument("--converge", type=float, metavar="TOL",
                    help="mesh-convergence study of the working mode: refine by 0.8 per level from --refine until "
                         "f_r, f_a, the tip amplitude per volt and the teeth ellipse ratio change by less than TOL "
@@ -118,8 +119,8 @@ def _check_options(args) -> dict:
                 raise ParameterError("--converge", args.converge, f"cannot be combined with --{opt}")
         if args.clamp:
             raise ParameterError("--converge", args.converge, "studies the free-free working mode: drop --clamp")
-    if args.error and (args.match or args.clamp):
-        raise ParameterError("--error", True, "applies to the free-free modal run (not with --match or --clamp)")
+    if args.error and args.clamp:
+        raise ParameterError("--error", True, "applies to the free-free working mode (not with --clamp)")
     if args.error and args.refine * 1.4 > 5.0:
         raise ParameterError("--refine", args.refine, "must be <= 3.5 with --error (its coarse mesh is 1.4x coarser)")
     if args.target is not None:
@@ -227,8 +228,9 @@ def main(argv=None) -> int:
         if res_m.teeth:
             print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
                   f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
+        est = _match_error(args, res_m) if args.error else None
         # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
-        text = json_text(res_m.to_dict(), nonfinite="null") if args.json else None
+        text = json_text(_match_record(res_m, est), nonfinite="null") if args.json else None
         if out_design:
             res_m.design.save(out_design)
             print(f"tuned design: {out_design}")
@@ -260,6 +262,10 @@ def main(argv=None) -> int:
         data["design"] = str(args.design)
         if err_json is not None:
             data["discretisation_error"] = err_json
+            # the convention of fem.errors: X_error beside the working mode's X
+            mode = data["modes"][err_json["mode"] - 1]
+            for key, err in (("f_r_hz", "f_r_err_hz"), ("f_a_hz", "f_a_err_hz"), ("k_eff", "k_eff_err")):
+                mode[f"{key}_error"] = err_json[err]
         data["mesh_size"] = args.mesh_size
         data["refine"] = args.refine
         data["grade"] = args.grade
@@ -300,33 +306,54 @@ def _converge(args, design, near) -> int:
     return 0 if st.converged else 1
 
 
+def _match_error(args, res_m):
+    """``--match --error``: the two-level estimate of the matched working mode (modal values and
+    the mode shape's teeth ellipse ratio, as the match reports them) on the tuned design."""
+    from .errors import estimate
+    from .errors_cli import error_lines
+
+    w, res = res_m.working_index, res_m.modal
+    values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w]), "k_eff": float(res.k_eff[w])}
+    if res_m.teeth:
+        values["teeth_ellipse_ratio"] = float(res_m.teeth["ellipse_ratio"])
+    with _solver(args.solver):
+        est = estimate(res_m.design, values, res_m.system.ndof, refine=args.refine, mesh_size=args.mesh_size,
+                       grade=args.grade, order=args.order, near_hz=res_m.target_hz, harmonic=False)
+    print("\n".join(error_lines(est, teeth="teeth ellipse ratio (mode shape)")))
+    return est
+
+
+def _match_record(res_m, est) -> dict:
+    """The match JSON with the ``X_error`` keys (None without ``--error``) and the method block."""
+    from .errors import annotate
+    from .errors_cli import MODE_KEYS
+
+    data = res_m.to_dict()
+    annotate(data["modes"][res_m.working_index], est, MODE_KEYS)
+    data["matched_hz_error"] = est.error("f_r_hz") if est is not None else None
+    if data.get("teeth_tops"):
+        annotate(data["teeth_tops"], est, {"ellipse_ratio": "teeth_ellipse_ratio"})
+    data["discretisation_error"] = est.to_dict() if est is not None else None
+    return data
+
+
 def _error_estimate(args, design, system, res, near):
-    """``--error``: one coarser solve, the two-level estimate of the working mode's error."""
-    import geometry
+    """``--error``: one coarser solve, the two-level estimate of the working mode's error
+    (:func:`fem.errors.estimate`; the JSON block keeps its earlier keys beside the new ones)."""
+    from .errors import estimate
+    from .modal import working_mode
 
-    from .assembly import assemble
-    from .convergence import ESTIMATOR_RATIO, estimator_order, two_level_error
-    from .modal import modal_analysis, working_mode
+    def pick(r, n):
+        return working_mode(r.system, r.f_r_hz, r.vectors, max(n, 1.0))
 
-    w = working_mode(system, res.f_r_hz, res.vectors, max(near, 1.0))
-    coarse_refine = args.refine * ESTIMATOR_RATIO
-    from geometry.sizing import graded_edges, region_sizes
-
-    corners = bool(graded_edges(design, region_sizes(design, args.mesh_size, refine=args.refine), args.refine))
-    p = estimator_order(args.grade, corners)
-    mesh_c = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, refine=coarse_refine,
-                                 grade=args.grade)
-    sys_c = assemble(mesh_c, order=args.order)
-    res_c = modal_analysis(sys_c, near, 8, backend=None if args.solver in (None, "auto") else args.solver)
-    wc = working_mode(sys_c, res_c.f_r_hz, res_c.vectors, max(near, 1.0))
-    ratio = (system.ndof / sys_c.ndof) ** (1 / 3)        # h ratio from the representative sizes
-    err = {"mode": int(w + 1), "f_r_err_hz": two_level_error(res.f_r_hz[w], res_c.f_r_hz[wc], ratio, p),
-           "f_a_err_hz": two_level_error(res.f_a_hz[w], res_c.f_a_hz[wc], ratio, p),
-           "k_eff_err": two_level_error(res.k_eff[w], res_c.k_eff[wc], ratio, p),
-           "method": f"two-level: refine {args.refine:g} and {coarse_refine:g} ({sys_c.ndof} DOFs), "
-                     f"{'graded' if args.grade else 'ungraded'}, "
-                     f"{'re-entrant edges' if corners else 'no re-entrant edges'}, order {p:g} assumed",
-           "coarse_f_r_hz": float(res_c.f_r_hz[wc]), "coarse_f_a_hz": float(res_c.f_a_hz[wc])}
+    w = pick(res, near)
+    values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w]), "k_eff": float(res.k_eff[w])}
+    with _solver(args.solver):
+        est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
+                       order=args.order, near_hz=near, harmonic=False, n_modes=8, select=pick)
+    err = {"mode": int(w + 1), "f_r_err_hz": est.error("f_r_hz"), "f_a_err_hz": est.error("f_a_hz"),
+           "k_eff_err": est.error("k_eff"), "coarse_f_r_hz": est.coarse["f_r_hz"],
+           "coarse_f_a_hz": est.coarse["f_a_hz"], **est.to_dict()}
     return {w: err}, err
 
 

@@ -51,12 +51,18 @@ def kinetic_energy(sweeps: dict, with_zero: bool = False, *, ax=None):
     return ax
 
 
-def a0_coupling(coupled, *, ax=None):
+def a0_coupling(coupled, rel_error: float | None = None, *, ax=None):
     """Horn-tip amplitude (um) with and without the impact load, per free mass (g)
-    (``coupled``: mass in kg -> :class:`results.pipeline.CoupledAmplitude`)."""
+    (``coupled``: mass in kg -> :class:`results.pipeline.CoupledAmplitude`); ``rel_error``, the
+    relative discretisation error of the FE amplitude (:mod:`fem.errors`), draws error bars."""
     ax = axes_or_new(ax, figsize=(7, 4), dpi=120)
     m = np.array(sorted(coupled))
-    ax.plot(m * 1e3, [coupled[k].A0 * 1e6 for k in m], "o-", label="loaded by the free-mass impacts")
+    a0 = np.array([coupled[k].A0 * 1e6 for k in m])
+    if rel_error is not None and np.isfinite(rel_error):
+        ax.errorbar(m * 1e3, a0, yerr=rel_error * a0, fmt="o-", capsize=3,
+                    label=f"loaded by the free-mass impacts (bars: FE discretisation error, ±{100 * rel_error:.2g} %)")
+    else:
+        ax.plot(m * 1e3, a0, "o-", label="loaded by the free-mass impacts")
     ax.plot(m * 1e3, [coupled[k].A0_unloaded * 1e6 for k in m], "k--", label="no impact load")
     ax.axhline(15.0, color="C3", ls=":", label="article's assumption, 15 um")
     ax.set_xlabel("free mass (g)")

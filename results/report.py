@@ -8,6 +8,8 @@ from pathlib import Path
 
 from rpud_common import atomic_write_text
 
+from .errors import error_text as _pm
+
 
 def _f(v, scale=1.0, fmt=".3g", unit=""):
     if v is None:
@@ -25,6 +27,22 @@ def _ci(est: dict, scale: float = 1.0) -> str:
     return format(Estimate(est["mean"] * scale, math.nan if hw is None else hw * scale, est["members"]))
 
 
+def ke_rows(sweeps: dict, with_zero: bool, coupled: dict | None = None) -> list[dict]:
+    """The kinetic-energy table: one row per free mass, each sweep's statistics (JSON-safe)."""
+    rows = [{"m_free_kg": 0.0, "note": "no free mass: no impacts, zero tool energy"}] if with_zero else []
+    first = next(iter(sweeps.values()))
+    for i, r in enumerate(first.rows):
+        m = r.params.m_free
+        row = {"m_free_kg": m, "A0_fe_m": coupled[m].A0 if coupled else r.params.A0}
+        for key, sw in sweeps.items():
+            e = sw.rows[i]
+            row[key] = {"members": e.members, "converged": e.converged,
+                        **{q: e.estimates[q].to_dict() for q in ("mean_tool_ke_after_j", "tool_impact_rate_hz",
+                                                                 "tool_power_w", "mean_ke_gain_j")}}
+        rows.append(row)
+    return rows
+
+
 def write_report(s: dict, path) -> Path:
     """Write ``report.md`` from the run summary (see :func:`results.pipeline.run_pipeline`)."""
     d, wm, h, a0 = s["design"], s["working_mode"], s["harmonic"], s["A0"]
@@ -39,18 +57,22 @@ def write_report(s: dict, path) -> Path:
     lines += [
         "| quantity | value |", "|---|---|",
         f"| mesh | {s['mesh']['tetrahedra']} second-order tetrahedra, {s['mesh']['ndof']} DOFs |",
-        f"| working mode | #{wm['index'] + 1} {wm['label']}: f_r {wm['f_r_hz'] / 1e3:.3f} kHz, "
-        f"f_a {_f(wm['f_a_hz'], 1e-3, '.3f', 'kHz')}, k_eff {wm['k_eff']:.3f} |",
-        f"| tip amplitude per volt (Q_m {h['q_mech']}) | {h['tip_per_volt_m'] * 1e9:.1f} nm/V |",
-        f"| tip amplitude per volt (datasheet losses, unloaded) | {h['tip_per_volt_datasheet_losses_m'] * 1e9:.1f} nm/V |",
+        f"| working mode | #{wm['index'] + 1} {wm['label']}: f_r {_pm(wm['f_r_hz'], wm.get('f_r_hz_error'), 'Hz')}, "
+        f"f_a {_pm(wm['f_a_hz'], wm.get('f_a_hz_error'), 'Hz')}, k_eff {_pm(wm['k_eff'], wm.get('k_eff_error'))} |",
+        f"| tip amplitude per volt (Q_m {h['q_mech']}) | {_pm(h['tip_per_volt_m'], h.get('tip_per_volt_m_error'), 'nm/V', 1e9)} |",
+        f"| tip amplitude per volt (datasheet losses, unloaded) | "
+        f"{_pm(h['tip_per_volt_datasheet_losses_m'], h.get('tip_per_volt_datasheet_losses_m_error'), 'nm/V', 1e9)} |",
         f"| drive | {h['voltage_v']:g} V at {wm['f_r_hz'] / 1e3:.3f} kHz: {h['current_a']:.2f} A, {h['power_w']:.1f} W |",
-        f"| teeth ellipse (tangential/axial, phase) | {_f(h['teeth_ellipse_ratio'])}, {_f(h['teeth_phase_deg'], 1, '.1f', 'deg')} |",
+        f"| teeth ellipse (tangential/axial, phase) | {_pm(h['teeth_ellipse_ratio'], h.get('teeth_ellipse_ratio_error'))}, "
+        f"{_f(h['teeth_phase_deg'], 1, '.1f', 'deg')} |",
         f"| admittance peak / dip | {_f(h['admittance_f_r_hz'], 1e-3, '.3f', 'kHz')} / {_f(h['admittance_f_a_hz'], 1e-3, '.3f', 'kHz')} |",
         f"| ring-up | time constant {h['ring_up_tau_s'] * 1e3:.2f} ms, steady {h['ring_up_steady_m'] * 1e6:.2f} um |",
-        f"| **A0 used** ({a0['reference_m_free_kg'] * 1e3:g} g free mass, impact-loaded) | **{a0['used_m'] * 1e6:.2f} um** "
-        f"(unloaded {a0['unloaded_m'] * 1e6:.2f} um; article: {a0['article_assumption_m'] * 1e6:g} um) |",
+        f"| **A0 used** ({a0['reference_m_free_kg'] * 1e3:g} g free mass, impact-loaded) | "
+        f"**{_pm(a0['used_m'], a0.get('used_m_error'), 'um', 1e6)}** "
+        f"(unloaded {_pm(a0['unloaded_m'], a0.get('unloaded_m_error'), 'um', 1e6)}; "
+        f"article: {a0['article_assumption_m'] * 1e6:g} um) |",
         f"| impact load on the tip | {a0['impact_tip_damping_ns_per_m']:.2f} N s/m, {a0['impact_power_w']:.1f} W |",
-        "",
+        "", _error_note(s), "",
         "## Drill-tool kinetic energy vs free mass", "",
         "Means over converged ensembles with their 95 % confidence intervals "
         f"(members added until every CI is within {100 * s['settings']['impact_rel_tol']:g} % of its mean). "
@@ -65,7 +87,7 @@ def write_report(s: dict, path) -> Path:
         if "device_fe" not in r:
             lines.append(f"| {r['m_free_kg'] * 1e3:g} | - | 0 | - | 0 | 0 | 0 | - |")
             continue
-        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_f(r['A0_fe_m'], 1e6, '.2f')} "
+        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_pm(r['A0_fe_m'], r.get('A0_fe_m_error'), scale=1e6)} "
                      f"| {_ci(r['device_fe']['mean_tool_ke_after_j'], 1e3)} | {_ci(r['device_fe']['tool_impact_rate_hz'])} "
                      f"| {_ci(r['device_fe']['tool_power_w'])} | {_ci(r['article_fe']['mean_tool_ke_after_j'], 1e3)} "
                      f"| {_ci(r['article_15um']['mean_tool_ke_after_j'], 1e3)} | {_ci(r['article_fe']['tool_impact_rate_hz'])} |")
@@ -126,3 +148,12 @@ def write_report(s: dict, path) -> Path:
     lines += ["## Timings (s)", "", "| " + " | ".join(t) + " |", "|" + "---|" * len(t),
               "| " + " | ".join(f"{v:.1f}" for v in t.values()) + " |", ""]
     return atomic_write_text(path, "\n".join(lines))
+
+
+def _error_note(s: dict) -> str:
+    """How the ``±`` of the table above were obtained (or that they were not)."""
+    e = s.get("discretisation_error")
+    if not e:
+        return f"FE values without a discretisation-error estimate ({s.get('discretisation_error_note', 'none made')})."
+    return (f"± : estimated discretisation error of the FE values ({e['method']}). The amplitudes carry the relative "
+            "error of the tip amplitude per volt; the impact statistics below have their own 95 % CIs.")

@@ -279,6 +279,7 @@ def test_harmonic_cli_drives_the_coupled_mode_and_says_what_it_drives(tmp_path, 
     assert main(argv) == 0
     first = json.loads(out.read_text())["working_mode"]
     assert first["k_eff"] > 0.5 and "drive" not in capsys.readouterr().out.splitlines()[0]
+    assert first["f_r_hz_error"] is None                  # no --error: stated as not estimated (fem.errors)
     assert main(argv + ["--freq", "41000"]) == 0
     line = capsys.readouterr().out.splitlines()[0]
     assert line.startswith("drive 41000.0 Hz; working mode") and f"f_r {first['f_r_hz']:.1f} Hz" in line

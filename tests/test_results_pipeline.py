@@ -100,6 +100,26 @@ def test_coupled_model_beside_the_kinematic_results(run):
     assert cm["reduced_transducer"]["mode_index"][cm["reduced_transducer"]["working"]] == s["working_mode"]["index"]
 
 
+def test_every_fe_value_states_its_discretisation_error(run):
+    """fem.errors' two-level estimate (one solve at refine 1.4) beside f_r, f_a, k_eff, the tip
+    amplitude, the ellipse ratio and every A0 (their relative error: the tip amplitude's), in
+    summary.json and the report."""
+    out, s = run
+    wm, h, a0, block = s["working_mode"], s["harmonic"], s["A0"], s["discretisation_error"]
+    assert block["coarse_refine"] == pytest.approx(1.4) and block["coarse_ndof"] < s["mesh"]["ndof"]
+    for q in ("f_r_hz", "f_a_hz", "k_eff"):
+        assert wm[f"{q}_error"] == block["errors"][q] > 0
+    assert 0 < wm["f_r_hz_error"] < 0.05 * wm["f_r_hz"]
+    rel = h["tip_per_volt_m_error"] / h["tip_per_volt_m"]
+    assert 0 < rel < 0.2 and h["teeth_ellipse_ratio_error"] is not None
+    assert a0["used_m_error"] / a0["used_m"] == pytest.approx(rel, rel=1e-9)
+    for r in s["kinetic_energy_table"][1:]:
+        assert r["A0_fe_m_error"] / r["A0_fe_m"] == pytest.approx(rel, rel=1e-9)
+    report = (out / "report.md").read_text()
+    assert report.count("±") >= 8 and "estimated discretisation error" in report
+    assert s["timings"]["discretisation_error_s"] > 0
+
+
 def test_rerun_gives_identical_json(run, tmp_path):
     """Same command, same machine: every number identical (timings aside)."""
     out, first = run

@@ -1,0 +1,254 @@
+"""Estimated discretisation error of the working mode's outputs, the one convention every CLI,
+JSON and report uses.
+
+What is estimated
+-----------------
+``f_r_hz``, ``f_a_hz``, ``k_eff`` (modal), ``tip_per_volt_m`` (horn-tip axial amplitude per volt
+at the mode's own f_r) and ``teeth_ellipse_ratio``: the quantities of
+:data:`QUANTITIES`. The amplitudes derived from the tip amplitude per volt (the tip amplitude at
+the drive voltage, the pipeline's A0 with or without the impact load) carry its relative error
+(:meth:`ErrorEstimate.scaled`): the FE model enters them only through that factor.
+
+How (the cheap estimator)
+-------------------------
+One extra solve of the same design on a mesh ``ESTIMATOR_RATIO`` = 1.4 times coarser (every
+size rule scaled, :mod:`geometry.sizing`; about 1/2.4 of the DOFs and 1/4 of the time): modal
+analysis (f_r, f_a, k_eff) and the harmonic response at the coarse mesh's own f_r on its modes +
+residual (:func:`fem.harmonic.modal_basis`, the method of the pipeline's and ``python -m
+fem.harmonic``'s fine values; within 2e-6 of a direct solve), and
+:func:`fem.convergence.two_level_error`: ``|q(h) - q(r h)| / (r^p - 1)`` with ``r`` the ratio
+of the representative element sizes ``h = DOFs^(-1/3)`` and an assumed order ``p``
+(:func:`fem.convergence.estimator_order`: 1 on an ungraded mesh of a design with re-entrant
+edges, whose 270-degree corners limit the rate to h^1.1; 2 graded or without such edges; both
+below the observed rates, so the estimate errs on the large side). Validated against exact
+answers in ``tests/test_discretisation_error.py`` for f_r, f_a, k_eff and the tip amplitude
+(between 1x and 5x the true error, measured 1.45x-2.4x). The teeth ellipse ratio has no exact
+reference; on the default design its estimate (0.158 ± 0.097) is ~15x the difference from the
+finest graded level (0.1641): safe but loose, because at refine 1.4 the slot webs are about one
+element thick (``benchmarks/study_discretisation_error.py``, README). The same
+command gives the same estimate: the solvers are deterministic (MKL's reproducible mode), and
+the coarse values are kept to 2 significant digits of their difference from the fine ones and
+the errors to 2 significant digits, because gmsh's high-order optimiser, which repairs folded
+curved elements of some coarse meshes, is not deterministic: it moves nodes by ~1e-8 m from one
+build to the next (measured on the pipeline test's coarse mesh: up to 2e-6 in f_r, 6e-4 of the
+fine-coarse difference; far inside one unit of the second digit). The default design's coarse
+mesh builds identically.
+
+A refinement study (``--converge TOL``, :func:`fem.convergence.study`) gives the observed order
+and a Richardson estimate instead; ``benchmarks/study_discretisation_error.py`` compares the two
+on the default design.
+
+Output convention
+-----------------
+JSON: every value ``X`` that has an estimate gets ``X_error`` in the same object, same units
+(``f_r_hz`` -> ``f_r_hz_error``, ``tip_per_volt_m`` -> ``tip_per_volt_m_error``), and the
+record gets one ``discretisation_error`` block (:meth:`ErrorEstimate.to_dict`: method, order,
+h ratio, both meshes, the coarse values, the errors). Text: ``f_r 19 997 ± 90 Hz``
+(:func:`plus_minus`, the error to 2 significant digits, the value to the error's last digit).
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+from rpud_common import ParameterError, check_range
+
+from .convergence import ESTIMATOR_RATIO, Level, estimator_order, two_level_error
+
+__all__ = ["QUANTITIES", "ErrorEstimate", "estimate", "estimate_from_levels", "has_reentrant_edges",
+           "plus_minus", "annotate", "ESTIMATOR_RATIO"]
+
+QUANTITIES = ("f_r_hz", "f_a_hz", "k_eff", "tip_per_volt_m", "teeth_ellipse_ratio")
+"""Quantities with an estimated discretisation error (the keys of the JSON of every module)."""
+
+ERROR_DIGITS = 2
+"""Significant digits of an error estimate (all it means; also what makes it reproducible)."""
+
+DIFFERENCE_DIGITS = 2
+"""Significant digits kept of a coarse value's difference from the fine value (what the error
+is computed from: an error estimate means no more than that, and it makes the estimate
+reproducible, see the module docstring)."""
+
+
+def _round_sig(x: float, digits: int) -> float:
+    if x == 0 or not math.isfinite(x):
+        return float(x)
+    return float(f"{x:.{digits - 1}e}")
+
+
+@dataclass(frozen=True)
+class ErrorEstimate:
+    """Two-level discretisation-error estimate of the working mode (SI units, absolute errors).
+
+    Attributes
+    ----------
+    errors : quantity -> estimated error of the fine value (same units as the value)
+    values, coarse : quantity -> value on the fine and on the coarse mesh
+    ndof, coarse_ndof : DOFs of both meshes
+    refine, coarse_refine : their refine factors
+    ratio : h_coarse / h_fine from the DOFs, ``(ndof / coarse_ndof)^(1/3)``
+    order : assumed order in h
+    grade, corners : graded mesh; the design has major re-entrant edges
+    seconds : time of the coarse solve, s
+    """
+
+    errors: dict
+    values: dict
+    coarse: dict
+    ndof: int
+    coarse_ndof: int
+    refine: float
+    coarse_refine: float
+    ratio: float
+    order: float
+    grade: bool
+    corners: bool
+    seconds: float = field(default=0.0, compare=False)
+
+    def error(self, q: str) -> float:
+        """Estimated error of ``q`` (NaN if not estimated)."""
+        return float(self.errors.get(q, math.nan))
+
+    def relative(self, q: str) -> float:
+        """Estimated error of ``q`` relative to its fine value (NaN if not estimated)."""
+        v = self.values.get(q)
+        return self.error(q) / abs(v) if v else math.nan
+
+    def scaled(self, q: str, value: float) -> float:
+        """Error of a ``value`` proportional to ``q`` (e.g. an amplitude at some voltage and load
+        from ``tip_per_volt_m``): ``value`` x the relative error of ``q``."""
+        return abs(value) * self.relative(q)
+
+    @property
+    def method(self) -> str:
+        return (f"two-level: refine {self.refine:g} ({self.ndof} DOFs) and {self.coarse_refine:g} "
+                f"({self.coarse_ndof} DOFs), h ratio {self.ratio:.3f}, "
+                f"{'graded' if self.grade else 'ungraded'}, "
+                f"{'re-entrant edges' if self.corners else 'no re-entrant edges'}, order {self.order:g} assumed: "
+                f"|q(h) - q(r h)| / (r^p - 1)")
+
+    def to_dict(self) -> dict:
+        """The ``discretisation_error`` block of the JSON records (NaN as None)."""
+        def clean(d):
+            return {k: (float(v) if math.isfinite(v) else None) for k, v in d.items()}
+
+        return {"method": self.method, "order": self.order, "ratio": self.ratio, "refine": self.refine,
+                "coarse_refine": self.coarse_refine, "ndof": self.ndof, "coarse_ndof": self.coarse_ndof,
+                "grade": self.grade, "reentrant_edges": self.corners, "seconds": self.seconds,
+                "errors": clean(self.errors), "coarse": clean(self.coarse)}
+
+
+def has_reentrant_edges(design, mesh_size: float | None = None, refine: float = 1.0) -> bool:
+    """The design has major re-entrant circular edges (:func:`geometry.sizing.graded_edges`)."""
+    from geometry.sizing import graded_edges, region_sizes
+
+    try:
+        return bool(graded_edges(design, region_sizes(design, mesh_size, refine=refine), refine))
+    except (AttributeError, TypeError):          # a design kind without graded edges (a stack)
+        return False
+
+
+def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bool,
+                         order: float | None = None) -> ErrorEstimate:
+    """The two-level estimate from two computed levels (the fine one the reported values)."""
+    if not coarse.ndof < fine.ndof:
+        raise ParameterError("coarse", coarse.ndof, f"must have fewer DOFs than the fine mesh ({fine.ndof})")
+    ratio = (fine.ndof / coarse.ndof) ** (1 / 3)
+    p = estimator_order(grade, corners) if order is None else float(order)
+    # reproducible to the digit: the coarse value enters through its difference from the fine one,
+    # kept to DIFFERENCE_DIGITS, and the error to ERROR_DIGITS (gmsh's high-order optimiser moves a
+    # coarse mesh's nodes by ~1e-8 m from one build to the next: up to 2e-6 in f_r)
+    near = {q: (float(fine.values[q]) + _round_sig(float(v) - float(fine.values[q]), DIFFERENCE_DIGITS)
+                if q in fine.values and math.isfinite(fine.values[q]) and math.isfinite(v) else float(v))
+            for q, v in coarse.values.items()}
+    errors = {q: _round_sig(two_level_error(fine.values[q], near[q], ratio, p), ERROR_DIGITS)
+              for q in QUANTITIES if q in fine.values and q in near
+              and math.isfinite(fine.values[q]) and math.isfinite(near[q])}
+    return ErrorEstimate(errors, {q: float(v) for q, v in fine.values.items()}, near, int(fine.ndof), int(coarse.ndof),
+                         float(fine.refine), float(coarse.refine), float(ratio), p, bool(grade), bool(corners),
+                         coarse.seconds)
+
+
+def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size: float | None = None,
+             grade: bool = False, order: int = 2, near_hz: float | None = None, harmonic: bool = True,
+             loss=None, q_mech: float | None = 100.0, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
+             select: Callable | None = None) -> ErrorEstimate:
+    """Estimate the discretisation error of ``values`` (computed on ``design`` meshed at ``refine``
+    with ``ndof`` DOFs) from one solve at ``refine`` x :data:`ESTIMATOR_RATIO`.
+
+    Parameters
+    ----------
+    design : the design the values belong to (the tuned one after matching)
+    values : quantity -> fine value (keys of :data:`QUANTITIES`; others are ignored)
+    ndof : DOFs of the fine system
+    refine, mesh_size, grade, order : how the fine mesh was built (the coarse one scales ``refine``)
+    near_hz : target frequency of the modal search (default: the design's)
+    harmonic : compute the coarse tip amplitude per volt and ellipse ratio from the harmonic
+        response (modal basis + residual) at the coarse f_r (``loss``, default ``LossModel(q_mech=q_mech)``, on ``surfaces``);
+        else only the modal values and the mode shape's ellipse ratio
+    n_modes : modes of the coarse modal solve
+    select : ``select(modal, near_hz) -> index`` picks the coarse mode as the fine one was picked
+        (default :func:`fem.modal.working_mode`)
+    """
+    from .convergence import working_mode_level
+
+    check_range("refine", refine * ESTIMATOR_RATIO, 0.2, 5.0)
+    t0 = time.perf_counter()
+    coarse_refine = refine * ESTIMATOR_RATIO
+    lev = working_mode_level(design, coarse_refine, mesh_size=mesh_size, order=order, near_hz=near_hz,
+                             n_modes=n_modes, harmonic=harmonic, q_mech=q_mech, grade=grade, loss=loss,
+                             surfaces=surfaces, select=select, harmonic_method="modal")
+    fine = Level(float(refine), int(ndof), {q: float(v) for q, v in values.items() if q in QUANTITIES})
+    coarse = Level(lev.refine, lev.ndof, lev.values, time.perf_counter() - t0)
+    return estimate_from_levels(fine, coarse, grade=grade, corners=has_reentrant_edges(design, mesh_size, refine))
+
+
+def annotate(record: dict, est: ErrorEstimate | None, keys: dict[str, str]) -> dict:
+    """Add ``X_error`` beside each value ``X`` of ``record`` (in place; returns it).
+
+    ``keys`` maps a key of ``record`` to the quantity whose error it carries: to itself for the
+    estimated quantities (``{"f_r_hz": "f_r_hz"}``), or to ``tip_per_volt_m`` for an amplitude
+    proportional to it (``{"used_m": "tip_per_volt_m"}``: scaled by the relative error). A value
+    whose quantity was not estimated gets ``None``."""
+    for key, q in keys.items():
+        v = record.get(key)
+        if est is None or v is None or q not in est.errors or not isinstance(v, (int, float)) or not math.isfinite(v):
+            record[f"{key}_error"] = None
+        elif key == q or est.values.get(q) == v:
+            record[f"{key}_error"] = est.error(q)
+        else:
+            record[f"{key}_error"] = est.scaled(q, v)
+    return record
+
+
+def plus_minus(value: float, error: float | None, unit: str = "", scale: float = 1.0, digits: int = 2) -> str:
+    """``'19 997 ± 90 Hz'``: ``value x scale`` to the last digit of the error's ``digits``
+    significant digits, thin thousands groups; no error (None/NaN): the value to 6 digits."""
+    v = value * scale
+    u = f" {unit}" if unit else ""
+    if error is None or not math.isfinite(error) or not math.isfinite(v):
+        return f"{_group(f'{v:.6g}')}{u}"
+    e = abs(error) * scale
+    if e == 0:
+        return f"{_group(f'{v:.6g}')} ± 0{u}"
+    dec = digits - 1 - math.floor(math.log10(e))
+    if dec >= 0:
+        v_txt, e_txt = f"{v:.{dec}f}", f"{e:.{dec}f}"
+    else:                                   # round both to tens, hundreds, ...
+        v_txt, e_txt = f"{round(v, dec):.0f}", f"{round(e, dec):.0f}"
+    return f"{_group(v_txt)} ± {_group(e_txt)}{u}"
+
+
+def _group(text: str) -> str:
+    """Thousands groups of the integer part with a space (SI style): 19996.8 -> 19 996.8."""
+    sign = "-" if text.startswith("-") else ""
+    body = text.lstrip("-")
+    if "e" in body or not body[:1].isdigit():
+        return text
+    whole, dot, frac = body.partition(".")
+    if len(whole) > 4:
+        whole = f"{int(whole):,}".replace(",", " ")
+    return f"{sign}{whole}{dot}{frac}"
