@@ -43,6 +43,9 @@ def build_parser():
                    help="also integrate the ring-up for S seconds (0: six time constants)")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON")
     p.add_argument("--plots", metavar="DIR", help="write admittance / tip response / ring-up PNGs into DIR")
+    from .stress_cli import add_stress_options
+
+    add_stress_options(p)
     p.add_argument("--allow-large", action="store_true",
                    help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
     p.add_argument("-v", "--verbose", action="count", default=0)
@@ -78,7 +81,11 @@ def _check_options(args) -> None:
         check_range("--ring-up", args.ring_up, 0.0, MAX_RING_UP, "s (0: six time constants)")
     if args.json is not None and not args.json.endswith(".json"):
         raise ParameterError("--json", args.json, "must end in .json")
-    check_output_paths(inputs=design_inputs(args), folders=("plots",), json=args.json, plots=args.plots)
+    from .stress_cli import check_stress_options
+
+    check_stress_options(args)
+    check_output_paths(inputs=design_inputs(args), folders=("plots", "stress"), json=args.json, plots=args.plots,
+                       stress=args.stress)
 
 
 def driven_mode(modal, near_hz: float) -> int:
@@ -166,13 +173,18 @@ def main(argv=None) -> int:
           f"{args.points} points, modal superposition of {res.basis_modes} modes + residual)")
     if ring is not None:
         print(f"ring-up: steady {ring.steady_amplitude(surfaces[0]) * 1e6:.3f} um after {ring.t[-1] * 1e3:.2f} ms")
+    stress = None
+    if args.stress:
+        from .stress_cli import run_stress
+
+        stress = run_stress(args, system, basis, wp, band)
     text = None
     if args.json:
         data = {"design": str(args.design or "default"), "working_mode": {
             "index": w, "f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
             "label": modal.labels[w]}, "drive_hz": f_w,
             "working_point": wp.to_dict(), "sweep": res.to_dict(),
-            "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof}
+            "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof, "stress": stress}
         text = json_text(data, nonfinite="null")
     if args.plots:
         from pathlib import Path
