@@ -43,7 +43,7 @@ so that it can be recognised.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -52,7 +52,7 @@ from rpud_common import ParameterError
 from .assembly import PiezoSystem
 
 __all__ = ["StressRecovery", "StressField", "von_mises", "principal_values", "vm_cycle_peak",
-           "efield_cycle_peak", "principal_cycle_extremes", "VM_FORM", "N_PHASES"]
+           "efield_cycle_peak", "principal_cycle_extremes", "quadratic_peak", "VM_FORM", "N_PHASES"]
 
 log = logging.getLogger(__name__)
 
@@ -140,9 +140,10 @@ def _trig_max(c0, c1, s1, c2, s2, n_phases=N_PHASES):
     return out, theta_best
 
 
-def _quadratic_cycle_max(P, hat, static, width):
+def _coefficients(P, hat, static, width):
+    """Trigonometric coefficients ``(c0, c1, s1, c2, s2)`` of ``x(theta)^T P x(theta)`` for
+    ``x = static + Re(hat exp(j theta))``; ``None`` for c1, s1 without a static part."""
     a, b, s0 = _split(hat, static, width)
-    shape = a.shape[:-1]
 
     def q(x, y):
         return np.einsum("...i,ij,...j->...", x, P, y)
@@ -150,12 +151,38 @@ def _quadratic_cycle_max(P, hat, static, width):
     qaa, qbb, qab = q(a, a), q(b, b), q(a, b)
     c0, c2, s2 = (qaa + qbb) / 2, (qaa - qbb) / 2, -qab
     if static is None or not np.any(s0):
+        return c0, None, None, c2, s2
+    return c0 + q(s0, s0), 2 * q(s0, a), -2 * q(s0, b), c2, s2
+
+
+def _quadratic_cycle_max(P, hat, static, width):
+    c0, c1, s1, c2, s2 = _coefficients(P, hat, static, width)
+    if c1 is None:
         val = c0 + np.sqrt(c2 * c2 + s2 * s2)
         theta = 0.5 * np.arctan2(s2, c2)
         return np.sqrt(np.maximum(val, 0.0)), theta
-    c0 = c0 + q(s0, s0)
-    val, theta = _trig_max(c0, 2 * q(s0, a), -2 * q(s0, b), c2, s2)
+    val, theta = _trig_max(c0, c1, s1, c2, s2)
+    shape = np.shape(c0)
     return np.sqrt(np.maximum(val, 0.0)).reshape(shape), theta.reshape(shape)
+
+
+def quadratic_peak(kind: str, hat, static=None) -> tuple[int, float]:
+    """(index, value) of the largest cycle peak among the rows of ``hat`` (n, 6 or 3): ``kind``
+    ``"von_mises"`` or ``"efield"``. Same result as the argmax of :func:`vm_cycle_peak` /
+    :func:`efield_cycle_peak`, searching only the rows whose upper bound
+    ``c0 + |(c1, s1)| + |(c2, s2)|`` reaches the best lower bound (four phases)."""
+    P, width = (VM_FORM, 6) if kind == "von_mises" else (np.eye(3), 3)
+    c0, c1, s1, c2, s2 = _coefficients(P, hat, static, width)
+    if c1 is None:
+        val = np.sqrt(np.maximum(c0 + np.sqrt(c2 * c2 + s2 * s2), 0.0))
+        i = int(np.argmax(val))
+        return i, float(val[i])
+    ub = c0 + np.hypot(c1, s1) + np.hypot(c2, s2)
+    lb = np.max([c0 + c1 + c2, c0 + s1 - c2, c0 - c1 + c2, c0 - s1 - c2], axis=0)
+    cand = np.flatnonzero(ub >= lb.max())
+    val, _ = _trig_max(c0[cand], c1[cand], s1[cand], c2[cand], s2[cand])
+    k = int(np.argmax(val))
+    return int(cand[k]), float(np.sqrt(max(val[k], 0.0)))
 
 
 def vm_cycle_peak(hat, static=None) -> tuple[np.ndarray, np.ndarray]:
@@ -226,10 +253,13 @@ class StressField:
     strain: np.ndarray
     efield: np.ndarray
     dfield: np.ndarray
+    _averages: dict = field(default_factory=dict, repr=False)
 
     def nodal_average(self, name: str = "stress") -> np.ndarray:
         """``name`` ("stress", "efield"...) averaged over the cells of each region that share a
-        node, returned at every element node (same shape as the field)."""
+        node, returned at every element node (same shape as the field; computed once)."""
+        if name in self._averages:
+            return self._averages[name]
         v = getattr(self, name)
         out = np.zeros_like(v)
         n = self.system.n_nodes
@@ -245,6 +275,7 @@ class StressField:
                     avg[:, c] = avg[:, c] + 1j * np.bincount(keys, weights=vals[:, c].imag, minlength=n)
             avg /= np.maximum(count, 1)[:, None]
             out[sel] = avg[self.nodes[sel]]
+        self._averages[name] = out
         return out
 
 

@@ -4,7 +4,8 @@ Node values come from the recovered field of :mod:`fem.stress_table` (per region
 values averaged at each node); a node shared by two regions (a bonded interface) shows the
 larger of their values (the smaller for the most negative principal stress). Fields, each the
 peak over one cycle of ``static + Re(hat exp(j w t))``: ``von_mises`` (Pa, every region),
-``principal_max`` / ``principal_min`` (Pa) and ``efield`` (V/m, zero in metals).
+``principal_max`` / ``principal_min`` (Pa; 24 phases and a parabola, :data:`PICTURE_PHASES`)
+and ``efield`` (V/m, zero in metals).
 """
 
 from __future__ import annotations
@@ -20,6 +21,10 @@ from .stress import StressField, efield_cycle_peak, principal_cycle_extremes, vm
 __all__ = ["node_fields", "write_stress_vtu", "render_stress", "FIELDS"]
 
 FIELDS = ("von_mises", "principal_max", "principal_min", "efield")
+
+PICTURE_PHASES = 24
+"""Phases of the principal-stress node fields (then a parabola through the best three): the
+fields are for pictures and ParaView; the utilisation table samples 72."""
 
 
 def node_fields(dynamic: StressField | None, static: StressField | None = None) -> dict[str, np.ndarray]:
@@ -40,7 +45,7 @@ def node_fields(dynamic: StressField | None, static: StressField | None = None) 
         uniq, first = np.unique(nodes, return_index=True)
         h, s = hs[sel].reshape(-1, 6)[first], s0[sel].reshape(-1, 6)[first]
         vm, _ = vm_cycle_peak(h, s)
-        p1, p3 = principal_cycle_extremes(h, s)
+        p1, p3 = principal_cycle_extremes(h, s, n_phases=PICTURE_PHASES)
         ef, _ = efield_cycle_peak(he[sel].reshape(-1, 3)[first], e0[sel].reshape(-1, 3)[first])
         out["von_mises"][uniq] = np.maximum(out["von_mises"][uniq], vm)
         out["principal_max"][uniq] = np.maximum(out["principal_max"][uniq], p1)

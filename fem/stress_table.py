@@ -28,7 +28,7 @@ from rpud_common import ParameterError
 from rpud_common.result import Result
 
 from .stress import (StressField, StressRecovery, efield_cycle_peak, principal_cycle_extremes,
-                     principal_values, vm_cycle_peak)
+                     principal_values, quadratic_peak, vm_cycle_peak)
 
 __all__ = ["StressRow", "StressTable", "stress_table", "StressSweep", "stress_sweep", "QUANTITIES"]
 
@@ -241,18 +241,16 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
                                   lim.get(QUANTITIES[q][3]), float(est)))
 
         if not rd.piezo:
-            vm, _ = vm_cycle_peak(hs, s0r)
-            i = int(np.argmax(vm))
-            row("von_mises", i, vm[i], lambda h, s: vm_cycle_peak(h, s)[0], (hs, s0r), (ahs, as0))
+            i, vm = quadratic_peak("von_mises", hs, s0r)
+            row("von_mises", i, vm, lambda h, s: vm_cycle_peak(h, s)[0], (hs, s0r), (ahs, as0))
             continue
         (i1, v1), (i3, v3) = _principal_peaks(hs, s0r)
         row("principal_max", i1, v1, lambda h, s: principal_cycle_extremes(h, s)[0], (hs, s0r), (ahs, as0))
         row("principal_min", i3, v3, lambda h, s: principal_cycle_extremes(h, s)[1], (hs, s0r), (ahs, as0))
         he, e0r = hat_e[sel].reshape(-1, 3), e0[sel].reshape(-1, 3)
         ahe, ae0 = raw_hat_e[sel].reshape(-1, 3), raw_e0[sel].reshape(-1, 3)
-        ef, _ = efield_cycle_peak(he, e0r)
-        i = int(np.argmax(ef))
-        row("efield", i, ef[i], lambda h, s: efield_cycle_peak(h, s)[0], (he, e0r), (ahe, ae0))
+        i, ef = quadratic_peak("efield", he, e0r)
+        row("efield", i, ef, lambda h, s: efield_cycle_peak(h, s)[0], (he, e0r), (ahe, ae0))
     return StressTable(tuple(rows), freq_hz, voltage, float(preload_n))
 
 

@@ -106,7 +106,10 @@ def write_report(s: dict, path) -> Path:
                   f"one sample): tip amplitude over the last {(tail['t_to_s'] - tail['t_from_s']) * 1e3:.0f} ms "
                   f"{tail['tip_amplitude_m'] * 1e6:.2f} um, drive {tail['drive_power_w']:.1f} W, "
                   f"{tail['drive_current_rms_a']:.3f} A rms; energy balance per interval in `summary.json`."]
-    lines += ["", "The same command on the same machine repeats these numbers exactly: seeded ensembles, "
+    from .stress_stage import report_lines
+
+    lines += [""] + report_lines(s.get("stress"))
+    lines += ["The same command on the same machine repeats these numbers exactly: seeded ensembles, "
               f"and A0 handed to the impacts rounded to {imp['handoff']['A0_digits']} significant digits.", "",
               "## Figures", ""]
     for name, rel in s["files"]["figures"].items():

@@ -267,7 +267,7 @@ HARMONIC_OPTS = {"--voltage": BAD_FLOAT + ["0", "1e5"], "--freq": BAD_FLOAT + ["
                  "--band": ["1,2", "0,inf", "nan,5", "3e4,2e4", "x"], "--points": BAD_INT[1:] + ["2"],
                  "--q-mech": BAD_FLOAT + ["0"], "--tan-delta": BAD_FLOAT[:5] + ["2", "-0.1"],
                  "--mesh-size": BAD_FLOAT, "--refine": BAD_FLOAT + ["0.1", "6"], "--modes": BAD_INT, "--mode": BAD_INT + ["9"],
-                 "--ring-up": BAD_FLOAT[:5] + ["-1", "5"],
+                 "--ring-up": BAD_FLOAT[:5] + ["-1", "5"], "--preload": BAD_FLOAT, "--stress-points": BAD_INT,
                  "--design": ["", "missing.toml", "adir"], "--json": ["x.txt"]}
 
 

@@ -164,6 +164,14 @@ def test_cycle_peaks_against_dense_phase_sampling():
     e0 = rng.normal(size=(30, 3))
     got, _ = efield_cycle_peak(e_hat, e0)
     assert np.allclose(got, _dense(e_hat, e0, lambda e: np.linalg.norm(e, axis=1)), rtol=1e-7)
+    # the table's search (rows preselected by bounds) finds the same peak as the full evaluation
+    from fem.stress import quadratic_peak
+
+    for kind, fn, h, st0 in (("von_mises", vm_cycle_peak, hat, s0), ("von_mises", vm_cycle_peak, hat, None),
+                             ("efield", efield_cycle_peak, e_hat, e0)):
+        i, v = quadratic_peak(kind, h, st0)
+        full = fn(h, st0)[0]
+        assert i == int(np.argmax(full)) and v == pytest.approx(full.max(), rel=1e-12)
     # one component: the peak is the modulus; principal values vs eigvalsh (degenerate cases too)
     one = np.zeros((1, 6), complex)
     one[0, 2] = 3.0 * np.exp(0.7j)
