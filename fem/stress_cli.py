@@ -79,7 +79,7 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
     top = max(metal, key=lambda r: r.value) if metal else None
     render_stress(system, fields["von_mises"], out / "stress.png",
                   title=f"von Mises peak over a cycle, {state}" + (
-                      f"\nmetal peak {top.value * 1e-6:.3g} MPa ({top.region}, red dot)" if top else ""),
+                      f"\nmetal peak {top.value * 1e-6:.3g} MPa in {top.region} (red dot; may lie on the far side)" if top else ""),
                   mark=top.location if top else None)
     write_stress_vtu(system, fields, out / "stress.vtu")
     if sweep is not None:

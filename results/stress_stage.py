@@ -35,7 +35,7 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None) -> dic
         top = max(metal, key=lambda r: r.value) if metal else None
         png = render_stress(system, fields["von_mises"], Path(out) / "renders" / "stress_von_mises.png",
                             title=f"von Mises peak over a cycle, {wp.voltage:g} V at {wp.freq_hz:.1f} Hz"
-                                  + (f"\nmetal peak {top.value * 1e-6:.3g} MPa ({top.region}, red dot)" if top else ""),
+                                  + (f"\nmetal peak {top.value * 1e-6:.3g} MPa in {top.region} (red dot; may lie on the far side)" if top else ""),
                             mark=top.location if top else None)
         vtu = write_stress_vtu(system, fields, Path(out) / "stress.vtu")
         files = {"png": str(png.relative_to(out)), "vtu": str(vtu.relative_to(out))}

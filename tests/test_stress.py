@@ -125,6 +125,13 @@ def test_preload_in_a_langevin_stack_carries_p_through_the_ceramic(langevin):
     mean_m = np.sum(corner[~piezo] * vol[~piezo]) / vol[~piezo].sum()
     assert mean_c == pytest.approx(-P / A, rel=0.01)
     assert abs(mean_m) < 0.01 * P / A
+    # the singular lines: where the bonded interfaces (z = 40, 45, 50 mm) meet the rim (r = 15 mm)
+    from fem.stress_table import bonded_edge_nodes
+
+    e = system.nodes[bonded_edge_nodes(system)]
+    assert len(e) > 100
+    assert np.allclose(np.hypot(e[:, 0], e[:, 1]), 0.015, atol=1e-6)
+    assert np.all(np.min(np.abs(e[:, 2:3] - np.array([[0.04, 0.045, 0.05]])), axis=1) < 1e-9)
     from fem.preload import _rigid_modes
 
     R = _rigid_modes(system)
