@@ -48,7 +48,7 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
 
     from .preload import preload_solve
     from .stress import StressRecovery
-    from .stress_output import node_fields, render_stress, write_stress_vtu
+    from .stress_output import node_fields, peak_title, render_stress, write_stress_vtu
     from .stress_table import QUANTITIES, stress_sweep, stress_table
 
     out = Path(args.stress)
@@ -75,12 +75,8 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
     fields = node_fields(dyn, static)
     out.mkdir(exist_ok=True)
     w = table.worst()
-    metal = [r for r in table.rows if r.quantity == "von_mises"]
-    top = max(metal, key=lambda r: r.value) if metal else None
-    render_stress(system, fields["von_mises"], out / "stress.png",
-                  title=f"von Mises peak over a cycle, {state}" + (
-                      f"\nmetal peak {top.value * 1e-6:.3g} MPa in {top.region} (red dot; may lie on the far side)" if top else ""),
-                  mark=top.location if top else None)
+    title, mark = peak_title(state, table)
+    render_stress(system, fields["von_mises"], out / "stress.png", title=title, mark=mark)
     write_stress_vtu(system, fields, out / "stress.vtu")
     if sweep is not None:
         _fig, ax = subplots(1, 1, figsize=(7, 4))

@@ -18,7 +18,7 @@ from rpud_common import ParameterError, atomic_output
 
 from .stress import StressField, efield_cycle_peak, principal_cycle_extremes, vm_cycle_peak
 
-__all__ = ["node_fields", "write_stress_vtu", "render_stress", "FIELDS"]
+__all__ = ["node_fields", "write_stress_vtu", "render_stress", "peak_title", "FIELDS"]
 
 FIELDS = ("von_mises", "principal_max", "principal_min", "efield")
 
@@ -79,6 +79,16 @@ def write_stress_vtu(system, fields: dict[str, np.ndarray], path) -> Path:
     with atomic_output(path) as tmp:
         meshio.write(tmp, out, file_format="vtu")
     return path
+
+
+def peak_title(state: str, table) -> tuple[str, tuple | None]:
+    """Title of a stress picture (the state, the metal peak) and the location to mark."""
+    metal = [r for r in table.rows if r.quantity == "von_mises"]
+    top = max(metal, key=lambda r: r.value) if metal else None
+    if top is None:
+        return f"von Mises peak over a cycle, {state}", None
+    return (f"von Mises peak over a cycle, {state}\nmetal peak {top.value * 1e-6:.3g} MPa in {top.region} "
+            "(red dot; may lie on the far side)", top.location)
 
 
 def render_stress(system, values: np.ndarray, path, *, title: str = "", label: str = "von Mises peak (MPa)",

@@ -119,9 +119,11 @@ class StressTable(Result):
     def _record(self) -> dict:
         return {"freq_hz": self.freq_hz, "voltage_v": self.voltage, "preload_n": self.preload_n,
                 "rows": [r.record() for r in self.rows], "note": self.note,
-                "method": "recovered field (element-node values of P2 tetrahedra averaged per region at each node); peak over the cycle (von Mises, |E|: exact; "
-                          "principal stresses: 72 phases + parabolic refinement); error estimate = difference between "
-                          "recovered and raw element values at the peak (ZZ); singular at re-entrant corners"}
+                "method": "recovered field (element-node values of P2 tetrahedra averaged per region at each "
+                          "node); peak over the cycle (von Mises, |E|: exact; principal stresses: 72 phases + "
+                          "parabolic refinement); error estimate = difference between recovered and raw element "
+                          "values around the peak (ZZ); singular at re-entrant corners and bonded free edges "
+                          "(peak_off_edges leaves the cells touching those edges out)"}
 
     def text(self) -> str:
         """The table as plain text (units in the header, location in mm)."""
@@ -140,8 +142,8 @@ class StressTable(Result):
 
     def markdown(self) -> str:
         """The table in Markdown (the pipeline report)."""
-        lines = ["| region (part, material) | quantity | peak | ± est. | location x, y, z (mm) | peak off edges | limit "
-                 "| utilisation | off edges |", "|---|---|---|---|---|---|---|---|---|"]
+        lines = ["| region (part, material) | quantity | peak | ± est. | location x, y, z (mm) | peak off edges "
+                 "| limit | utilisation | off edges |", "|---|---|---|---|---|---|---|---|---|"]
         for r in self.rows:
             label, unit, scale, _ = QUANTITIES[r.quantity]
             loc = ", ".join(f"{1e3 * c:.1f}" for c in r.location)
@@ -218,7 +220,8 @@ def _region_limits(system):
 
 
 def stress_table(dynamic: StressField | None, static: StressField | None = None, *, freq_hz: float | None = None,
-                 voltage: float | None = None, preload_n: float = 0.0, regions=None, detail: bool = True) -> StressTable:
+                 voltage: float | None = None, preload_n: float = 0.0, regions=None,
+                 detail: bool = True) -> StressTable:
     """Peaks per region of ``static + Re(dynamic exp(j w t))`` over a cycle (see the module docstring).
 
     Parameters

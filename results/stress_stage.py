@@ -22,7 +22,7 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None) -> dic
     solution ``wp.x``) of ``system``; writes ``renders/stress_von_mises.png`` and ``stress.vtu``
     into ``out`` when ``render``. Returns the JSON record (``summary.json["stress"]``)."""
     from fem.stress import StressRecovery
-    from fem.stress_output import node_fields, render_stress, write_stress_vtu
+    from fem.stress_output import node_fields, peak_title, render_stress, write_stress_vtu
     from fem.stress_table import stress_table
 
     t0 = time.perf_counter()
@@ -31,12 +31,9 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None) -> dic
     files = {"png": None, "vtu": None}
     if render:
         fields = node_fields(fld)
-        metal = [r for r in table.rows if r.quantity == "von_mises"]
-        top = max(metal, key=lambda r: r.value) if metal else None
+        title, mark = peak_title(f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz", table)
         png = render_stress(system, fields["von_mises"], Path(out) / "renders" / "stress_von_mises.png",
-                            title=f"von Mises peak over a cycle, {wp.voltage:g} V at {wp.freq_hz:.1f} Hz"
-                                  + (f"\nmetal peak {top.value * 1e-6:.3g} MPa in {top.region} (red dot; may lie on the far side)" if top else ""),
-                            mark=top.location if top else None)
+                            title=title, mark=mark)
         vtu = write_stress_vtu(system, fields, Path(out) / "stress.vtu")
         files = {"png": str(png.relative_to(out)), "vtu": str(vtu.relative_to(out))}
     w = table.worst()
