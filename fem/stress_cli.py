@@ -27,7 +27,8 @@ def add_stress_options(p) -> None:
                    help="bolt preload on the stack, N (>= 0; default 0): its static stress is added to the "
                         "dynamic one before the peaks are taken (needs --stress)")
     p.add_argument("--stress-points", type=int, default=21, metavar="N",
-                   help="frequencies of the stress peaks along the band (default 21; 0: working point only)")
+                   help="frequencies of the stress peaks along the band, plus the working frequency (default 21; "
+                        "0: working point only)")
 
 
 def check_stress_options(args) -> None:
@@ -66,11 +67,12 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
     print(table.text())
     sweep = None
     if args.stress_points:
-        freqs = np.linspace(band[0], band[1], args.stress_points)
+        # the band's grid and the working frequency (a coarse grid may straddle the resonance)
+        freqs = np.union1d(np.linspace(band[0], band[1], args.stress_points), [wp.freq_hz])
         sweep = stress_sweep(system, basis, freqs, wp.voltage, static=static, preload_n=args.preload, recovery=rec)
         worst = sweep.worst_utilisation()
         if worst is not None:
-            print(f"along the band ({args.stress_points} frequencies, {band[0]:.0f}-{band[1]:.0f} Hz): highest "
+            print(f"along the band ({len(freqs)} frequencies, {band[0]:.0f}-{band[1]:.0f} Hz): highest "
                   f"utilisation {100 * worst[2]:.1f} % ({worst[0]}) at {worst[1]:.1f} Hz")
     fields = node_fields(dyn, static)
     out.mkdir(exist_ok=True)
