@@ -6,7 +6,8 @@ Stages (each timed, each reported on the terminal through ``progress``):
 2. **match** horn and coupler to the target frequency (:func:`fem.matching.match`);
 3. **harmonic**: modal-superposition admittance sweep over the resonance/anti-resonance band,
    the tip amplitude per volt at the working frequency (datasheet losses: the unloaded
-   transducer; and the assembled-transducer quality factor ``q_mech``), ring-up at the drive;
+   transducer; and the assembled-transducer quality factor ``q_mech``), ring-up at the drive,
+   stress peaks against the material limits (:mod:`results.stress_stage`);
 4. **A0**: the horn-tip amplitude at the drive voltage, coupled with the impacts it drives. The
    free mass loads the tip: a horn impact exchanges momentum ``J`` at horn velocity ``u'``, and
    the mean power ``P`` it draws (ensemble mean, device scenario: the drill in steady
