@@ -6,7 +6,9 @@ Modules: ``fem.materials`` (constitutive matrices, poling rotation), ``fem.assem
 ``fem.matching`` (``match``), ``fem.harmonic`` (``harmonic_sweep``, ``working_point``),
 ``fem.transient`` (``ring_up``), ``fem.reduced`` (``reduce_transducer``), ``fem.modeshape`` (shares, labels, MAC, surface motion),
 ``fem.render``, ``fem.convergence`` (refinement studies), ``fem.errors`` (the estimated discretisation
-error every output states); command lines in ``fem.modal_cli`` and ``fem.harmonic_cli``
+error every output states); stress and limits in ``fem.stress`` (recovery, peaks over a cycle),
+``fem.stress_table`` (utilisation table, sweep), ``fem.preload`` (static solves, bolt preload),
+``fem.stress_output`` (node fields, PNG, VTU); command lines in ``fem.modal_cli`` and ``fem.harmonic_cli``
 (``python -m fem.modal``, ``python -m fem.harmonic``). Importing ``fem`` imports none of them
 (no scikit-fem load): the names below load on first use.
 """
@@ -23,6 +25,10 @@ _WHERE = {"assemble": "assembly", "PiezoSystem": "assembly", "factorize": "solve
           "render_mode": "render", "render_modes": "render", "write_modes_vtu": "render",
           "plot_admittance": "plots:admittance", "plot_tip_response": "plots:tip_response",
           "plot_ring_up": "plots:ring_up", "reduce_transducer": "reduced", "ReducedTransducer": "reduced",
-          "ErrorEstimate": "errors", "estimate_error": "errors:estimate"}
+          "ErrorEstimate": "errors", "estimate_error": "errors:estimate",
+          "StressRecovery": "stress", "utilisation_table": "stress_table:stress_table", "StressTable": "stress_table",
+          "stress_sweep": "stress_table", "StressSweep": "stress_table", "preload_solve": "preload",
+          "static_solve": "preload", "traction_load": "preload", "render_stress": "stress_output",
+          "write_stress_vtu": "stress_output", "stress_node_fields": "stress_output:node_fields"}
 __all__ = list(_WHERE)
 __getattr__, __dir__ = exports(__name__, _WHERE)

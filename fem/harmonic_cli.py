@@ -52,6 +52,9 @@ def build_parser():
                         "Richardson estimate and the error; exit 1 if not converged within the DOF budget")
     p.add_argument("--json", metavar="OUT", help="write the results as JSON")
     p.add_argument("--plots", metavar="DIR", help="write admittance / tip response / ring-up PNGs into DIR")
+    from .stress_cli import add_stress_options
+
+    add_stress_options(p)
     p.add_argument("--allow-large", action="store_true",
                    help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
     p.add_argument("-v", "--verbose", action="count", default=0)
@@ -99,7 +102,11 @@ def _check_options(args) -> None:
             raise ParameterError("--refine", args.refine, "must be <= 3.5 with --error (its coarse mesh is 1.4x coarser)")
     if args.json is not None and not args.json.endswith(".json"):
         raise ParameterError("--json", args.json, "must end in .json")
-    check_output_paths(inputs=design_inputs(args), folders=("plots",), json=args.json, plots=args.plots)
+    from .stress_cli import check_stress_options
+
+    check_stress_options(args)
+    check_output_paths(inputs=design_inputs(args), folders=("plots", "stress"), json=args.json, plots=args.plots,
+                       stress=args.stress)
 
 
 def driven_mode(modal, near_hz: float) -> int:
@@ -199,6 +206,11 @@ def main(argv=None) -> int:
         est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
                        near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode)
         print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
+    stress = None
+    if args.stress:
+        from .stress_cli import run_stress
+
+        stress = run_stress(args, system, basis, wp, band)
     text = None
     if args.json:
         from .errors import annotate
@@ -209,7 +221,7 @@ def main(argv=None) -> int:
             "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w,
             "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
             "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
-            "discretisation_error": est.to_dict() if est is not None else None}
+            "discretisation_error": est.to_dict() if est is not None else None, "stress": stress}
         text = json_text(data, nonfinite="null")
     if args.plots:
         from pathlib import Path

@@ -21,13 +21,20 @@ from rpud_common import ParameterError, check_positive, check_range, load_toml
 from .piezo_forms import (EPS0, FORMS, REQUIRED, allowed_keys, check_positive_definite, matrices,
                           stress_charge, tables, transverse_isotropy_defect)
 
-__all__ = ["Material", "load_library", "get_material", "builtin_library", "records_from_mapping", "EPS0"]
+__all__ = ["Material", "load_library", "get_material", "builtin_library", "records_from_mapping", "EPS0",
+           "LIMIT_FIELDS"]
 
 log = logging.getLogger(__name__)
 
 # plausible magnitudes: a value outside is a unit slip (12.3 for 12.3e-12 m^2/N, 1300 F/m for 1300)
 _RANGES = {"c": (1e8, 1e13, "Pa"), "s": (1e-13, 1e-8, "1/Pa"), "e": (-1e3, 1e3, "C/m^2"),
            "d": (-1e-7, 1e-7, "C/N"), "eps": (1.0, 1e6, "(relative to eps0 = 8.854e-12 F/m)")}
+
+LIMIT_FIELDS = ("fatigue_strength", "tensile_strength", "compressive_strength", "depolarisation_field")
+"""Optional strength limits of a record (used by :mod:`fem.stress` for the utilisation table)."""
+
+_LIMIT_RANGES = {"fatigue_strength": (1e5, 1e11, "Pa"), "tensile_strength": (1e5, 1e11, "Pa"),
+                 "compressive_strength": (1e5, 1e11, "Pa"), "depolarisation_field": (1e3, 1e9, "V/m")}
 
 _TRANSVERSE_TOL = 1e-3
 """Departure from transverse isotropy (of the largest entry) above which a ceramic is warned about."""
@@ -65,6 +72,18 @@ class Material:
     tan_delta : float
         Dielectric loss tangent (piezo only; 0 for metals).
     description : str
+    fatigue_strength : float, optional
+        Metals: fully reversed fatigue strength (stress amplitude, Pa) at a stated number of
+        cycles (the record's source says which); compared with the peak von Mises stress.
+    tensile_strength : float, optional
+        Ceramics: rated dynamic (peak) tensile strength, Pa; compared with the largest
+        principal stress over a cycle.
+    compressive_strength : float, optional
+        Ceramics: rated static compressive stress parallel to the polar axis, Pa; compared with
+        the most negative principal stress.
+    depolarisation_field : float, optional
+        Ceramics: field at which an AC drive starts to depole, V/m (amplitude); compared with
+        the peak |E|. Omitted limits are reported as "n/a", never guessed.
     """
 
     name: str
@@ -81,9 +100,14 @@ class Material:
     s_E: Mapping[str, float] = field(default_factory=dict)
     d: Mapping[str, float] = field(default_factory=dict)
     eps_T: Mapping[str, float] = field(default_factory=dict)
+    fatigue_strength: float | None = None
+    tensile_strength: float | None = None
+    compressive_strength: float | None = None
+    depolarisation_field: float | None = None
 
     def __post_init__(self):
         where = f"materials.{self.name}"
+        self._check_limits(where)
         if self.kind not in ("isotropic", "piezo"):
             raise ParameterError(f"{where}.kind", self.kind, "must be 'isotropic' or 'piezo'")
         check_positive(f"{where}.density", self.density, "kg/m^3")
@@ -131,6 +155,25 @@ class Material:
             log.warning("%s: not transversely isotropic about the poling axis (%s departs by %.2g of the "
                         "largest constant; a poled ceramic has c66 = (c11 - c12)/2, c22 = c11, ...): "
                         "used as given", where, comp, defect)
+
+    def _check_limits(self, where: str) -> None:
+        """Optional strength limits: positive, finite, of a plausible magnitude (a value outside
+        is a unit slip: 510 for 510e6 Pa, 1.5 for 1.5e6 V/m)."""
+        for key in LIMIT_FIELDS:
+            value = getattr(self, key)
+            if value is None:
+                continue
+            lo, hi, unit = _LIMIT_RANGES[key]
+            check_positive(f"{where}.{key}", value, unit)
+            check_range(f"{where}.{key}", value, lo, hi, unit)
+            object.__setattr__(self, key, float(value))
+        if self.depolarisation_field is not None and self.kind != "piezo":
+            raise ParameterError(f"{where}.depolarisation_field", self.depolarisation_field,
+                                 "applies to kind = 'piezo' only")
+
+    def limits(self) -> dict[str, float | None]:
+        """The strength limits of the record (SI; None where the record gives none)."""
+        return {k: getattr(self, k) for k in LIMIT_FIELDS}
 
     def _form(self, where: str) -> str:
         given = {f: [g for g in groups if getattr(self, g)] for f, groups in FORMS.items()}
@@ -196,6 +239,9 @@ class Material:
             rec["tan_delta"] = float(self.tan_delta)
             for g in FORMS["stress-charge"]:
                 rec[g] = dict(getattr(self, g))
+        for key in LIMIT_FIELDS:
+            if getattr(self, key) is not None:
+                rec[key] = float(getattr(self, key))
         return rec
 
 

@@ -6,7 +6,8 @@ Stages (each timed, each reported on the terminal through ``progress``):
 2. **match** horn and coupler to the target frequency (:func:`fem.matching.match`);
 3. **harmonic**: modal-superposition admittance sweep over the resonance/anti-resonance band,
    the tip amplitude per volt at the working frequency (datasheet losses: the unloaded
-   transducer; and the assembled-transducer quality factor ``q_mech``), ring-up at the drive;
+   transducer; and the assembled-transducer quality factor ``q_mech``), ring-up at the drive,
+   stress peaks against the material limits (:mod:`results.stress_stage`);
 4. **A0**: the horn-tip amplitude at the drive voltage, coupled with the impacts it drives. The
    free mass loads the tip: a horn impact exchanges momentum ``J`` at horn velocity ``u'``, and
    the mean power ``P`` it draws (ensemble mean, device scenario: the drill in steady
@@ -47,6 +48,8 @@ import numpy as np
 from impact.stats import MAX_MEMBERS
 from rpud_common import ParameterError, check_integer, check_positive, check_range, save_figure, write_json
 from rpud_common.result import Result
+
+from .coupled import round_sig  # noqa: F401  (the hand-off rounding; results.explore imports it from here)
 
 log = logging.getLogger(__name__)
 
@@ -206,13 +209,6 @@ class PipelineResult(Result):
         return folder
 
 
-def round_sig(x: float, digits: int) -> float:
-    """``x`` rounded to ``digits`` significant digits (the hand-off to the chaotic stage)."""
-    if x == 0 or not np.isfinite(x):
-        return float(x)
-    return float(f"{x:.{digits - 1}e}")
-
-
 def coupled_amplitudes(point_fn: Callable[[float], float], base, masses, *, omega: float, scenario="device",
                        settings=None, rtol: float = 0.03, max_iter: int = 8, digits: int = 4) -> dict:
     """Iterate ``A0 -> impact power -> tip damper -> A0`` to a fixed point for every free mass.
@@ -296,6 +292,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     from . import figures
     from .errors import annotate_summary, estimate_stage
     from .report import ke_rows, write_report
+    from .stress_stage import stress_stage
 
     tune = default_tune(design) if settings.match else ()      # refused now, not after meshing
     out = Path(out_dir)
@@ -353,6 +350,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     tau = 2.0 / (eta_w * 2 * np.pi * f_w)            # amplitude time constant of the working mode
     ring = ring_up(system, f_w, settings.voltage, min(6 * tau, 0.05), loss=loss, basis=basis,
                    surfaces=surfaces[:1])
+    stress = stress_stage(system, wp, out, render=settings.render, say=say)    # peaks vs limits; own timing
     timings["harmonic_s"] = time.perf_counter() - t0
     say(f"      tip {wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {settings.q_mech}), "
         f"{wp_ds.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; ring-up tau {tau * 1e3:.2f} ms")
@@ -502,6 +500,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
         "kinetic_energy_table": ke_table,
         "coupled_model": coupled_model["json"] if coupled_model is not None else None,
         **({"drilling": drilling["json"]} if drilling is not None else {}),
+        "stress": stress,
         "files": {"figures": {k: str(Path(v).relative_to(out)) for k, v in figs.items()},
                   "renders": [str(Path(p).relative_to(out)) for p in renders],
                   "vtu": str(Path(vtu).relative_to(out)) if vtu else None},

@@ -129,9 +129,12 @@ def write_report(s: dict, path) -> Path:
                   f"{tail['tip_amplitude_m'] * 1e6:.2f} um, drive {tail['drive_power_w']:.1f} W, "
                   f"{tail['drive_current_rms_a']:.3f} A rms; energy balance per interval in `summary.json`."]
     if s.get("drilling"):                      # opt-in stage (python -m results --load rock)
-        from .drilling import report_lines
+        from .drilling import report_lines as drilling_lines
 
-        lines += report_lines(s["drilling"])
+        lines += drilling_lines(s["drilling"])
+    from .stress_stage import report_lines
+
+    lines += [""] + report_lines(s.get("stress"))
     lines += ["", "The same command on the same machine repeats these numbers exactly: seeded ensembles, "
               f"and A0 handed to the impacts rounded to {imp['handoff']['A0_digits']} significant digits.", "",
               "## Figures", ""]

@@ -268,6 +268,7 @@ HARMONIC_OPTS = {"--voltage": BAD_FLOAT + ["0", "1e5"], "--freq": BAD_FLOAT + ["
                  "--q-mech": BAD_FLOAT + ["0"], "--tan-delta": BAD_FLOAT[:5] + ["2", "-0.1"],
                  "--mesh-size": BAD_FLOAT, "--refine": BAD_FLOAT + ["0.1", "6"], "--modes": BAD_INT, "--mode": BAD_INT + ["9"],
                  "--ring-up": BAD_FLOAT[:5] + ["-1", "5"], "--converge": BAD_FLOAT + ["0", "0.5"],
+                 "--preload": BAD_FLOAT, "--stress-points": BAD_INT,
                  "--design": ["", "missing.toml", "adir"], "--json": ["x.txt"]}
 
 

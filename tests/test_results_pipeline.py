@@ -146,3 +146,17 @@ def test_bad_settings_and_cli_input(tmp_path):
                        capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "voltage" in r.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_stress_utilisation_table_in_summary_and_report(run):
+    """Issue 17: the utilisation table at the drive voltage, in summary.json and report.md."""
+    out, s = run
+    st = s["stress"]
+    u = st["utilisation"]
+    assert u["voltage_v"] == s["harmonic"]["voltage_v"] and u["freq_hz"] == pytest.approx(s["working_mode"]["f_r_hz"])
+    rows = {(r["region"], r["quantity"]): r for r in u["rows"]}
+    assert rows[("horn", "von_mises")]["limit"] == 510e6 and rows[("horn", "von_mises")]["peak"] > 0
+    assert {("ring_1", q) for q in ("principal_max", "principal_min", "efield")} <= set(rows)
+    report = (out / "report.md").read_text()
+    assert "## Stress and limits at the drive voltage" in report and st["markdown"] in report
+    assert (out / st["files"]["png"]).stat().st_size > 10_000 and (out / st["files"]["vtu"]).exists()

@@ -1,0 +1,103 @@
+"""The stress options of ``python -m fem.harmonic`` (``--stress DIR``, ``--preload N``,
+``--stress-points N``): parsing checks, the run, printing and files. Physics in
+:mod:`fem.stress`, :mod:`fem.stress_table`, :mod:`fem.preload`, :mod:`fem.stress_output`."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from rpud_common import ParameterError, check_integer, check_range
+
+__all__ = ["add_stress_options", "check_stress_options", "run_stress"]
+
+MAX_PRELOAD = 1e6
+"""Largest bolt preload accepted, N (a 100 t press: far beyond any transducer bolt)."""
+
+
+def add_stress_options(p) -> None:
+    p.add_argument("--stress", metavar="DIR",
+                   help="stress and limits at the working point: print the utilisation table (peak von Mises per "
+                        "metal region, largest tensile / compressive principal stress and peak |E| per ceramic "
+                        "region, locations, limits from the material records) and write DIR/stress.png, "
+                        "DIR/stress.vtu, DIR/stress.json and the peaks along the band (DIR/stress_sweep.png)")
+    p.add_argument("--preload", type=float, default=0.0, metavar="N",
+                   help="bolt preload on the stack, N (>= 0; default 0): its static stress is added to the "
+                        "dynamic one before the peaks are taken (needs --stress)")
+    p.add_argument("--stress-points", type=int, default=21, metavar="N",
+                   help="frequencies of the stress peaks along the band, plus the working frequency (default 21; "
+                        "0: working point only)")
+
+
+def check_stress_options(args) -> None:
+    """Before any meshing: finite, non-negative preload, a usable folder."""
+    pre = args.preload
+    if not (isinstance(pre, (int, float)) and math.isfinite(pre)) or pre < 0:
+        raise ParameterError("--preload", pre, "must be a finite force >= 0 N")
+    check_range("--preload", pre, 0.0, MAX_PRELOAD, "N")
+    check_integer("--stress-points", args.stress_points, 0, 400)
+    if args.stress is None and (pre > 0 or args.stress_points != 21):
+        raise ParameterError("--preload" if pre > 0 else "--stress-points", pre if pre > 0 else args.stress_points,
+                             "needs --stress DIR")
+
+
+def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
+    """Compute, print and write the stress results; returns their JSON record."""
+    from rpud_common import atomic_write_text, json_text, save_figure, subplots
+
+    from .preload import preload_solve
+    from .stress import StressRecovery
+    from .stress_output import node_fields, peak_title, render_stress, write_stress_vtu
+    from .stress_table import QUANTITIES, stress_sweep, stress_table
+
+    out = Path(args.stress)
+    rec = StressRecovery(system)
+    static, pre = None, None
+    if args.preload > 0:
+        pre = preload_solve(system, args.preload)
+        static = rec.field(pre.x)
+    dyn = rec.field(wp.x)
+    table = stress_table(dyn, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=args.preload)
+    state = f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz" + (f" + bolt preload {args.preload:g} N on "
+                                                           f"{pre.faces[0]}/{pre.faces[1]}" if pre else "")
+    print(f"stress, peaks over one cycle ({state}); ± est: recovered - raw element values near the peak "
+          "(peaks at re-entrant corners are mesh-dependent)")
+    print(table.text())
+    sweep = None
+    if args.stress_points:
+        # the band's grid and the working frequency (a coarse grid may straddle the resonance)
+        freqs = np.union1d(np.linspace(band[0], band[1], args.stress_points), [wp.freq_hz])
+        sweep = stress_sweep(system, basis, freqs, wp.voltage, static=static, preload_n=args.preload, recovery=rec)
+        worst = sweep.worst_utilisation()
+        if worst is not None:
+            print(f"along the band ({len(freqs)} frequencies, {band[0]:.0f}-{band[1]:.0f} Hz): highest "
+                  f"utilisation {100 * worst[2]:.1f} % ({worst[0]}) at {worst[1]:.1f} Hz")
+    fields = node_fields(dyn, static)
+    out.mkdir(exist_ok=True)
+    w = table.worst()
+    title, mark = peak_title(state, table)
+    render_stress(system, fields["von_mises"], out / "stress.png", title=title, mark=mark)
+    write_stress_vtu(system, fields, out / "stress.vtu")
+    if sweep is not None:
+        _fig, ax = subplots(1, 1, figsize=(7, 4))
+        for (region, q), vals in sweep.peaks.items():
+            lim = sweep.limits.get((region, q))
+            if lim is None or q == "efield":
+                continue
+            v = -vals if q == "principal_min" else vals
+            ax.plot(sweep.freqs_hz / 1e3, 100 * np.maximum(v, 0) / lim, label=f"{region} {QUANTITIES[q][0]}")
+        ax.set_xlabel("frequency (kHz)")
+        ax.set_ylabel("utilisation (%)")
+        ax.set_title(f"stress peaks along the band at {wp.voltage:g} V")
+        ax.grid(True, alpha=0.3)
+        if ax.get_legend_handles_labels()[0]:
+            ax.legend(fontsize=7)
+        save_figure(ax, out / "stress_sweep.png")
+    data = {"working_point": table.to_dict(), "sweep": sweep.to_dict() if sweep is not None else None,
+            "preload": None if pre is None else {"force_n": pre.force_n, "faces": list(pre.faces),
+                                                 "areas_m2": list(pre.areas_m2)},
+            "worst": None if w is None else w.record()}
+    atomic_write_text(out / "stress.json", json_text(data, nonfinite="null"))
+    return data

@@ -1,0 +1,139 @@
+"""Stress fields at the nodes, a surface picture (off-screen PNG) and a VTU for ParaView.
+
+Node values come from the recovered field of :mod:`fem.stress_table` (per region, element-node
+values averaged at each node); a node shared by two regions (a bonded interface) shows the
+larger of their values (the smaller for the most negative principal stress). Fields, each the
+peak over one cycle of ``static + Re(hat exp(j w t))``: ``von_mises`` (Pa, every region),
+``principal_max`` / ``principal_min`` (Pa; 24 phases and a parabola, :data:`PICTURE_PHASES`)
+and ``efield`` (V/m, zero in metals).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from rpud_common import ParameterError, atomic_output
+
+from .stress import StressField, efield_cycle_peak, principal_cycle_extremes, vm_cycle_peak
+
+__all__ = ["node_fields", "write_stress_vtu", "render_stress", "peak_title", "FIELDS"]
+
+FIELDS = ("von_mises", "principal_max", "principal_min", "efield")
+
+PICTURE_PHASES = 24
+"""Phases of the principal-stress node fields (then a parabola through the best three): the
+fields are for pictures and ParaView; the utilisation table samples 72."""
+
+
+def node_fields(dynamic: StressField | None, static: StressField | None = None) -> dict[str, np.ndarray]:
+    """``{name: (n_nodes,)}`` peak fields over a cycle (see the module docstring)."""
+    ref = dynamic if dynamic is not None else static
+    if ref is None:
+        raise ParameterError("dynamic", None, "give a harmonic or a static stress field (or both)")
+    n = ref.system.n_nodes
+    hs = dynamic.nodal_average("stress").astype(complex) if dynamic is not None else np.zeros(ref.stress.shape, complex)
+    he = dynamic.nodal_average("efield").astype(complex) if dynamic is not None else np.zeros(ref.efield.shape, complex)
+    s0 = static.nodal_average("stress").real if static is not None else np.zeros(ref.stress.shape)
+    e0 = static.nodal_average("efield").real if static is not None else np.zeros(ref.efield.shape)
+    out = {"von_mises": np.zeros(n), "principal_max": np.full(n, -np.inf), "principal_min": np.full(n, np.inf),
+           "efield": np.zeros(n)}
+    for r in np.unique(ref.region):
+        sel = ref.region == r
+        nodes = ref.nodes[sel].ravel()
+        uniq, first = np.unique(nodes, return_index=True)
+        h, s = hs[sel].reshape(-1, 6)[first], s0[sel].reshape(-1, 6)[first]
+        vm, _ = vm_cycle_peak(h, s)
+        p1, p3 = principal_cycle_extremes(h, s, n_phases=PICTURE_PHASES)
+        ef, _ = efield_cycle_peak(he[sel].reshape(-1, 3)[first], e0[sel].reshape(-1, 3)[first])
+        out["von_mises"][uniq] = np.maximum(out["von_mises"][uniq], vm)
+        out["principal_max"][uniq] = np.maximum(out["principal_max"][uniq], p1)
+        out["principal_min"][uniq] = np.minimum(out["principal_min"][uniq], p3)
+        out["efield"][uniq] = np.maximum(out["efield"][uniq], ef)
+    for key in ("principal_max", "principal_min"):
+        out[key][~np.isfinite(out[key])] = 0.0
+    return out
+
+
+def write_stress_vtu(system, fields: dict[str, np.ndarray], path) -> Path:
+    """Write the node fields (``{name: (n_nodes,)}``, SI) on the quadratic mesh to a VTU
+    (atomic); cell data ``region`` and ``part`` as in :func:`fem.render.write_modes_vtu`."""
+    import meshio
+
+    path = Path(path)
+    if path.suffix.lower() != ".vtu":
+        raise ParameterError("path", str(path), "must end in .vtu")
+    mesh = system.mesh
+    for name, v in fields.items():
+        if np.shape(v) != (system.n_nodes,):
+            raise ParameterError(f"fields.{name}", np.shape(v), f"must be ({system.n_nodes},) node values")
+    cells = np.asarray(system.basis.element_dofs.T, dtype=np.int64)
+    cell_type = "tetra10" if cells.shape[1] == 10 else "tetra"
+    part_of_region = np.array([mesh.parts.index(r.part) for r in mesh.regions], dtype=np.int64)
+    out = meshio.Mesh(np.asarray(system.nodes, float), [(cell_type, cells)],
+                      point_data={f"{k}_{'V_per_m' if k == 'efield' else 'Pa'}": np.ascontiguousarray(v, float)
+                                  for k, v in fields.items()},
+                      cell_data={"region": [mesh.cell_region.astype(np.int64)],
+                                 "part": [part_of_region[mesh.cell_region]]})
+    with atomic_output(path) as tmp:
+        meshio.write(tmp, out, file_format="vtu")
+    return path
+
+
+def peak_title(state: str, table) -> tuple[str, tuple | None]:
+    """Title of a stress picture (the state, the metal peak) and the location to mark."""
+    metal = [r for r in table.rows if r.quantity == "von_mises"]
+    top = max(metal, key=lambda r: r.value) if metal else None
+    if top is None:
+        return f"von Mises peak over a cycle, {state}", None
+    return (f"von Mises peak over a cycle, {state}\nmetal peak {top.value * 1e-6:.3g} MPa in {top.region} "
+            "(red dot; may lie on the far side)", top.location)
+
+
+def render_stress(system, values: np.ndarray, path, *, title: str = "", label: str = "von Mises peak (MPa)",
+                  scale: float = 1e-6, mark=None, window_size=(1200, 800), axis_dir=(0.0, 0.0, 1.0)) -> Path:
+    """Off-screen PNG of the undeformed surface coloured by ``values`` (n_nodes,) x ``scale``.
+
+    ``mark``: a point (3,) m drawn as a red dot (the peak's location).
+    """
+    from geometry.render import offscreen_plotter
+
+    from .render import _camera, _check_window, _surface
+
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise ParameterError("path", str(path), "must end in .png")
+    v = np.asarray(values, float)
+    if v.shape != (system.n_nodes,) or not np.all(np.isfinite(v)):
+        raise ParameterError("values", v.shape, f"must be ({system.n_nodes},) finite node values")
+    w, h = _check_window(window_size)
+    s = _surface(system.mesh)
+    surf = s.surf.copy()
+    surf.point_data["value"] = v[s.ids] * scale
+    pl = offscreen_plotter((w, h))
+    try:
+        pl.set_background("white")
+        pl.add_mesh(surf, scalars="value", cmap="turbo", smooth_shading=False,
+                    scalar_bar_args={"title": label, "color": "black", "vertical": True, "position_x": 0.87,
+                                     "position_y": 0.2, "height": 0.6, "width": 0.05, "title_font_size": 14,
+                                     "fmt": "%.3g"})
+        if s.edges.n_points:
+            pl.add_mesh(s.edges, color="gray", line_width=1.0, opacity=0.6)
+        if mark is not None:
+            pl.add_points(np.asarray(mark, float).reshape(1, 3), color="red", point_size=14,
+                          render_points_as_spheres=True)
+        if title:
+            pl.add_text(title, position="upper_left", font_size=12, color="black")
+        view, up = _camera(axis_dir)
+        center = np.asarray(s.surf.center)
+        pl.camera.focal_point = center
+        pl.camera.position = center + view * 10 * s.extent
+        pl.camera.up = up
+        pl.reset_camera()
+        pl.camera.zoom(1.15)
+        with atomic_output(path) as tmp:
+            pl.screenshot(str(tmp))
+    finally:
+        pl.close()
+    return path

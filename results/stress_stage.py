@@ -1,0 +1,68 @@
+"""The pipeline's stress stage: the utilisation table at the drive voltage, a picture, a VTU.
+
+The state is the harmonic working point of the pipeline (drive voltage, working frequency,
+the assembled-transducer quality factor, no free-mass load: the unloaded tip amplitude, the
+larger one), without bolt preload (the design has no bolt; ``python -m fem.harmonic --stress
+DIR --preload N`` adds one).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+__all__ = ["stress_stage", "report_lines"]
+
+
+def stress_stage(system, wp, out: Path, *, render: bool = True, say=None) -> dict:
+    """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its full
+    solution ``wp.x``) of ``system``; writes ``renders/stress_von_mises.png`` and ``stress.vtu``
+    into ``out`` when ``render``. Returns the JSON record (``summary.json["stress"]``)."""
+    from fem.stress import StressRecovery
+    from fem.stress_output import node_fields, peak_title, render_stress, write_stress_vtu
+    from fem.stress_table import stress_table
+
+    t0 = time.perf_counter()
+    fld = StressRecovery(system).field(wp.x)
+    table = stress_table(fld, freq_hz=wp.freq_hz, voltage=wp.voltage)
+    files = {"png": None, "vtu": None}
+    if render:
+        fields = node_fields(fld)
+        title, mark = peak_title(f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz", table)
+        png = render_stress(system, fields["von_mises"], Path(out) / "renders" / "stress_von_mises.png",
+                            title=title, mark=mark)
+        vtu = write_stress_vtu(system, fields, Path(out) / "stress.vtu")
+        files = {"png": str(png.relative_to(out)), "vtu": str(vtu.relative_to(out))}
+    w = table.worst()
+    if say is not None and w is not None:
+        say(f"      stress: highest utilisation {100 * w.utilisation:.0f} % ({w.region}, {w.quantity}, "
+            f"{w.value * 1e-6:.1f} {'MPa' if w.quantity != 'efield' else 'kV/mm'})")
+    return {"utilisation": table.to_dict(), "markdown": table.markdown(), "files": files,
+            "state": "harmonic working point at the drive voltage, unloaded tip, no bolt preload",
+            "seconds": time.perf_counter() - t0}
+
+
+def report_lines(stress: dict | None) -> list[str]:
+    """The report's section on stress and limits (empty without a stress record)."""
+    if not stress:
+        return []
+    u = stress["utilisation"]
+    lines = ["## Stress and limits at the drive voltage", "",
+             f"Peaks over one cycle at {u['voltage_v']:g} V and {u['freq_hz'] / 1e3:.3f} kHz ({stress['state']}): "
+             "von Mises per metal region against its fatigue strength, the largest tensile and compressive "
+             "principal stress and |E| per ceramic ring against the material's ratings (`geometry/materials.toml`, "
+             "sources there; n/a: the record gives no limit). Peaks are taken on the recovered field (element "
+             "values averaged per region at each node); '± est.' is their difference to the raw element values "
+             "around the peak. Peaks at re-entrant corners and bonded-interface edges (the ring bores and rims at "
+             "the electrode planes, the flange/horn edge) are singular in the elastic solution: they grow with "
+             "mesh refinement, so read them as mesh-dependent hot spots, not as converged values.", "",
+             stress["markdown"], ""]
+    if stress["files"].get("png"):
+        lines += [f"![stress]({stress['files']['png']})", ""]
+    if stress["files"].get("vtu"):
+        lines += [f"Node fields (von Mises, principal, |E| peaks) for ParaView: `{stress['files']['vtu']}` "
+                  "(not committed).", ""]
+    return lines
