@@ -144,7 +144,7 @@ def test_clamped_factor_reuse_and_choices(k33):
     # an existing factorisation is used as it is
     sigma = (2 * np.pi * 40e3) ** 2
     K, M, free = s.reduce("short", [name])
-    F = factorize((K - sigma * M).tocsr())
+    F = factorize((K - sigma * M).tocsr(), matching=False)          # as modal_analysis factorises
     again = modal_analysis(s, 40e3, 4, clamp=[name], factor=F)
     np.testing.assert_array_equal(again.f_r_hz, new.f_r_hz)
     np.testing.assert_array_equal(again.f_a_hz, new.f_a_hz)
@@ -209,3 +209,26 @@ def test_joint_open_circuit_runs_alone_and_equals_seeded(langevin, caplog):
     assert np.linalg.norm(r, axis=0).max() < 1e-5 * np.linalg.norm(Ko @ x, axis=0).max()
     with pytest.raises(ParameterError):
         modal_analysis(s, 25e3, 4, eigen="arpack", open_circuit="joint")
+
+
+def test_factorisation_without_matching_solves_saddle_points():
+    """modal_analysis factorises without PARDISO's weighted matching (factorize(matching=False));
+    a saddle-point matrix with zero diagonal entries is still solved to round-off (PARDISO's
+    2x2 pivots; a perturbed pivot would trigger a refactorisation with the matching)."""
+    from fem.solvers import pardiso_available
+
+    rng = np.random.default_rng(1)
+    n, m = 60, 20
+    A = sp.random(n, n, density=0.1, random_state=2)
+    A = A @ A.T + sp.identity(n)
+    B = sp.random(n, m, density=0.2, random_state=3) + sp.eye(n, m)
+    C = sp.diags([np.full(m - 1, 1e-3), np.full(m - 1, 1e-3)], [-1, 1]).tolil()
+    C[m - 1, m - 1] = 1.0                                        # zero diagonal but the last entry
+    S = sp.bmat([[A, B], [B.T, C]]).tocsr()
+    b = rng.standard_normal(n + m)
+    for matching in (True, False):
+        F = factorize(S, matching=matching)
+        x = F(b)
+        assert np.linalg.norm(S @ x - b) < 1e-12 * np.linalg.norm(b)
+        if pardiso_available():
+            assert F.perturbed == 0
