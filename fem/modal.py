@@ -28,8 +28,8 @@ backend=None, tol=1e-10, open_circuit=True, eigen="block", factor=None) -> Modal
   mode is left unpaired (or the basis had to be restarted) the seeded path runs.
   ``"seeded"``: the open-circuit modes are found by a few block solves started from the
   short-circuit modes and ``z`` (each target followed by MAC); if a mode is left unpaired the
-  from-scratch path runs. ``"scratch"``: ARPACK on the bordered operator from a random start (the earlier
-  path; equal to 1e-9 relative, tested). ``False``: no anti-resonances.
+  from-scratch path runs. ``"scratch"``: ARPACK on the bordered operator from a random start
+  (the earlier path; equal to 1e-9 relative, tested). ``False``: no anti-resonances.
 * Modes are paired by the mass-weighted MAC of their displacement parts (``fem.modeshape.mac``
   on the system's mass; Hungarian assignment),
   not by index (a pair needs MAC >= ``mac_min``, default 0.5, else ``f_a`` is NaN; the
@@ -232,8 +232,8 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     ``open_circuit``: ``True`` (``"joint"`` with the block solver, ``"scratch"`` with ARPACK),
     ``"joint"`` (block solver only: the open circuit from the short circuit's own Lanczos basis,
     whose start block holds the response to the hot electrode), ``"seeded"`` (a second block
-    iteration started from the short-circuit modes and the response to the hot electrode), ``"scratch"`` (ARPACK from a random start, window widened until
-    every mode has a partner), ``False`` (no anti-resonances). ``factor``: an existing
+    iteration started from the short-circuit modes and the response to the hot electrode),
+    ``"scratch"`` (ARPACK from a random start, window widened until every mode has a partner), ``False`` (no anti-resonances). ``factor``: an existing
     factorisation of ``K - sigma M`` on ``system.reduce("short", clamp)`` (same ``sigma``),
     reused instead of factorising again.
     """
