@@ -5,21 +5,45 @@ known: f_r 19 682.31 Hz, f_a 21 410.33 Hz, issue 19), prints DOFs, meshing and m
 (12 modes near 20 kHz, short and open circuit, as ``python -m fem.modal``) and the working
 mode's f_r / f_a (with the error against the axisymmetric answer where it is known).
 
-    python benchmarks/bench_mesh_grading.py [--quick]   # --quick: the axisymmetric design only
+    python benchmarks/bench_mesh_grading.py [--quick] [--study]
+    # --quick: the axisymmetric design only; --study: also the finer grading rules of issue 19's
+    # study (geometry.sizing's knobs) on the axisymmetric design, up to ~260k DOFs (minutes)
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import time
 
 import geometry
+import geometry.sizing as sizing
 from _table import print_table
 from fem.assembly import assemble
 from fem.modal import modal_analysis, working_mode
 from geometry.design_rpud import default_design
 
 F_R, F_A = 19682.31, 21410.33
+
+STUDY = (
+    ("graded, edge 0.12 x region size", dict(EDGE_FRACTION=0.12)),
+    ("graded, growth 0.35", dict(GROWTH=0.35)),
+    ("graded, edge 0.04", dict(EDGE_FRACTION=0.04)),
+    ("graded, edge 0.04, bore edges 0.08, growth 0.4", dict(EDGE_FRACTION=0.04, GRADE_BORES=True, GROWTH=0.4)),
+)
+"""Finer grading rules (geometry.sizing's study knobs) measured against the axisymmetric answer."""
+
+
+@contextlib.contextmanager
+def knobs(**values):
+    old = {k: getattr(sizing, k) for k in values}
+    try:
+        for k, v in values.items():
+            setattr(sizing, k, v)
+        yield
+    finally:
+        for k, v in old.items():
+            setattr(sizing, k, v)
 
 
 def run(design, graded: bool):
@@ -36,6 +60,7 @@ def run(design, graded: bool):
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--study", action="store_true")
     args = ap.parse_args()
     d = default_design()
     designs = [("no slots/teeth", d.replace({"coupler.n_slots": 0, "coupler.n_teeth": 0}), True)]
@@ -48,6 +73,13 @@ def main() -> None:
             err = f"{100 * (fr / F_R - 1):+.3f} % / {100 * (fa / F_A - 1):+.3f} %" if known else "-"
             rows.append((f"{name}, {'graded (--grade)' if graded else 'ungraded (default)'}",
                          f"{n:,}", f"{tm:.1f}", f"{tmod:.1f}", f"{fr:.2f} / {fa:.2f}", err))
+    if args.study:
+        design = designs[0][1]
+        for name, values in STUDY:
+            with knobs(**values):
+                n, tm, tmod, fr, fa = run(design, True)
+            rows.append((f"no slots/teeth, {name}", f"{n:,}", f"{tm:.1f}", f"{tmod:.1f}", f"{fr:.2f} / {fa:.2f}",
+                         f"{100 * (fr / F_R - 1):+.3f} % / {100 * (fa / F_A - 1):+.3f} %"))
     print_table(rows, headers=("mesh", "DOFs", "mesh s", "modal s (assembly + 12 modes)", "f_r / f_a Hz",
                                "vs axisymmetric"))
 

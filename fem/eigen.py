@@ -44,9 +44,21 @@ the statically condensed response of their displacement, as in ARPACK's mode 3).
   the default drill), and the round-off of the solve (which limits ``1/theta`` to ~1e-9 relative for modes far from
   the shift on a 68.6k-DOF drill) does not enter them.
 
+* Joint open circuit (``border=(a, alpha, z)``): the open-circuit matrix borders ``K - sigma M``
+  by the hot column ``a`` and diagonal ``alpha``; its solve is ``S_open = S + z z^T M / delta``
+  on the short-circuit unknowns (``z = (K - sigma M)^-1 a``, ``delta = alpha - a^T z``). With
+  ``z`` in the start block, ``S_open`` maps span Q into span Q + the next block exactly as ``S``
+  does (the rank-1 part stays in span Q), so ``Q^T M S_open Q = T + g g^T / delta``
+  (``g = Q^T M z``) is the Rayleigh-Ritz matrix of the open circuit in the same basis, and its
+  Ritz pairs have the residual coefficients ``B c_last`` of the same Lanczos relation. One run
+  converges both sets (each wanted short-circuit pair and its MAC partner among the open-circuit
+  Ritz pairs) to the same bound; no extra solve. A thick restart would take ``z`` out of the
+  basis, so the basis is sized for the whole run and the bordered pairs are dropped if it fills.
+
 ``BlockEigs``: ``lam`` (ascending), ``vectors`` (``(n, k)``, ``V^T M V = I``), ``residual``
 (``rho`` per pair), ``n_solves`` (block solves), ``n_vectors`` (right-hand sides in all),
-``dim`` (final basis size), ``converged``, ``restarts``.
+``dim`` (final basis size), ``converged``, ``restarts``; with ``border``: ``lam_open``,
+``vectors_open`` (``(n + 1, k)``), ``residual_open``, ``converged_open``.
 """
 
 from __future__ import annotations
@@ -83,6 +95,10 @@ class BlockEigs:
     dim: int
     converged: bool
     restarts: int
+    lam_open: np.ndarray | None = None
+    vectors_open: np.ndarray | None = None
+    residual_open: np.ndarray | None = None
+    converged_open: bool = False
 
 
 class _Basis:
@@ -201,7 +217,8 @@ def _hungarian_pick(mac_rows: np.ndarray) -> np.ndarray:
 def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, start: np.ndarray, *,
                n_wanted: int | None = None, targets: np.ndarray | None = None,
                locked: np.ndarray | None = None, tol: float = 1e-10,
-               max_dim: int | None = None, max_solves: int = 200) -> BlockEigs:
+               max_dim: int | None = None, max_solves: int = 200,
+               border: tuple[np.ndarray, float, np.ndarray] | None = None) -> BlockEigs:
     """Eigenpairs of ``K x = lam M x`` near ``sigma`` by block shift-invert Lanczos.
 
     Parameters
@@ -227,6 +244,14 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
         Largest basis before a thick restart (default ``max(160, 8 b + 2 wanted)``).
     max_solves : int
         Largest number of block solves before giving up (``converged = False``).
+    border : (a, alpha, z), optional
+        Also the eigenpairs of the bordered pencil ``([[K, a], [a^T, alpha]], diag(M, 0))``
+        (the open circuit: ``a`` the hot column, ``alpha`` its diagonal entry) from the same
+        basis, with ``z = (K - sigma M)^-1 a`` (must lie in the span of ``start``): the joint
+        Rayleigh-Ritz of the module docstring. One wanted bordered pair per wanted pair (its
+        MAC partner in the basis), converged to the same bound; returned in ``lam_open``,
+        ``vectors_open`` (``(n + 1, k)``, the last row the border unknown), ``residual_open``,
+        ``converged_open`` (False when a thick restart would have dropped ``z``).
     """
     start = np.asarray(start, dtype=float)
     if start.ndim != 2 or start.shape[0] != M.shape[0]:
@@ -245,6 +270,15 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
     MT = None if targets is None else M @ targets
     tnorm2 = None if targets is None else np.abs(np.einsum("ij,ij->j", targets, MT))
 
+    if border is not None:
+        a_b, alpha_b, z_b = np.asarray(border[0], float), float(border[1]), np.asarray(border[2], float)
+        delta_b = alpha_b - a_b @ z_b                 # Schur complement of the border
+        Mz_b = M @ z_b
+        if targets is not None:
+            raise ParameterError("border", "targets", "the joint open-circuit solve needs n_wanted")
+        # the basis must not be restarted (z would leave it): room for the whole run
+        max_dim = max(max_dim, min(n, b * 12 + 2 * n_want))
+    joint_ok = border is not None
     n_solves = n_vectors = restarts = 0
     T = np.zeros((0, 0))
     Qb, MQb, _ = basis.orthonormalise(basis.project(start))
@@ -282,6 +316,15 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
         R_all = np.zeros((0, m)) if B is None else B @ C_all[m_old:, :]
         rho = np.linalg.norm(R_all[:, pick], axis=0) / np.abs(theta)
         est = _error_estimate(pick, theta_all, R_all, sigma, tol, gap_floor)
+        if joint_ok:
+            # open circuit in the same basis: Q^T M S_open Q = T + g g^T / delta (g = Q^T M z);
+            # z lies in span Q, so the residual of a bordered Ritz pair is again Q_next B c_last
+            g_b = basis.Q[:, :m].T @ Mz_b
+            theta_o_all, C_o_all = np.linalg.eigh(T + np.outer(g_b, g_b) / delta_b)
+            pick_o = _hungarian_pick((C.T @ C_o_all) ** 2)
+            R_o_all = np.zeros((0, m)) if B is None else B @ C_o_all[m_old:, :]
+            rho_o = np.linalg.norm(R_o_all[:, pick_o], axis=0) / np.abs(theta_o_all[pick_o])
+            est = np.concatenate([est, _error_estimate(pick_o, theta_o_all, R_o_all, sigma, tol, _GAP_FLOOR)])
         log.debug("block eigs: dim %d, %d solves, max residual %.2e, max error estimate %.2e",
                   m, n_solves, rho.max(), est.max())
         if est.max() <= tol or Qn is None:
@@ -292,6 +335,9 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
                                       and history[-1] > 0.5 * history[-5]):
             break                                       # budget spent, or stagnating at round-off
         Qb, MQb = Qn, MQn
+        if m + Qb.shape[1] > max_dim and joint_ok:
+            joint_ok = False                            # z would leave the basis: give up the border
+            log.info("block eigs: basis full, the bordered pairs are dropped")
         if m + Qb.shape[1] > max_dim:
             # thick restart: keep the wanted Ritz vectors and the best others (largest |theta|)
             keep_n = min(max(n_want + b, m // 2), max_dim - Qb.shape[1])
@@ -306,11 +352,24 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
     V = V / mn
     lam = np.einsum("ij,ij->j", V, K @ V)            # Rayleigh quotients (V^T M V = 1)
     order = np.argsort(lam)
+    out = {}
+    if joint_ok:
+        theta_o, C_o = theta_o_all[pick_o], C_o_all[:, pick_o]
+        # S_open Q c = S Q c + z (g^T c) / delta; border unknown -(g^T c) / delta
+        s_o = (g_b @ C_o) / delta_b
+        U = (basis.SQ[:, :basis.m] @ C_o + np.outer(z_b, s_o)) / theta_o
+        h = -s_o / theta_o
+        mn_o = np.sqrt(np.abs(np.einsum("ij,ij->j", U, M @ U)))
+        U, h = U / mn_o, h / mn_o
+        lam_o = np.einsum("ij,ij->j", U, K @ U) + 2 * h * (a_b @ U) + alpha_b * h * h
+        oo = np.argsort(lam_o)
+        out = dict(lam_open=lam_o[oo], vectors_open=np.vstack([U, h[None, :]])[:, oo],
+                   residual_open=rho_o[oo], converged_open=converged)
     if not converged:
         log.warning("block eigs: not converged after %d block solves (error estimate %.1e > %.1e)",
                     n_solves, est.max(), tol)
     return BlockEigs(lam=lam[order], vectors=V[:, order], residual=rho[order], n_solves=n_solves,
-                     n_vectors=n_vectors, dim=basis.m, converged=converged, restarts=restarts)
+                     n_vectors=n_vectors, dim=basis.m, converged=converged, restarts=restarts, **out)
 
 
 def smooth_start(nodes: np.ndarray, free: np.ndarray, ndof: int, b: int, n_random: int,
@@ -356,14 +415,15 @@ def smooth_start(nodes: np.ndarray, free: np.ndarray, ndof: int, b: int, n_rando
     return X / np.linalg.norm(X, axis=0)
 
 
-def bordered_solve(solve: Callable[[np.ndarray], np.ndarray], a: np.ndarray, alpha: float):
+def bordered_solve(solve: Callable[[np.ndarray], np.ndarray], a: np.ndarray, alpha: float,
+                   z: np.ndarray | None = None):
     """Solves with ``[[A, a], [a^T, alpha]]`` from solves with ``A`` (one scalar Schur complement).
 
     The open-circuit matrix is the short-circuit one bordered by the hot-electrode row and
     column, so one factorisation serves both. Returns ``(solve_bordered, z)`` with
     ``z = A^-1 a`` (the short-circuit response to the hot column); ``solve_bordered`` accepts a
-    vector ``(n + 1,)`` or a block ``(n + 1, b)``."""
-    z = np.asarray(solve(a)).ravel()
+    vector ``(n + 1,)`` or a block ``(n + 1, b)``; ``z`` may be given when already known."""
+    z = np.asarray(solve(a) if z is None else z).ravel()
     delta = alpha - a @ z
 
     def solve_open(B):

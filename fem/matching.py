@@ -185,7 +185,7 @@ def _modes(system: PiezoSystem, free: np.ndarray, near_hz: float, k: int, keep: 
     K = system.K[free][:, free].tocsr()
     M = system.M[free][:, free].tocsr()
     sigma = _shift(near_hz)
-    F = factorize((K - sigma * M).tocsr())
+    F = factorize((K - sigma * M).tocsr(), matching=False)    # as fem.modal: reuse is bit-identical
     b = max(8, k // 2 + 2)
     start = smooth_start(system.nodes, free, system.ndof, b, n_random=max(2, b // 4))
     with blas_threads(1):

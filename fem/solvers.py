@@ -2,7 +2,7 @@
 
 API
 ---
-``factorize(A, backend=None, symmetric=True) -> Factor``
+``factorize(A, backend=None, symmetric=True, matching=True) -> Factor``
     ``Factor`` is callable: ``x = F(b)`` for ``b`` of shape (n,) or (n, k).
     ``F.backend`` names the backend that ran, ``F.seconds`` the factorisation time.
 ``backend_name(backend=None) -> "pardiso" | "superlu"``: what ``factorize`` would use.
@@ -119,7 +119,7 @@ class _SuperLU(Factor):
 
 
 class _Pardiso(Factor):
-    def __init__(self, A, symmetric=True):
+    def __init__(self, A, symmetric=True, matching=True):
         import pypardiso
 
         self.backend = "pardiso"
@@ -132,7 +132,7 @@ class _Pardiso(Factor):
         ip[1] = 2      # METIS nested dissection
         ip[9] = 8      # pivot perturbation 1e-8
         ip[10] = 1     # scaling
-        ip[12] = 1     # weighted matching (symmetric indefinite, saddle point)
+        ip[12] = 1 if matching else 0   # weighted matching (symmetric indefinite, saddle point)
         ip[17] = -1    # report nnz of the factor
         A = sp.csr_matrix(A, dtype=np.float64)
         if symmetric:
@@ -151,6 +151,18 @@ class _Pardiso(Factor):
         self.solver._check_A(A)
         self.solver.set_phase(12)
         self.solver._call_pardiso(A, np.zeros((self.n, 1)))
+        self.perturbed = int(ip[13])
+        if not matching and self.perturbed:
+            # a pivot too small for Bunch-Kaufman within its supernode: redo with the matching
+            log.info("PARDISO without matching perturbed %d pivots: factorising with it", self.perturbed)
+            self.solver.set_phase(-1)
+            self.solver._call_pardiso(sp.csr_matrix((0, 0)), np.zeros(0))
+            self.solver = pypardiso.PyPardisoSolver(mtype=-2 if symmetric else 11)
+            self.solver.iparm[:] = ip
+            self.solver.iparm[12] = 1
+            self.solver.set_phase(12)
+            self.solver._call_pardiso(A, np.zeros((self.n, 1)))
+            self.perturbed = int(self.solver.iparm[13])
         self.seconds = time.perf_counter() - t
 
     def _solve_real(self, b):
@@ -189,9 +201,14 @@ class _ComplexViaReal(Factor):
         return y[: self.n] - 1j * y[self.n:]
 
 
-def factorize(A, backend: str | None = None, symmetric: bool = True) -> Factor:
+def factorize(A, backend: str | None = None, symmetric: bool = True, matching: bool = True) -> Factor:
     """Factorise the square sparse matrix ``A`` (real, or complex symmetric); see the module
-    docstring for backends. ``symmetric`` tells PARDISO it may use only the upper triangle."""
+    docstring for backends. ``symmetric`` tells PARDISO it may use only the upper triangle.
+    ``matching=False`` (real matrices, PARDISO): no weighted matching in the analysis, which
+    saddle-point matrices with zero diagonal entries need but a matrix with a full non-zero
+    diagonal (the shifted piezo pencil: stiffness minus mass, minus permittivity) does not
+    (~20 % less factorisation work on the default design); if any pivot had to be perturbed the
+    matrix is factorised again with the matching."""
     name = backend_name(backend)
     A = sp.csr_matrix(A)
     if A.shape[0] != A.shape[1]:
@@ -204,7 +221,7 @@ def factorize(A, backend: str | None = None, symmetric: bool = True) -> Factor:
             else:
                 f = _ComplexViaReal(A)
         else:
-            f = _Pardiso(A, symmetric=symmetric)
+            f = _Pardiso(A, symmetric=symmetric, matching=matching)
     else:
         f = _SuperLU(A)
     log.info("factorised n=%d nnz=%d with %s in %.2f s", A.shape[0], A.nnz, f.backend, f.seconds)

@@ -19,6 +19,14 @@ refines; the element count grows about as ``F**-3``):
   rate (h^4 with P2). It is off by default: on the default design it roughly doubles the DOFs
   (12 925 -> ~29 000 tetrahedra) for +0.12 % instead of +0.45 % on the working mode, and the
   pipeline's and the test suite's time budgets are set on the ungraded mesh.
+  Study knobs (module constants, defaults = the ``--grade`` rule): :data:`EDGE_FRACTION`,
+  :data:`GROWTH`, :data:`GRADE_MINOR`, :data:`GRADE_BORES`, :data:`MINOR_FRACTION`,
+  :data:`RING_ELEMENTS`, :data:`FLANGE_FACTOR`. Issue 19's 0.05 % on the working mode of the
+  axisymmetric variant (no slots, no teeth) is met only at ~260k DOFs (EDGE_FRACTION 0.04,
+  GRADE_BORES, GROWTH 0.4: +0.044 % / +0.055 %): isotropic tetrahedra pay the edge size along
+  the whole circumference of each edge (elements ~ r / (GROWTH^2 h_edge)), and single meshes
+  scatter by ~0.02 % (the smallest elements at the edges are placed differently), see
+  ``benchmarks/bench_mesh_grading.py --study``.
 
 Gmsh is handed to :func:`apply_fields` by the builder; this module does not import it.
 """
@@ -58,7 +66,22 @@ GROWTH = 0.5
 about 1.5x the one before it, toward the edge."""
 
 MAJOR_STEP = 0.3
-"""A drop of the outer radius by at least this fraction of the larger radius is graded."""
+"""A drop of the outer radius by at least this fraction of the larger radius is a major edge."""
+
+GRADE_MINOR = False
+"""Grade the minor outer steps too (at :data:`MINOR_FRACTION`)."""
+
+GRADE_BORES = False
+"""Grade the edges where a bore narrows (at :data:`MINOR_FRACTION`)."""
+
+MINOR_FRACTION = 0.08
+"""Edge size of minor steps and bore edges as a fraction of the smaller adjacent region size."""
+
+RING_ELEMENTS = 1.0
+"""Element size cap in a ring: its thickness divided by this."""
+
+FLANGE_FACTOR = 1.5
+"""Element size cap in the flange: this times its thickness."""
 
 _TOL = 1e-7
 """Two radii closer than this (m) are the same: no corner."""
@@ -148,8 +171,8 @@ def feature_caps(design: DesignBase) -> tuple[dict[str, float], dict[str, tuple[
     if isinstance(design, RPUDDesign):
         s, c = design.stack, design.coupler
         for region, kind, z0, z1 in design.stack_layers():
-            caps[region] = s.ring_thickness if kind == "ring" else 4 * s.shim_thickness
-        caps["flange_disc"] = 1.5 * design.flange.thickness
+            caps[region] = s.ring_thickness / RING_ELEMENTS if kind == "ring" else 4 * s.shim_thickness
+        caps["flange_disc"] = FLANGE_FACTOR * design.flange.thickness
         R = c.outer_diameter / 2 + 1e-3
         zones = {z[0]: z for z in design._zones()}
         if c.n_slots:
@@ -237,27 +260,35 @@ def _sections(design: DesignBase) -> list[_Section | None]:
 
 
 def graded_edges(design: DesignBase, sizes: dict[str, float], refine: float = 1.0) -> list[GradedEdge]:
-    """The major re-entrant circular edges of a coaxial design and their edge sizes (m).
+    """The re-entrant circular edges of a coaxial design and their edge sizes (m).
 
     Between consecutive axisymmetric slices that touch, a drop of the outer radius by at least
-    :data:`MAJOR_STEP` of the larger radius leaves a major re-entrant edge at the smaller radius
-    (the flange/horn edge and the horn's step of the default design). Its edge size is
-    :data:`EDGE_FRACTION` of the smaller adjacent region size. Minor steps and bore edges (the
-    rings' outer and inner edges on the flange: ~5 % of the default design's ungraded error) are
-    not graded: their long circles would cost more DOFs than the largest edge for a tenth of its
-    gain. ``sizes`` are :func:`region_sizes` at ``refine`` (the edge sizes inherit it from them);
-    the growth is :data:`GROWTH` x ``refine``, so that the whole size function h(d) scales by
-    ``refine`` and the graded zone's element count grows as ``refine**-3`` like the rest.
+    :data:`MAJOR_STEP` of the larger radius leaves a re-entrant edge at the smaller radius (the
+    flange/horn edge and the horn's step of the default design; with :data:`GRADE_MINOR` also
+    smaller steps, e.g. the rings' outer edge on the flange), and a bore that narrows leaves one
+    at the larger bore radius (the stack's bore on the flange face, :data:`GRADE_BORES`). Edge size:
+    :data:`EDGE_FRACTION` of the smaller adjacent region size (:data:`MINOR_FRACTION` for minor
+    steps and bores). ``sizes`` are :func:`region_sizes` at ``refine`` (the edge sizes inherit it
+    from them); the growth is :data:`GROWTH` x ``refine``, so that the whole size function h(d)
+    scales by ``refine`` and the graded zone's element count grows as ``refine**-3`` like the rest.
     """
     secs = _sections(design)
     edges: list[GradedEdge] = []
     for a, b in zip(secs, secs[1:]):
-        if a is None or b is None or abs(a.z1 - b.z0) > _TOL or abs(a.r1 - b.r0) <= _TOL:
+        if a is None or b is None or abs(a.z1 - b.z0) > _TOL:
             continue
-        r, big = min(a.r1, b.r0), max(a.r1, b.r0)
-        if 1 - r / big >= MAJOR_STEP:
-            h = EDGE_FRACTION * min(sizes[a.region], sizes[b.region])
-            edges.append(GradedEdge(a.z1, r, h, GROWTH * refine, (a.region, b.region)))
+        h_min = min(sizes[a.region], sizes[b.region])
+        if abs(a.r1 - b.r0) > _TOL:
+            r, big = min(a.r1, b.r0), max(a.r1, b.r0)
+            major = 1 - r / big >= MAJOR_STEP
+            if major or GRADE_MINOR:
+                frac = EDGE_FRACTION if major else MINOR_FRACTION
+                edges.append(GradedEdge(a.z1, r, frac * h_min, GROWTH * refine, (a.region, b.region)))
+        if GRADE_BORES and abs(a.bore - b.bore) > _TOL:
+            r = max(a.bore, b.bore)
+            # the wider bore's edge is re-entrant unless the other part ends outside it
+            if r < min(a.r1, b.r0) - _TOL:
+                edges.append(GradedEdge(a.z1, r, MINOR_FRACTION * h_min, GROWTH * refine, (a.region, b.region)))
     return edges
 
 

@@ -132,3 +132,27 @@ def test_graded_default_design_without_slots_and_teeth_against_the_axisymmetric_
     w = working_mode(s, r.f_r_hz, r.vectors, 20e3)
     assert 0 < r.f_r_hz[w] / F_R_AXISYM - 1 < 2e-3         # P2 from above (stiffer); measured +0.119 %
     assert 0 < r.f_a_hz[w] / F_A_AXISYM - 1 < 2e-3         # measured +0.149 %
+
+
+def test_study_knobs_add_the_bore_and_minor_edges(monkeypatch):
+    """The study knobs of geometry.sizing (off by default): GRADE_BORES adds the edge where the
+    stack's bore ends on the flange (r = 7.5 mm at z = 20 mm), GRADE_MINOR the rings' outer edge
+    on the flange (a 22 % step, below MAJOR_STEP); both at MINOR_FRACTION of the smaller region
+    size; the caps of rings and flange follow RING_ELEMENTS and FLANGE_FACTOR."""
+    import geometry.sizing as S
+
+    d = default_design()
+    zf = d.stack.length
+    base = {(round(e.z * 1e3, 4), round(e.r * 1e3, 4)) for e in graded_edges(d, region_sizes(d))}
+    monkeypatch.setattr(S, "GRADE_BORES", True)
+    monkeypatch.setattr(S, "GRADE_MINOR", True)
+    sizes = region_sizes(d)
+    edges = {(round(e.z * 1e3, 4), round(e.r * 1e3, 4)): e for e in graded_edges(d, sizes)}
+    assert set(edges) - base == {(round(zf * 1e3, 4), 7.5), (round(zf * 1e3, 4), 17.5)}
+    for key in set(edges) - base:
+        assert edges[key].h_edge == pytest.approx(S.MINOR_FRACTION * min(sizes["ring_4"], sizes["flange_disc"]))
+    monkeypatch.setattr(S, "RING_ELEMENTS", 2.0)
+    monkeypatch.setattr(S, "FLANGE_FACTOR", 0.5)
+    s2 = region_sizes(d)
+    assert s2["ring_1"] == pytest.approx(d.stack.ring_thickness / 2)
+    assert s2["flange_disc"] == pytest.approx(0.5 * d.flange.thickness)
