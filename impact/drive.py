@@ -61,7 +61,7 @@ class SeriesModel:
     A : ndarray (N, N)
         State matrix of ``x = (q, q', V_p)``, SI.
     b : ndarray (N,)
-        Input of the source voltage, 1/s per ... (``x' = A x + b V_s``).
+        Input of the source voltage (``x' = A x + b V_s``): ``1 / (R C0)`` in the V_p row, 1/s.
     lam : ndarray (M,) complex
         Pseudo-mode eigenvalues (``n`` pairs with Im > 0, then the real pole), 1/s.
     tip : ndarray (M,)
@@ -78,6 +78,8 @@ class SeriesModel:
         Clamped capacitance (F), dielectric conductance (S), series resistance (ohm).
     freq_hz : float
         Drive frequency, Hz.
+    n : int
+        Number of modes (``N = 2n + 1``, ``M = n + 1``).
     """
 
     A: np.ndarray
@@ -222,7 +224,7 @@ def series_model(horn, freq_hz: float) -> SeriesModel:
     r = real[0]
     vr = V[:, r].real
     ur = U[r].real
-    # normalise the real pole's vector so that z_r = ur x is real with ur . vr = 1
+    # the real pole's right and left vectors are real (a real eigenvalue of a real matrix), ur . vr = 1
     lam[n] = ev[r].real
     tip[n] = float(c @ vr)
     modes[n] = vr
