@@ -55,11 +55,14 @@ its variants and the textbook stacks. Curved elements must also have a positive 
 condition number (SICN, which sees the curvature: <= 0 means inverted)."""
 
 MIN_SICN_DEFAULT = 0.1
+"""Lower bound on the minimum SICN of the default design at its default size (tested)."""
 
 OPTIMISE_BELOW = 0.1
 """Minimum gamma of the linear mesh below which a Netgen optimisation pass runs (a sliver just
-above ``MIN_QUALITY`` still curves badly at second order)."""
-"""Lower bound on the minimum SICN of the default design at its default size (tested)."""
+above ``MIN_QUALITY`` still curves badly at second order). A drawing (``kind = "cad"``) gets the
+pass always: the parametric default drill triggers it (min gamma 0.067), its STEP export, whose
+linear mesh differs by a few elements, does not, and the pass alone moves the working mode by
+0.1 % (10 798 vs 12 925 tetrahedra); with the pass on both sides they agree within 2e-4."""
 
 GMSH_TIME_LIMIT = 600.0
 """Default wall-clock limit of one Gmsh build, s (the environment variable ``RPUD_GMSH_TIMEOUT``
@@ -286,8 +289,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         free = [(3, v) for vs in region_vols.values() for v in vs if v not in layer_vols]
         free_tags = _element_tags(gmsh, free)
         gamma = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "gamma"))
-        if len(gamma) and gamma.min() < OPTIMISE_BELOW:
-            log.info("min gamma %.3g < %.3g: Netgen optimisation pass", gamma.min(), OPTIMISE_BELOW)
+        if len(gamma) and (gamma.min() < OPTIMISE_BELOW or isinstance(design, CadDesign)):
+            log.info("min gamma %.3g: Netgen optimisation pass", gamma.min())
             gmsh.model.mesh.optimize("Netgen", dimTags=free)
             gmsh.model.mesh.optimize("", dimTags=free)
             free_tags = _element_tags(gmsh, free)

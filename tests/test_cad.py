@@ -3,8 +3,8 @@ parametric designs, and the split of the design kinds into modules of their own.
 
 Reference: the parametric design itself. Exported as STEP + rules and read back, the default
 design must give the same regions, surfaces, electrodes, closed-form volumes and axial layout,
-and -- meshed with the same settings -- its working mode within 0.05 % (f_r and f_a). The mesh
-is coarse (``refine`` 1.5, ~25k DOFs) to keep the file fast; both sides use the same settings.
+and -- meshed at the default refinement -- its working mode within 0.05 % (f_r and f_a). The
+structural checks use coarse meshes (``refine`` 1.5, ~25k DOFs) to keep the file fast.
 """
 
 from __future__ import annotations
@@ -132,21 +132,26 @@ def test_export_reads_back_with_the_parametric_layout(exported):
     assert all(r.select.name == r.region and r.select.point is not None for r in d1.volumes)
 
 
-def test_round_trip_mesh_and_working_mode(meshes):
+def test_round_trip_mesh_structure(meshes):
     d0, d1, m0, m1 = meshes
     assert [(r.name, r.part, r.material, r.poling) for r in m0.regions] == \
         [(r.name, r.part, r.material, r.poling) for r in m1.regions]
     assert set(m0.facet_sets) == set(m1.facet_sets)
     assert m0.electrodes == m1.electrodes
     assert len(m1.facet_sets["teeth_tops"]) > 0 and len(m1.facet_sets["flange"]) > 0
+
+
+def test_round_trip_working_mode_at_the_default_mesh(exported):
+    """The issue's check: the default design re-imported from its STEP export, both meshed at the
+    default refinement, has the same working mode within 0.05 % (measured: f_r -1.3e-4, f_a
+    -1.6e-4; 12 925 vs 12 845 tetrahedra)."""
     out = []
-    for mesh in (m0, m1):
-        res = fem.modal_analysis(fem.assemble(mesh), near_hz=20000.0, n_modes=4)
+    for design in (geometry.default_design(), load_design(exported[2])):
+        res = fem.modal_analysis(fem.assemble(geometry.build_mesh(design)), near_hz=20000.0, n_modes=4)
         w = res.working
         assert res.labels[w] == "longitudinal"
         out.append((res.f_r_hz[w], res.f_a_hz[w]))
     (fr0, fa0), (fr1, fa1) = out
-    # measured: f_r +2.2e-5, f_a +3.9e-5 (20 092.6 / 21 900.1 Hz parametric, 25.5k DOFs)
     assert abs(fr1 / fr0 - 1) < ROUND_TRIP_TOL and abs(fa1 / fa0 - 1) < ROUND_TRIP_TOL
 
 
