@@ -123,7 +123,6 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ParameterError("path", str(path), "must end in .png")
-    pv = _pv()
     s = _surface(mesh)
     us = u[s.ids]
     mag = np.linalg.norm(us, axis=1)
@@ -150,18 +149,23 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
         if title:
             pl.add_text(title, position="upper_left", font_size=14, color="black")
         pl.add_text(f"displacement x {scale:.3g}", position="lower_left", font_size=9, color="dimgray")
-        view, up = _camera(axis_dir)
-        center = np.asarray(s.surf.center)
-        pl.camera.focal_point = center
-        pl.camera.position = center + view * 10 * s.extent
-        pl.camera.up = up
-        pl.reset_camera()
-        pl.camera.zoom(1.15)
-        with atomic_output(path) as tmp:
-            pl.screenshot(str(tmp))
+        _shoot(pl, s, axis_dir, path)
     finally:
         pl.close()
     return path
+
+
+def _shoot(pl, s, axis_dir: str, path) -> None:
+    """Aim the camera at the surface ``s`` along ``axis_dir`` and write the screenshot atomically."""
+    view, up = _camera(axis_dir)
+    center = np.asarray(s.surf.center)
+    pl.camera.focal_point = center
+    pl.camera.position = center + view * 10 * s.extent
+    pl.camera.up = up
+    pl.reset_camera()
+    pl.camera.zoom(1.15)
+    with atomic_output(path) as tmp:
+        pl.screenshot(str(tmp))
 
 
 def mode_names(n_modes: int, frequencies: Sequence[float] | None = None, prefix: str = "mode") -> list[str]:

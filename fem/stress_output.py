@@ -99,7 +99,7 @@ def render_stress(system, values: np.ndarray, path, *, title: str = "", label: s
     """
     from geometry.render import offscreen_plotter
 
-    from .render import _camera, _check_window, _surface
+    from .render import _check_window, _shoot, _surface
 
     path = Path(path)
     if path.suffix.lower() != ".png":
@@ -125,15 +125,7 @@ def render_stress(system, values: np.ndarray, path, *, title: str = "", label: s
                           render_points_as_spheres=True)
         if title:
             pl.add_text(title, position="upper_left", font_size=12, color="black")
-        view, up = _camera(axis_dir)
-        center = np.asarray(s.surf.center)
-        pl.camera.focal_point = center
-        pl.camera.position = center + view * 10 * s.extent
-        pl.camera.up = up
-        pl.reset_camera()
-        pl.camera.zoom(1.15)
-        with atomic_output(path) as tmp:
-            pl.screenshot(str(tmp))
+        _shoot(pl, s, axis_dir, path)
     finally:
         pl.close()
     return path
