@@ -530,10 +530,9 @@ def modes(model: Model, near_hz: float, n_modes: int = 4) -> Modes:
 # ============================================================================ admittance
 
 
-def _driven(model: Model, f: float, lossy: bool = True, q_mech: float | None = None):
-    """Solution at ``f`` (Hz) with the hot electrodes at 1 V: (x on the reduced unknowns, charge Q)."""
-    K, L, M, nu = model.matrices("open", loss=True, q_mech=q_mech)
-    L = L if lossy else 0 * L
+def _driven(model: Model, f: float, K, L, M):
+    """Solution at ``f`` (Hz) with the hot electrodes at 1 V, from the open-circuit matrices
+    ``K, L, M`` of ``model.matrices("open", loss=True)``: (x on the reduced unknowns, charge Q)."""
     n = K.shape[0]
     hot, free = n - 1, np.arange(n - 1)
     w = TWO_PI * f
@@ -554,7 +553,8 @@ def tip_per_volt(model: Model, freq_hz: float, q_mech: float | None = None) -> f
     m/V: area-weighted as ``fem.harmonic`` (``int u_z 2 pi r dr / int 2 pi r dr``)."""
     from skfem import FacetBasis, Functional
 
-    x, _ = _driven(model, freq_hz, q_mech=q_mech)
+    K, L, M, _nu = model.matrices("open", loss=True, q_mech=q_mech)
+    x, _ = _driven(model, freq_hz, K, L, M)
     ub = Basis(model.mesh, ElementVector(ElementTriP2()), intorder=6)
     u = np.zeros(ub.N, complex)
     u[model.u_free] = x[:len(model.u_free)]
@@ -582,25 +582,10 @@ def admittance(model: Model, freqs_hz, lossy: bool = True) -> np.ndarray:
     time factor exp(+j w t); ``lossy=False`` drops both (then Y is purely imaginary). The hot
     electrode is driven at V = 1; its row gives the charge, Q = -(row . x) / scale.
     """
-    K, L, M, nu = model.matrices("open", loss=True)
+    K, L, M, _nu = model.matrices("open", loss=True)
     L = L if lossy else 0 * L
-    n = K.shape[0]
-    hot, free = n - 1, np.arange(n - 1)
-    out = []
-    for f in np.atleast_1d(np.asarray(freqs_hz, float)):
-        w = TWO_PI * f
-        A, B = (K - w ** 2 * M).tocsr(), L.tocsr()
-        # (A + j B) x = b as the real system [[A, -B], [B, A]] (complex SuperLU is ~40x slower here)
-        Aff, Bff = A[free][:, free], B[free][:, free]
-        lu = sla.splu(sp.bmat([[Aff, -Bff], [Bff, Aff]]).tocsc(), permc_spec="MMD_AT_PLUS_A")
-        v_hot = 1.0 / model.scale
-        xr = lu.solve(-np.concatenate([A[free][:, hot].toarray().ravel(), B[free][:, hot].toarray().ravel()]) * v_hot)
-        x = np.zeros(n, complex)
-        x[free] = xr[:n - 1] + 1j * xr[n - 1:]
-        x[hot] = v_hot
-        Q = -((A[hot] + 1j * B[hot]) @ x)[0] / model.scale
-        out.append(1j * w * Q)
-    return np.array(out)
+    freqs = np.atleast_1d(np.asarray(freqs_hz, float))
+    return np.array([1j * TWO_PI * f * _driven(model, f, K, L, M)[1] for f in freqs])
 
 
 # ============================================================================ convergence
