@@ -39,8 +39,12 @@ def tip_series(res, t) -> tuple[np.ndarray, np.ndarray]:
 def _segment_sums(res, a: float, b: float) -> np.ndarray:
     """(source work, source loss, conversion, damping, fundamental) over [a, b], closed form."""
     m = model_of(res)
-    tab, xs = pack_series(res.horn, m)
-    lam, G1, G2 = m.kernel_tables(res.horn)
+    packed = res.extra.get("series_tables")
+    if packed is None:
+        # built once per result: the envelope asks for hundreds of windows
+        packed = pack_series(res.horn, m) + m.kernel_tables(res.horn)
+        res.extra["series_tables"] = packed
+    tab, xs, lam, G1, G2 = packed
     cw = np.empty(m.n_pseudo + 1, complex)
     ends = np.append(res.seg_t0[1:], res.impact.params.t_end)
     out = np.zeros(5, complex)
