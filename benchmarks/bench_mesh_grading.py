@@ -5,6 +5,10 @@ known: f_r 19 682.31 Hz, f_a 21 410.33 Hz, issue 19), prints DOFs, meshing and m
 (12 modes near 20 kHz, short and open circuit, as ``python -m fem.modal``) and the working
 mode's f_r / f_a (with the error against the axisymmetric answer where it is known).
 
+Also the swept mesher (``mesher="revolve"``, geometry/revolve.py) on both designs, and the free
+default solved with the earlier modal path (ARPACK one vector at a time, open circuit from
+scratch: the code of issue 19's "today") as the time baseline of the swept default.
+
     python benchmarks/bench_mesh_grading.py [--quick] [--study]
     # --quick: the axisymmetric design only; --study: also the finer grading rules of issue 19's
     # study (geometry.sizing's knobs) on the axisymmetric design, up to ~260k DOFs (minutes)
@@ -46,12 +50,12 @@ def knobs(**values):
             setattr(sizing, k, v)
 
 
-def run(design, graded: bool):
+def run(design, graded: bool, mesher: str = "free", old: bool = False):
     t0 = time.perf_counter()
-    mesh = geometry.build_mesh(design, grade=graded)
+    mesh = geometry.build_mesh(design, grade=graded, mesher=mesher)
     t1 = time.perf_counter()
     s = assemble(mesh)
-    res = modal_analysis(s, 20e3, 12)
+    res = modal_analysis(s, 20e3, 12, eigen="arpack") if old else modal_analysis(s, 20e3, 12)
     t2 = time.perf_counter()
     w = working_mode(s, res.f_r_hz, res.vectors, 20e3)
     return s.ndof, t1 - t0, t2 - t1, float(res.f_r_hz[w]), float(res.f_a_hz[w])
@@ -68,11 +72,14 @@ def main() -> None:
         designs.append(("default", d, False))
     rows = []
     for name, design, known in designs:
-        for graded in (False, True):
-            n, tm, tmod, fr, fa = run(design, graded)
+        cases = [("ungraded (default)", False, "free", False), ("graded (--grade)", True, "free", False),
+                 ("swept (--mesher revolve)", False, "revolve", False)]
+        if not known:
+            cases.insert(0, ("ungraded (default), earlier modal path (ARPACK)", False, "free", True))
+        for label, graded, mesher, old in cases:
+            n, tm, tmod, fr, fa = run(design, graded, mesher, old)
             err = f"{100 * (fr / F_R - 1):+.3f} % / {100 * (fa / F_A - 1):+.3f} %" if known else "-"
-            rows.append((f"{name}, {'graded (--grade)' if graded else 'ungraded (default)'}",
-                         f"{n:,}", f"{tm:.1f}", f"{tmod:.1f}", f"{fr:.2f} / {fa:.2f}", err))
+            rows.append((f"{name}, {label}", f"{n:,}", f"{tm:.1f}", f"{tmod:.1f}", f"{fr:.2f} / {fa:.2f}", err))
     if args.study:
         design = designs[0][1]
         for name, values in STUDY:

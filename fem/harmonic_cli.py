@@ -33,7 +33,7 @@ def build_parser():
     p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
-    add_design_options(p, include=("mesh_size", "refine", "grade"))
+    add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"))
     p.add_argument("--modes", type=int, default=8, metavar="N",
                    help="modes in the superposition basis (default 8; a wide --band grows it as needed)")
     p.add_argument("--mode", type=int, metavar="K",

@@ -46,7 +46,7 @@ def _parser() -> CliParser:
     p.add_argument("--json", metavar="OUT.json", help="write the report: parts (mesh volume, mass), groups, "
                    "counts, quality, timings")
     p.add_argument("--png", metavar="OUT.png", help="render the parts off screen (pyvista)")
-    add_design_options(p, include=("mesh_size", "refine", "grade"))
+    add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"))
     p.add_argument("--epw", type=float, metavar="N", help="elements per shear wavelength at the target frequency")
     p.add_argument("--order", type=int, choices=(1, 2), default=2, help="tetrahedron order (default 2, curved)")
     p.add_argument("--algorithm", choices=("delaunay", "frontal", "hxt"), default="delaunay",

@@ -34,10 +34,12 @@ from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .cad import apply_rules, import_step
 from .tagging import parametric_model
+from .revolve import (can_revolve, orient, place_midnodes, sectors_per_quarter, split_to_tets, straighten,
+                      swept_quality)
 from .mesh import Electrode, Region, TaggedMesh
-from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, shear_wavelength
+from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
-__all__ = ["build", "build_mesh", "BuildReport", "shear_wavelength", "region_sizes", "mesh_layers", "ALGORITHMS",
+__all__ = ["build", "build_mesh", "BuildReport", "MESHERS", "shear_wavelength", "region_sizes", "mesh_layers", "ALGORITHMS",
            "DEFAULT_ORDER", "MIN_QUALITY", "MIN_SICN_DEFAULT", "GMSH_TIME_LIMIT", "GMSH_TIME_RANGE"]
 
 log = logging.getLogger(__name__)
@@ -71,8 +73,18 @@ overrides it). Meshes inside the resource guard's budget take well under a minut
 GMSH_TIME_RANGE = (0.1, 86400.0)
 """Accepted Gmsh time limits, s (below 0.1 s not even Gmsh's start-up fits)."""
 
-_GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
-"""Gmsh's 10-node tetrahedron lists edge (2,3) before (1,3); meshio/VTK the other way round."""
+MESHERS = ("free", "revolve")
+"""``free``: every part meshed freely (the default); ``revolve``: an RPUD's stack, flange and
+horn swept from a graded (r, z) section (:mod:`geometry.revolve`), the coupler free."""
+
+
+def resolve_mesher(design, mesher: str) -> str:
+    """The mesher, checked against the design, or a ParameterError."""
+    check_choice("--mesher", mesher, MESHERS)
+    if mesher == "revolve" and not can_revolve(design):
+        raise ParameterError("--mesher", mesher, "needs an RPUD design with a stepped or conical horn "
+                             "(its stack, flange and horn swept from their section); use free")
+    return mesher
 
 
 @dataclass
@@ -110,7 +122,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
           verbose: bool = False, msh_path: str | None = None,
           time_limit: float | None = None, refine: float = 1.0,
-          grade: bool = False) -> tuple[TaggedMesh, BuildReport]:
+          grade: bool = False, mesher: str = "free") -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
 
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
@@ -122,6 +134,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     See :func:`_build` for the other parameters and the result.
     """
     refine = check_refine(refine)
+    mesher = resolve_mesher(design, mesher)
     if time_limit is None:
         env = os.environ.get("RPUD_GMSH_TIMEOUT")
         try:
@@ -162,7 +175,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path, refine, grade)
+                                   msh_path, refine, grade, mesher)
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -200,7 +213,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
            elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
            verbose: bool = False, msh_path: str | None = None,
-           refine: float = 1.0, grade: bool = False) -> tuple[TaggedMesh, BuildReport]:
+           refine: float = 1.0, grade: bool = False, mesher: str = "free") -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -226,6 +239,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     grade : bool
         Grade the mesh toward the major re-entrant edges (:func:`geometry.sizing.graded_edges`):
         off by default (about twice the elements of the default design).
+    mesher : {"revolve", "free"}
+        ``"revolve"``: an RPUD's stack, flange and horn swept from a graded (r, z) section
+        (:mod:`geometry.revolve`), the coupler free; ``"free"``: every part meshed freely.
 
     Returns
     -------
@@ -239,6 +255,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     if not isinstance(design, (RPUDDesign, StackDesign, CadDesign)):
         raise ParameterError("design", type(design).__name__, "must be an RPUDDesign, a StackDesign or a CadDesign")
     sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
+    per_quarter = sectors_per_quarter(refine) if mesher == "revolve" else None
+    if per_quarter:
+        sizes = revolve_sizes(design, sizes, per_quarter)
     report = BuildReport(design=design.name, order=order, algorithm=algorithm,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
@@ -260,7 +279,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             vols, labels = import_step(gmsh, design.step)
             region_vols, region_meta, facet_surfs = apply_rules(gmsh, design, vols, labels)
         else:
-            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers)
+            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers, per_quarter)
         report.timings["geometry"] = time.perf_counter() - t0
         clash = sorted(set(region_vols) & set(facet_surfs))
         if clash:
@@ -271,7 +290,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
 
         # ---- sizes (geometry.sizing: region sizes, feature caps, layer rims, graded edges)
-        apply_fields(gmsh, design, sizes, region_vols, refine, layers=layers, grade=grade)
+        apply_fields(gmsh, design, sizes, region_vols, refine, layers=layers, grade=grade,
+                     revolve=bool(per_quarter))
         gmsh.option.setNumber("Mesh.Algorithm", 6)
         gmsh.option.setNumber("Mesh.Algorithm3D", ALGORITHMS[algorithm])
         gmsh.option.setNumber("Mesh.Optimize", 1)
@@ -286,14 +306,15 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         # and structured: the checks and optimisers see the freely meshed volumes only.
         t0 = time.perf_counter()
         layer_vols = {v for name in layers for v in region_vols[name]}
-        free = [(3, v) for vs in region_vols.values() for v in vs if v not in layer_vols]
-        free_tags = _element_tags(gmsh, free)
+        swept_vols = {v for name, vs in region_vols.items() if per_quarter and name != "coupler" for v in vs}
+        free = [(3, v) for vs in region_vols.values() for v in vs if v not in layer_vols | swept_vols]
+        free_tags = _element_tags(gmsh, free, tets_only=True)
         gamma = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "gamma"))
         if len(gamma) and (gamma.min() < OPTIMISE_BELOW or isinstance(design, CadDesign)):
             log.info("min gamma %.3g: Netgen optimisation pass", gamma.min())
             gmsh.model.mesh.optimize("Netgen", dimTags=free)
             gmsh.model.mesh.optimize("", dimTags=free)
-            free_tags = _element_tags(gmsh, free)
+            free_tags = _element_tags(gmsh, free, tets_only=True)
         report.timings["optimise"] = time.perf_counter() - t0
         if order == 2:
             t0 = time.perf_counter()
@@ -301,7 +322,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             # Curving the edges onto the geometry can fold an element near the slots at some
             # lengths (seen: SICN 4e-4); gmsh's high-order optimiser repairs it, run when needed.
             sicn = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "minSICN"))
-            if len(sicn) and sicn.min() < MIN_SICN_DEFAULT:
+            # (swept builds: the optimiser stalls on the pyramids; revolve.straighten instead)
+            if len(sicn) and sicn.min() < MIN_SICN_DEFAULT and not swept_vols:
                 log.info("min SICN %.3g < %.3g after curving: high-order optimisation", sicn.min(),
                          MIN_SICN_DEFAULT)
                 gmsh.model.mesh.optimize("HighOrder", dimTags=free)
@@ -311,10 +333,22 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
 
         # ---- extract
         t0 = time.perf_counter()
-        tm, qual_tags = _extract(gmsh, design, region_vols, region_meta, facet_surfs, order)
+        tm, tags, swept = _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_vols)
+        if swept.any() and order == 2:
+            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept)
+            # the free elements' quality below is Gmsh's: hand it the nodes moved here
+            moved = np.unique(tm.cells[~swept])
+            moved = moved[np.any(points[moved] != tm.points[moved], axis=1)]
+            for k in moved:
+                gmsh.model.mesh.setNode(int(tags[k]), points[k].tolist(), [])
+            tm = tm.replace(points=points)
         report.timings["extract"] = time.perf_counter() - t0
         t0 = time.perf_counter()
-        report.quality = _quality(gmsh, qual_tags, _element_tags(gmsh, [(3, v) for v in sorted(layer_vols)]))
+        unswept = [(3, v) for vs in region_vols.values() for v in vs if v not in swept_vols]
+        report.quality.update(_quality(gmsh, _element_tags(gmsh, unswept, tets_only=True),
+                                       _element_tags(gmsh, [(3, v) for v in sorted(layer_vols)])))
+        if swept.any():
+            report.quality.update(swept_quality(tm, swept))
         report.timings["quality"] = time.perf_counter() - t0
         for name, vols in region_vols.items():
             report.physical_groups[name] = {"dim": 3, "entities": len(vols),
@@ -330,39 +364,52 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
              tm.n_points, tm.n_cells, order, report.timings["total"], report.quality.get("min_sicn", float("nan")))
     return tm, report
 
-def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
+def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_vols=frozenset()):
     node_tags, coords, _ = gmsh.model.mesh.getNodes()
     node_tags = np.asarray(node_tags, dtype=np.int64)
     coords = np.asarray(coords).reshape(-1, 3)
     index = np.full(int(node_tags.max()) + 1, -1, dtype=np.int64)
     index[node_tags] = np.arange(len(node_tags))
-    etype = 4 if order == 1 else 11
-    cells, cell_region, elem_tags = [], [], []
+    allowed = {1: (4, 6, 7), 2: (11, 13, 14)}[order]
+    props = {}
+    cells, cell_region, swept = [], [], []
     regions = []
     for i, (region, vols) in enumerate(region_vols.items()):
         part, material, poling = region_meta[region]
         regions.append(Region(region, part, material, None if poling is None else tuple(float(x) for x in poling)))
         for v in vols:
             types, etags, enodes = gmsh.model.mesh.getElements(3, v)
+            by_type = {}
             for t, et, en in zip(types, etags, enodes):
-                if t != etype:
+                t = int(t)
+                if t not in allowed:
                     raise RuntimeError(f"unexpected gmsh element type {t} in volume {v}")
-                conn = index[np.asarray(en, dtype=np.int64).reshape(len(et), -1)]
+                if t not in props:
+                    p = gmsh.model.mesh.getElementProperties(t)
+                    props[t] = (int(p[5]), np.asarray(p[4]).reshape(-1, 3))
+                by_type[t] = index[np.asarray(en, dtype=np.int64).reshape(len(et), -1)]
+            for conn in split_to_tets(props, by_type).values():
                 cells.append(conn)
-                cell_region.append(np.full(len(et), i, dtype=np.int64))
-                elem_tags.append(np.asarray(et, dtype=np.int64))
+                cell_region.append(np.full(len(conn), i, dtype=np.int64))
+                swept.append(np.full(len(conn), v in swept_vols))
     cells = np.concatenate(cells)
-    if order == 2:
-        cells = cells[:, _GMSH_TO_VTK_TET10]
     cell_region = np.concatenate(cell_region)
+    swept = np.concatenate(swept)
+    if order == 2 and swept.any():
+        coords = place_midnodes(coords, cells[swept])
+    cells = orient(cells, coords)
     facet_sets = {}
     for name, surfs in facet_surfs.items():
         tris = []
         for sf in surfs:
             types, etags, enodes = gmsh.model.mesh.getElements(2, sf)
             for t, et, en in zip(types, etags, enodes):
-                n_per = {2: 3, 9: 6}[int(t)]
-                tris.append(index[np.asarray(en, dtype=np.int64).reshape(len(et), n_per)[:, :3]])
+                conn = index[np.asarray(en, dtype=np.int64).reshape(len(et), -1)]
+                if int(t) in (3, 10, 16):      # swept quadrilaterals: the cut of the elements behind them
+                    conn = _quad_tris(conn[:, :4])
+                else:
+                    conn = conn[:, :3]
+                tris.append(conn)
         facet_sets[name] = np.concatenate(tris)
     # compress to the nodes used by cells
     used = np.unique(cells)
@@ -376,12 +423,24 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order):
     tm = TaggedMesh(points=coords[used], cells=renum[cells], cell_region=cell_region, regions=tuple(regions),
                     facet_sets={k: renum[v] for k, v in facet_sets.items()}, electrodes=electrodes,
                     materials=design.used_materials())
-    return tm, np.concatenate(elem_tags)
+    return tm, node_tags[used], swept
 
 
-def _element_tags(gmsh, dimtags) -> np.ndarray:
-    """Tags of the 3-D elements of the given volumes."""
-    tags = [np.asarray(t, dtype=np.int64) for dim, v in dimtags for t in gmsh.model.mesh.getElements(dim, v)[1]]
+def _quad_tris(quads: np.ndarray) -> np.ndarray:
+    """The two triangles of each quadrilateral (corners in cyclic order), cut through its lowest
+    corner as :func:`geometry.revolve.split_to_tets` cuts the elements behind it."""
+    m = np.argmin(quads, axis=1)
+    even = (m % 2 == 0)
+    a = np.where(even[:, None], quads[:, [0, 1, 2]], quads[:, [1, 2, 3]])
+    b = np.where(even[:, None], quads[:, [0, 2, 3]], quads[:, [1, 3, 0]])
+    return np.concatenate([a, b])
+
+
+def _element_tags(gmsh, dimtags, tets_only: bool = False) -> np.ndarray:
+    """Tags of the 3-D elements of the given volumes (``tets_only``: of their tetrahedra; the
+    pyramids against a swept face have no gamma)."""
+    tags = [np.asarray(t, dtype=np.int64) for dim, v in dimtags
+            for typ, t in zip(*gmsh.model.mesh.getElements(dim, v)[:2]) if not tets_only or typ in (4, 11)]
     return np.concatenate(tags) if tags else np.zeros(0, dtype=np.int64)
 
 

@@ -16,6 +16,7 @@ import numpy as np
 from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .layers import Layer, make_layer
+from .revolve import revolved_parts
 
 __all__ = ["make_rpud", "make_stack"]
 
@@ -126,8 +127,10 @@ def _horn(occ, h, z0, bore):
     return vols
 
 
-def make_rpud(occ, d: RPUDDesign):
-    """OCC solids of the RPUD: list of (region, part, material, poling, dimtags)."""
+def make_rpud(occ, d: RPUDDesign, revolve: int | None = None):
+    """OCC solids of the RPUD: list of (region, part, material, poling, dimtags); with
+    ``revolve`` (element layers per quarter turn) the stack, flange and horn are swept from
+    their (r, z) section (:func:`geometry.revolve.revolved_parts`)."""
     c, s, f = d.coupler, d.stack, d.flange
     pieces = []
     # ---- coupler
@@ -147,6 +150,8 @@ def make_rpud(occ, d: RPUDDesign):
     if tools:
         body, _ = occ.cut(body, tools)
     pieces.append(("coupler", "coupler", c.material, None, body))
+    if revolve:
+        return pieces + revolved_parts(occ, d, revolve)
     # ---- stack
     for region, kind, z0, z1 in d.stack_layers():
         vols = _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)

@@ -1,0 +1,309 @@
+"""The bodies of revolution of an RPUD (stack, flange, horn) meshed as a revolved (r, z) section.
+
+Where two coaxial parts of different diameter meet, the section has a 270-degree re-entrant
+corner and the strain is singular along the whole circular edge. Isotropic tetrahedra graded
+toward such an edge pay the edge size along its whole circumference, although the field is
+smooth along it (issue 19: ~260k DOFs for 0.05 % on the working mode). Here the stack, the
+flange and the horn are instead built as one fragmented (r, z) section of plane faces, meshed
+in 2-D with the graded size field of :mod:`geometry.sizing` (elements of a few µm at the
+corners), and swept around the axis in four quarter turns of ``n`` element layers each: long
+elements along the edges, small across them. Gmsh sweeps them as prisms (tetrahedra and
+pyramids where a triangle touches the axis); :func:`split_to_tets` cuts every prism and pyramid
+into 10-node tetrahedra, each quadrilateral face along the diagonal through its lowest-numbered
+vertex, which makes the cuts of neighbouring elements agree and always leaves a valid prism
+cut (Dompierre et al. 1999, "How to subdivide pyramids, prisms and hexahedra into tetrahedra").
+The coupler (slots, teeth: not a body of revolution) keeps its free mesh; Gmsh puts pyramids
+on its face against the first ring, split the same way.
+
+The swept elements are thin across the edges and long along them: a straight mid-edge node on
+a 30-degree arc would sit outside an element a few µm thick. :func:`place_midnodes` therefore
+puts every mid-edge node of a swept element at the midpoint in (r, theta, z), so each element
+is the image of a straight one under the cylindrical map.
+
+Gmsh (``gmsh.model.occ``) is handed in; this module does not import it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .design_rpud import RPUDDesign
+
+__all__ = ["can_revolve", "sectors_per_quarter", "revolved_parts", "split_to_tets", "place_midnodes",
+           "swept_quality", "jacobian_ratio", "straighten", "SECTORS_PER_QUARTER", "STRAIGHTEN_BELOW"]
+
+SECTORS_PER_QUARTER = 3
+"""Element layers per quarter turn at ``refine = 1`` (12 per circle, as the free mesh's
+curvature rule); ``ceil(3 / refine)`` otherwise. 16 per circle moves the working mode of the
+default design by -0.007 %."""
+
+STRAIGHTEN_BELOW = 0.05
+"""A free 10-node element whose :func:`jacobian_ratio` falls below this after curving gets its
+mid-edge nodes back on the straight edges (:func:`straighten`)."""
+
+_VTK_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
+"""Edge order of a 10-node tetrahedron in meshio/VTK (and :class:`geometry.mesh.TaggedMesh`)."""
+
+
+def can_revolve(design) -> bool:
+    """True for an RPUD whose stack, flange and horn have straight (r, z) outlines (a stepped or
+    conical horn; the exponential horn is a loft, meshed freely)."""
+    return isinstance(design, RPUDDesign) and design.horn.profile in ("stepped", "conical")
+
+
+def sectors_per_quarter(refine: float) -> int:
+    """Element layers per quarter turn at refinement ``refine``."""
+    return max(1, math.ceil(SECTORS_PER_QUARTER / refine - 1e-9))
+
+
+def _face(occ, outline):
+    pts = [occ.addPoint(r, 0.0, z) for r, z in outline]
+    lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+    return occ.addPlaneSurface([occ.addCurveLoop(lines)])
+
+
+def _rect(occ, r0, r1, z0, z1):
+    return _face(occ, ((r0, z0), (r1, z0), (r1, z1), (r0, z1)))
+
+
+def section_outlines(d: RPUDDesign) -> list[tuple[str, str, str, object, tuple]]:
+    """(region, part, material, poling, outline) of the stack, flange and horn: (r, z) polygons
+    (m), counter-clockwise, in the order of :func:`geometry.solids.make_rpud`."""
+    s, f, h = d.stack, d.flange, d.horn
+    ri, ro = s.inner_diameter / 2, s.outer_diameter / 2
+    out = []
+    for region, kind, z0, z1 in d.stack_layers():
+        rect = ((ri, z0), (ro, z0), (ro, z1), (ri, z1))
+        if kind == "ring":
+            k = int(region.split("_")[1])
+            out.append((region, "stack", s.material, d.ring_poling(k), rect))
+        else:
+            out.append((region, "electrodes", s.shim_material, None, rect))
+    b = d.bore_diameter / 2
+    zf = s.length
+    out.append(("flange_disc", "flange", f.material, None,
+                ((b, zf), (f.outer_diameter / 2, zf), (f.outer_diameter / 2, zf + f.thickness), (b, zf + f.thickness))))
+    z0, L, R0, Rt = zf + f.thickness, h.length, h.back_diameter / 2, h.tip_diameter / 2
+    if h.profile == "stepped":
+        l1 = h.step_fraction * L
+        horn = ((b, z0), (R0, z0), (R0, z0 + l1), (Rt, z0 + l1), (Rt, z0 + L), (b, z0 + L))
+    else:
+        horn = ((b, z0), (R0, z0), (Rt, z0 + L), (b, z0 + L))
+    out.append(("horn", "horn", h.material, None, horn))
+    return out
+
+
+def revolved_parts(occ, d: RPUDDesign, n_per_quarter: int):
+    """OCC solids of the stack, flange and horn, swept from one fragmented (r, z) section.
+
+    Returns ``(region, part, material, poling, dimtags)`` per region, like
+    :func:`geometry.solids.make_rpud`. The volumes carry Gmsh's structured-sweep constraint
+    (``n_per_quarter`` prism layers per quarter turn); they must come out of the model's
+    conformal fragment unchanged, which they do since their faces are not split by it.
+    """
+    outlines = section_outlines(d)
+    faces = [(2, _face(occ, o[4])) for o in outlines]
+    _out, fmap = occ.fragment(faces, [])
+    # the sweep: every face of the fragmented section together, so that shared edges sweep to
+    # shared faces; a full turn in four quarters (a swept mesh needs an angle below pi)
+    current = [dt for m in fmap for dt in m]
+    owner = [i for i, m in enumerate(fmap) for _ in m]
+    vols: list[list[tuple[int, int]]] = [[] for _ in outlines]
+    for _q in range(4):
+        ext = occ.revolve(current, 0, 0, 0, 0, 0, 1, math.pi / 2, numElements=[n_per_quarter], recombine=True)
+        k = [j for j, dt in enumerate(ext) if dt[0] == 3]
+        if len(k) != len(current):     # pragma: no cover - OCC's sweep output is one volume per face
+            raise RuntimeError("unexpected OpenCASCADE sweep output")
+        for i, j in zip(owner, k):
+            vols[i].append(ext[j])
+        current = [ext[j - 1] for j in k]      # each volume follows its top face
+    return [(o[0], o[1], o[2], o[3], v) for o, v in zip(outlines, vols)]
+
+
+# ============================================================================ mesh post-processing
+
+
+def _pair_table(ref: np.ndarray, n_corners: int) -> dict[tuple[int, int], int]:
+    """(corner i, corner j) -> local node whose reference point is their midpoint (edges and,
+    for quadrilateral faces, both diagonals -> the face node)."""
+    out = {}
+    for i in range(n_corners):
+        for j in range(i + 1, n_corners):
+            mid = 0.5 * (ref[i] + ref[j])
+            hit = np.flatnonzero(np.all(np.abs(ref[n_corners:] - mid) < 1e-9, axis=1))
+            if len(hit):
+                out[(i, j)] = out[(j, i)] = n_corners + int(hit[0])
+    return out
+
+
+def _prism_tets(tags: np.ndarray) -> np.ndarray:
+    """Corner-local tetrahedra (n, 3, 4) of prisms with global corner tags ``tags`` (n, 6):
+    bottom 0 1 2, top 3 4 5. The face (x, y) is cut through its lowest-tagged vertex; x goes
+    before y when that vertex is t_x or b_y, and the three precedences (never cyclic) give the
+    staircase (b_p b_q b_r t_p) (t_p b_q b_r t_q) (t_p t_q b_r t_r)."""
+    n = len(tags)
+    before = {}
+    for x, y in ((0, 1), (1, 2), (0, 2)):
+        quad = np.stack([tags[:, x], tags[:, y], tags[:, 3 + x], tags[:, 3 + y]], axis=1)
+        m = np.argmin(quad, axis=1)
+        before[(x, y)] = (m == 2) | (m == 1)           # t_x or b_y
+    wins = np.zeros((n, 3), dtype=np.int64)
+    for (x, y), xy in before.items():
+        wins[:, x] += xy
+        wins[:, y] += ~xy
+    order = np.argsort(-wins, axis=1, kind="stable")
+    if not np.array_equal(np.sort(wins, axis=1), np.tile([0, 1, 2], (n, 1))):  # pragma: no cover
+        raise RuntimeError("cyclic prism cut")
+    p, q, r = order[:, 0], order[:, 1], order[:, 2]
+    return np.stack([np.stack([p, q, r, 3 + p], 1), np.stack([3 + p, q, r, 3 + q], 1),
+                     np.stack([3 + p, 3 + q, r, 3 + r], 1)], axis=1)
+
+
+def _pyramid_tets(tags: np.ndarray) -> np.ndarray:
+    """Corner-local tetrahedra (n, 2, 4) of pyramids (base 0 1 2 3, apex 4), the base cut
+    through its lowest-tagged vertex."""
+    m = np.argmin(tags[:, :4], axis=1)
+    even = (m % 2 == 0)[:, None, None]
+    a = np.array([[0, 1, 2, 4], [0, 2, 3, 4]])
+    b = np.array([[1, 2, 3, 4], [1, 3, 0, 4]])
+    return np.where(even, a[None], b[None])
+
+
+def split_to_tets(etype_props: dict, elements: dict) -> dict[int, np.ndarray]:
+    """10-node (or 4-node) tetrahedra, VTK node order, of a Gmsh mesh with prisms and pyramids.
+
+    Parameters
+    ----------
+    etype_props : dict
+        Gmsh element type -> (number of corners, reference coordinates (n_nodes, 3)).
+    elements : dict
+        Gmsh element type -> global node tags (n_elements, n_nodes).
+
+    Returns
+    -------
+    dict
+        Gmsh element type -> (n_tets, 4 or 10) global node tags.
+    """
+    out = {}
+    for etype, nodes in elements.items():
+        n_corners, ref = etype_props[etype]
+        corners = nodes[:, :n_corners]
+        if n_corners == 4:
+            local = np.tile(np.arange(4), (len(nodes), 1, 1))
+        elif n_corners == 6:
+            local = _prism_tets(corners)
+        elif n_corners == 5:
+            local = _pyramid_tets(corners)
+        else:  # pragma: no cover - the builder asks for 3-D elements only
+            raise RuntimeError(f"unexpected element with {n_corners} corners")
+        n_el, n_tet = local.shape[:2]
+        rows = np.repeat(np.arange(n_el), n_tet)
+        loc = local.reshape(-1, 4)
+        tet = [nodes[rows, loc[:, i]] for i in range(4)]
+        if nodes.shape[1] > n_corners:
+            pairs = _pair_table(ref, n_corners)
+            lut = np.full((n_corners, n_corners), -1, dtype=np.int64)
+            for (i, j), k in pairs.items():
+                lut[i, j] = k
+            for i, j in _VTK_EDGES:
+                k = lut[loc[:, i], loc[:, j]]
+                if (k < 0).any():  # pragma: no cover - every tetrahedron edge is an edge or a diagonal
+                    raise RuntimeError("tetrahedron edge without a mid node")
+                tet.append(nodes[rows, k])
+        out[etype] = np.stack(tet, axis=1)
+    return out
+
+
+def orient(cells: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """The tetrahedra with positive volume (corners 1 and 2 swapped where negative)."""
+    p = points[cells[:, :4]]
+    vol = np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0])
+    flip = vol < 0
+    if cells.shape[1] == 4:
+        perm = [0, 2, 1, 3]
+    else:   # edges (01 12 02 03 13 23) -> (02 21 01 03 23 13)
+        perm = [0, 2, 1, 3, 6, 5, 4, 7, 9, 8]
+    out = cells.copy()
+    out[flip] = cells[flip][:, perm]
+    return out
+
+
+def place_midnodes(points: np.ndarray, cells: np.ndarray, tol: float = 1e-12) -> np.ndarray:
+    """Points with every mid-edge node of ``cells`` (10-node, VTK order) at the midpoint of its
+    edge in (r, theta, z), m (edges with an end on the axis keep the straight midpoint)."""
+    out = points.copy()
+    for k, (i, j) in enumerate(_VTK_EDGES):
+        a, b, m = points[cells[:, i]], points[cells[:, j]], cells[:, 4 + k]
+        ra, rb = np.hypot(a[:, 0], a[:, 1]), np.hypot(b[:, 0], b[:, 1])
+        ok = (ra > tol) & (rb > tol)
+        ta, tb = np.arctan2(a[:, 1], a[:, 0]), np.arctan2(b[:, 1], b[:, 0])
+        tm = ta + 0.5 * ((tb - ta + np.pi) % (2 * np.pi) - np.pi)
+        rm = 0.5 * (ra + rb)
+        mid = np.column_stack([rm * np.cos(tm), rm * np.sin(tm), 0.5 * (a[:, 2] + b[:, 2])])
+        out[m[ok]] = mid[ok]
+    return out
+
+
+def _p2_gradients(xi: np.ndarray) -> np.ndarray:
+    """Gradients (n_points, 10, 3) of the 10-node tetrahedron's shape functions (VTK order)."""
+    lam = np.column_stack([1 - xi.sum(axis=1), xi])
+    dlam = np.array([[-1.0, -1, -1], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+    g = np.empty((len(xi), 10, 3))
+    for i in range(4):
+        g[:, i] = (4 * lam[:, i:i + 1] - 1) * dlam[i]
+    for k, (i, j) in enumerate(_VTK_EDGES):
+        g[:, 4 + k] = 4 * (lam[:, j:j + 1] * dlam[i] + lam[:, i:i + 1] * dlam[j])
+    return g
+
+
+_NODES_REF = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [.5, 0, 0], [.5, .5, 0], [0, .5, 0],
+                       [0, 0, .5], [.5, 0, .5], [0, .5, .5]], dtype=float)
+
+
+def jacobian_ratio(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """Per 10-node tetrahedron: the smallest det J at its ten nodes over the det J of its
+    straight (corner) tetrahedron; <= 0 means the curved element is folded."""
+    g = _p2_gradients(_NODES_REF)
+    x = points[cells]                                            # (n, 10, 3)
+    jac = np.einsum("nka,pkb->npab", x, g)
+    det = np.linalg.det(jac)
+    lin = np.linalg.det(np.stack([x[:, 1] - x[:, 0], x[:, 2] - x[:, 0], x[:, 3] - x[:, 0]], axis=2))
+    return det.min(axis=1) / lin
+
+
+def swept_quality(tm, swept: np.ndarray) -> dict[str, float]:
+    """Quality of the final mesh ``tm`` whose swept elements are flagged by ``swept``: their
+    count and smallest :func:`jacobian_ratio`, and the folded elements of the whole mesh
+    (10-node meshes; 4-node: the count only)."""
+    out = {"swept_elements": int(swept.sum())}
+    if tm.cells.shape[1] == 10:
+        ratio = jacobian_ratio(tm.points, tm.cells)
+        out["swept_min_jacobian"] = float(ratio[swept].min())
+        out["n_inverted"] = int(np.sum(ratio <= 0))
+    return out
+
+
+def straighten(points: np.ndarray, cells: np.ndarray, free: np.ndarray, below: float = STRAIGHTEN_BELOW,
+               rounds: int = 5) -> tuple[np.ndarray, int]:
+    """Points with the mid-edge nodes of folded free elements moved back onto their straight
+    edges, and how many elements were straightened.
+
+    A flat free tetrahedron against a coarse curved edge folds when its edge is bent onto the
+    arc (seen: the coupler's bore next to the swept first ring, 12 sectors per circle); Gmsh's
+    high-order optimiser repairs such elements too, but it stalls on the pyramids against the
+    swept face. Straightening keeps the element on its chord: a geometric error of one
+    sagitta (0.26 mm on a 7.5 mm bore at 12 per circle) on a few elements of a free surface.
+    """
+    pts = points.copy()
+    done = np.zeros(len(cells), dtype=bool)
+    for _ in range(rounds):
+        bad = free & (jacobian_ratio(pts, cells) < below) & ~done
+        if not bad.any():
+            break
+        for k, (i, j) in enumerate(_VTK_EDGES):
+            c = cells[bad]
+            pts[c[:, 4 + k]] = 0.5 * (pts[c[:, i]] + pts[c[:, j]])
+        done |= bad
+    return pts, int(done.sum())

@@ -1,0 +1,155 @@
+"""The swept mesher (``mesher="revolve"``, geometry/revolve.py): element cuts, the mesh it builds,
+and the working mode against the converged axisymmetric answer of issue 19.
+
+References: the prism/pyramid cuts against the element volumes and each other (a shared
+quadrilateral cut the same way from both sides, the Dompierre et al. rule); the swept mesh's
+part volumes against the closed forms (quadratic arcs of 30 degrees: 3e-4; the free coupler 1e-3); the working mode of the
+default design without slots and teeth against the independent (r, z) model's converged
+f_r / f_a (tests/test_axisym_reference.py): 0.05 %, issue 19's target (measured +0.030 % /
++0.030 %).
+"""
+
+import itertools
+
+import numpy as np
+import pytest
+
+import fem
+from geometry.builder import build
+from geometry.design import default_design
+from geometry.report import mesh_part_volumes
+from geometry.revolve import _prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets
+from rpud_common import ParameterError
+
+ISSUE_19 = (19682.31, 21410.33)
+"""Converged f_r, f_a (Hz) of the default design without slots and teeth (issue 19's (r, z) model,
+reproduced to 2e-5 by tests/axisym_reference.py in tests/test_axisym_reference.py)."""
+
+TOL_REVOLVE = 5e-4
+"""Issue 19's 0.05 % on f_r and f_a."""
+
+_PRISM = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 1.0]])
+
+
+def _volume(p):
+    return np.einsum("ij,ij->i", np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), p[:, 3] - p[:, 0]) / 6
+
+
+def _faces_on(tets, quad):
+    """Triangles of ``tets`` (global tags) whose three corners are corners of ``quad``."""
+    out = set()
+    for t in tets:
+        for f in itertools.combinations(t, 3):
+            if set(f) <= set(quad):
+                out.add(frozenset(f))
+    return out
+
+
+def test_prism_cuts_fill_the_prism_and_agree_across_shared_faces():
+    rng = np.random.default_rng(3)
+    # two prisms sharing the quad face (1, 2 | 4, 5): bottom 0 1 2 / 6 2 1, top 3 4 5 / 7 5 4
+    points = np.vstack([_PRISM, [[1, 1, 0], [1, 1, 1]]])
+    prisms = np.array([[0, 1, 2, 3, 4, 5], [6, 2, 1, 7, 5, 4]])
+    for _ in range(200):
+        tags = rng.permutation(8)
+        glob = tags[prisms]
+        cuts = _prism_tets(glob)
+        tets = [[glob[e, c] for c in cut] for e in range(2) for cut in cuts[e]]
+        inv = np.argsort(tags)
+        corners = points[inv[np.array(tets)]]
+        vol = np.abs(_volume(corners))
+        assert vol.sum() == pytest.approx(1.0, abs=1e-12) and vol.min() > 0.1   # 2 prisms of 1/2, no sliver
+        shared = [tags[i] for i in (1, 2, 4, 5)]
+        a = _faces_on(tets[:3], shared)
+        b = _faces_on(tets[3:], shared)
+        assert a == b and len(a) == 2
+
+
+def test_pyramid_cut_agrees_with_the_prism_behind_it():
+    rng = np.random.default_rng(4)
+    for _ in range(100):
+        tags = rng.permutation(7)
+        prism = tags[[0, 1, 2, 3, 4, 5]][None]
+        pyramid = tags[[1, 2, 5, 4, 6]][None]           # base = the prism's face (1, 2, 5, 4), apex 6
+        tp = [[prism[0, c] for c in cut] for cut in _prism_tets(prism)[0]]
+        ty = [[pyramid[0, c] for c in cut] for cut in _pyramid_tets(pyramid)[0]]
+        quad = pyramid[0, :4]
+        assert _faces_on(tp, quad) == _faces_on(ty, quad)
+
+
+def test_split_keeps_mid_nodes_and_orient_makes_volumes_positive():
+    # one 18-node prism: its 3 tetrahedra of 10 nodes take the prism's edge and face nodes
+    ref = np.array([[0, 0, -1], [1, 0, -1], [0, 1, -1], [0, 0, 1], [1, 0, 1], [0, 1, 1], [.5, 0, -1], [0, .5, -1],
+                    [0, 0, 0], [.5, .5, -1], [1, 0, 0], [0, 1, 0], [.5, 0, 1], [0, .5, 1], [.5, .5, 1], [.5, 0, 0],
+                    [0, .5, 0], [.5, .5, 0]], dtype=float)
+    nodes = np.arange(18)[None]
+    tets = split_to_tets({13: (6, ref)}, {13: nodes})[13]
+    assert tets.shape == (3, 10)
+    tets = orient(tets, ref)
+    assert (_volume(ref[tets[:, :4]]) > 0).all()
+    # every mid node is the midpoint of its edge, so the straight P2 map has a constant Jacobian
+    assert np.allclose(jacobian_ratio(ref, tets), 1.0)
+
+
+def test_sectors_scale_with_refine():
+    assert [sectors_per_quarter(f) for f in (5.0, 2.0, 1.0, 0.8, 0.5)] == [1, 2, 3, 4, 6]
+
+
+@pytest.fixture(scope="module")
+def axisymmetric_build():
+    design = default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    return design, *build(design, mesher="revolve")
+
+
+def test_swept_mesh_volumes_groups_and_quality(axisymmetric_build):
+    design, tm, rep = axisymmetric_build
+    volumes, _ = mesh_part_volumes(tm)
+    for part, v in design.part_volumes().items():
+        # quadratic arcs over 30 degrees hold a circle's area to ~1.5e-4; the free coupler: a few
+        # elements straightened at its bore next to the first ring
+        assert volumes[part] == pytest.approx(v, rel=1e-3 if part == "coupler" else 3e-4), part
+    q = rep.quality
+    assert q["n_inverted"] == 0 and q["swept_min_jacobian"] > 0.2
+    assert q["swept_elements"] > 0.8 * tm.n_cells
+    assert set(tm.facet_sets) == {"horn_tip", "teeth_tops", "flange"} | {f"electrode_{k}" for k in range(5)}
+    # conformal: no duplicated node, the swept stack shares nodes with the free coupler
+    keys = np.round(tm.points / 1e-9).astype(np.int64)
+    assert len(np.unique(keys, axis=0)) == tm.n_points
+    coupler = set(np.unique(tm.cells[tm.cells_in(part="coupler")]).tolist())
+    stack = set(np.unique(tm.cells[tm.cells_in(part="stack")]).tolist())
+    assert len(coupler & stack) > 50
+    # each electrode's triangles cover its ring face: P1 chords of a 12-gon, area ratio 12 sin(30 deg) / (2 pi)
+    r_in, r_out = design.stack.inner_diameter / 2, design.stack.outer_diameter / 2
+    polygon = 12 * np.sin(np.pi / 6) / (2 * np.pi)
+    for name in ("electrode_1", "electrode_2"):
+        p = tm.points[tm.facet_sets[name]]
+        area = 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum()
+        assert area == pytest.approx(polygon * np.pi * (r_out ** 2 - r_in ** 2), rel=1e-9), name
+
+
+def test_working_mode_within_issue_19_target_of_the_converged_answer(axisymmetric_build):
+    _design, tm, _rep = axisymmetric_build
+    system = fem.assemble(tm)
+    res = fem.modal_analysis(system, 20e3, 8)
+    w = fem.working_mode(system, res.f_r_hz, res.vectors, 20e3)
+    f_r, f_a = float(res.f_r_hz[w]), float(res.f_a_hz[w])
+    assert abs(f_r / ISSUE_19[0] - 1) < TOL_REVOLVE, f_r
+    assert abs(f_a / ISSUE_19[1] - 1) < TOL_REVOLVE, f_a
+
+
+def test_revolve_refuses_a_loft_horn_in_one_line():
+    design = default_design().replace({"horn.profile": "exponential"})
+    with pytest.raises(ParameterError, match="--mesher.*stepped or conical"):
+        build(design, mesher="revolve")
+    with pytest.raises(ParameterError, match="--mesher"):
+        build(default_design(), mesher="swept")
+
+
+def test_cli_refuses_revolve_with_a_study_in_one_line(tmp_path):
+    import subprocess
+    import sys
+
+    r = subprocess.run([sys.executable, "-m", "fem.modal", "--mesher", "revolve", "--converge", "1e-3",
+                        "--json", str(tmp_path / "m.json")], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--mesher" in r.stderr and "--converge" in r.stderr
+    assert not (tmp_path / "m.json").exists()
