@@ -34,8 +34,8 @@ from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .cad import apply_rules, import_step
 from .tagging import parametric_model
-from .revolve import (can_revolve, orient, place_midnodes, sectors_per_quarter, split_to_tets, straighten,
-                      swept_quality)
+from .revolve import (can_revolve, orient, place_midnodes, quad_triangles, sectors_per_quarter, split_to_tets,
+                      straighten, swept_quality)
 from .mesh import Electrode, Region, TaggedMesh
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
@@ -406,7 +406,8 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_v
             for t, et, en in zip(types, etags, enodes):
                 conn = index[np.asarray(en, dtype=np.int64).reshape(len(et), -1)]
                 if int(t) in (3, 10, 16):      # swept quadrilaterals: the cut of the elements behind them
-                    conn = _quad_tris(conn[:, :4])
+                    quads = conn[:, :4]
+                    conn = np.take_along_axis(quads[:, None, :], quad_triangles(quads), axis=2).reshape(-1, 3)
                 else:
                     conn = conn[:, :3]
                 tris.append(conn)
@@ -424,16 +425,6 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_v
                     facet_sets={k: renum[v] for k, v in facet_sets.items()}, electrodes=electrodes,
                     materials=design.used_materials())
     return tm, node_tags[used], swept
-
-
-def _quad_tris(quads: np.ndarray) -> np.ndarray:
-    """The two triangles of each quadrilateral (corners in cyclic order), cut through its lowest
-    corner as :func:`geometry.revolve.split_to_tets` cuts the elements behind it."""
-    m = np.argmin(quads, axis=1)
-    even = (m % 2 == 0)
-    a = np.where(even[:, None], quads[:, [0, 1, 2]], quads[:, [1, 2, 3]])
-    b = np.where(even[:, None], quads[:, [0, 2, 3]], quads[:, [1, 3, 0]])
-    return np.concatenate([a, b])
 
 
 def _element_tags(gmsh, dimtags, tets_only: bool = False) -> np.ndarray:

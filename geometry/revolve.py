@@ -31,7 +31,7 @@ import numpy as np
 
 from .design_rpud import RPUDDesign
 
-__all__ = ["can_revolve", "sectors_per_quarter", "revolved_parts", "split_to_tets", "place_midnodes",
+__all__ = ["can_revolve", "sectors_per_quarter", "revolved_parts", "stack_regions", "section_outlines", "quad_triangles", "split_to_tets", "place_midnodes",
            "swept_quality", "jacobian_ratio", "straighten", "SECTORS_PER_QUARTER", "STRAIGHTEN_BELOW"]
 
 SECTORS_PER_QUARTER = 3
@@ -68,19 +68,24 @@ def _rect(occ, r0, r1, z0, z1):
     return _face(occ, ((r0, z0), (r1, z0), (r1, z1), (r0, z1)))
 
 
+def stack_regions(d: RPUDDesign) -> list[tuple[str, str, str, object, float, float]]:
+    """(region, part, material, poling, z0, z1) of the stack's rings and shims (m)."""
+    s = d.stack
+    out = []
+    for region, kind, z0, z1 in d.stack_layers():
+        if kind == "ring":
+            out.append((region, "stack", s.material, d.ring_poling(int(region.split("_")[1])), z0, z1))
+        else:
+            out.append((region, "electrodes", s.shim_material, None, z0, z1))
+    return out
+
+
 def section_outlines(d: RPUDDesign) -> list[tuple[str, str, str, object, tuple]]:
     """(region, part, material, poling, outline) of the stack, flange and horn: (r, z) polygons
     (m), counter-clockwise, in the order of :func:`geometry.solids.make_rpud`."""
     s, f, h = d.stack, d.flange, d.horn
     ri, ro = s.inner_diameter / 2, s.outer_diameter / 2
-    out = []
-    for region, kind, z0, z1 in d.stack_layers():
-        rect = ((ri, z0), (ro, z0), (ro, z1), (ri, z1))
-        if kind == "ring":
-            k = int(region.split("_")[1])
-            out.append((region, "stack", s.material, d.ring_poling(k), rect))
-        else:
-            out.append((region, "electrodes", s.shim_material, None, rect))
+    out = [(*meta, ((ri, z0), (ro, z0), (ro, z1), (ri, z1))) for *meta, z0, z1 in stack_regions(d)]
     b = d.bore_diameter / 2
     zf = s.length
     out.append(("flange_disc", "flange", f.material, None,
@@ -161,14 +166,19 @@ def _prism_tets(tags: np.ndarray) -> np.ndarray:
                      np.stack([3 + p, 3 + q, r, 3 + r], 1)], axis=1)
 
 
+def quad_triangles(quads: np.ndarray) -> np.ndarray:
+    """Corner-local triangles (n, 2, 3) of quadrilaterals with global corner tags ``quads``
+    (n, 4, cyclic order), cut through the lowest-tagged corner: the one rule of every cut here
+    (prisms, pyramids, and the swept faces' facet triangles)."""
+    even = (np.argmin(quads, axis=1) % 2 == 0)[:, None, None]
+    return np.where(even, np.array([[0, 1, 2], [0, 2, 3]])[None], np.array([[1, 2, 3], [1, 3, 0]])[None])
+
+
 def _pyramid_tets(tags: np.ndarray) -> np.ndarray:
-    """Corner-local tetrahedra (n, 2, 4) of pyramids (base 0 1 2 3, apex 4), the base cut
-    through its lowest-tagged vertex."""
-    m = np.argmin(tags[:, :4], axis=1)
-    even = (m % 2 == 0)[:, None, None]
-    a = np.array([[0, 1, 2, 4], [0, 2, 3, 4]])
-    b = np.array([[1, 2, 3, 4], [1, 3, 0, 4]])
-    return np.where(even, a[None], b[None])
+    """Corner-local tetrahedra (n, 2, 4) of pyramids (base 0 1 2 3, apex 4): the base's
+    :func:`quad_triangles` joined to the apex."""
+    tri = quad_triangles(tags[:, :4])
+    return np.concatenate([tri, np.full(tri.shape[:2] + (1,), 4)], axis=2)
 
 
 def split_to_tets(etype_props: dict, elements: dict) -> dict[int, np.ndarray]:

@@ -16,7 +16,7 @@ import numpy as np
 from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .layers import Layer, make_layer
-from .revolve import revolved_parts
+from .revolve import revolved_parts, stack_regions
 
 __all__ = ["make_rpud", "make_stack"]
 
@@ -153,13 +153,8 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None):
     if revolve:
         return pieces + revolved_parts(occ, d, revolve)
     # ---- stack
-    for region, kind, z0, z1 in d.stack_layers():
-        vols = _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)
-        if kind == "ring":
-            k = int(region.split("_")[1])
-            pieces.append((region, "stack", s.material, d.ring_poling(k), vols))
-        else:
-            pieces.append((region, "electrodes", s.shim_material, None, vols))
+    for *meta, z0, z1 in stack_regions(d):
+        pieces.append((*meta, _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)))
     zf = s.length
     pieces.append(("flange_disc", "flange", f.material, None,
                    _annular_cylinder(occ, zf, f.thickness, f.outer_diameter / 2, d.bore_diameter / 2)))
