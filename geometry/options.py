@@ -28,7 +28,7 @@ REFINE_HELP = ("refinement factor scaling every mesh-size rule together (region 
                "graded edges, curvature): F < 1 refines, DOFs grow about as F^-3 (default 1; accepted 0.2-5)")
 MESHER_HELP = ("free: every part meshed freely (default); revolve: the stack, flange and horn swept from a "
                "graded (r, z) section, long elements along the circular edges, the coupler free (stepped or "
-               "conical horn): working mode within 0.05 %% of the converged answer at ~1.6x the DOFs")
+               "conical horn): working mode within 0.05 %% of the converged answer at ~1.9x the DOFs")
 GRADE_HELP = ("grade the mesh toward the re-entrant edges (flange/horn, horn step): +0.12 %% instead of +0.45 %% "
               "on the working mode of the default design, ~2x the DOFs (default: off)")
 
