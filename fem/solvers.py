@@ -29,8 +29,11 @@ logged at INFO level.
 
 from __future__ import annotations
 
+import ctypes
+import glob
 import logging
 import os
+import sys
 import time
 
 import numpy as np
@@ -56,6 +59,15 @@ def pardiso_available() -> bool:
         try:
             import pypardiso  # noqa: F401
 
+            if "PYPARDISO_MKL_RT" not in os.environ:
+                # pypardiso's own search globs all of sys.prefix (~1 s); the wheel puts MKL here
+                for path in sorted(glob.glob(os.path.join(sys.prefix, "lib", "libmkl_rt.so*")), key=len):
+                    try:
+                        ctypes.CDLL(path)
+                    except OSError:
+                        continue
+                    os.environ["PYPARDISO_MKL_RT"] = path
+                    break
             solver = pypardiso.PyPardisoSolver()
             # remember where MKL was found: pypardiso otherwise globs sys.prefix (~0.5 s) per solver
             path = getattr(solver.libmkl, "_name", None)

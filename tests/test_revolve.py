@@ -5,8 +5,8 @@ References: the prism/pyramid cuts against the element volumes and each other (a
 quadrilateral cut the same way from both sides, the Dompierre et al. rule); the swept mesh's
 part volumes against the closed forms (quadratic arcs of 30 degrees: 3e-4; the free coupler 1e-3); the working mode of the
 default design without slots and teeth against the independent (r, z) model's converged
-f_r / f_a (tests/test_axisym_reference.py): 0.05 %, issue 19's target (measured +0.030 % /
-+0.030 %).
+f_r / f_a (tests/test_axisym_reference.py): 0.05 %, issue 19's target (measured +0.041 % /
++0.044 %).
 """
 
 import itertools
