@@ -150,8 +150,8 @@ def main(argv=None) -> int:
         raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
     loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
     design = design_from_options(args)
-    check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args))
-    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, **mesh_options(args))
+    check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args, design))
+    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, **mesh_options(args, design))
     surfaces = tuple(args.surface) if args.surface else tuple(
         s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
     for s in surfaces:
@@ -221,6 +221,7 @@ def main(argv=None) -> int:
             "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w,
             "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
             "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
+            "mesher": mesh_options(args, design).get("mesher", "free"),
             "discretisation_error": est.to_dict() if est is not None else None, "stress": stress}
         text = json_text(data, nonfinite="null")
     if args.plots:

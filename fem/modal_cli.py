@@ -197,7 +197,7 @@ def main(argv=None) -> int:
     outputs = _check_options(args)
     bracket = _factors(args.bracket, "--bracket") if args.match else None
     design = design_from_options(args)
-    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large, **mesh_options(args))
+    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large, **mesh_options(args, design))
     if args.match:
         from .matching import MatchSettings, default_tune, match
 
@@ -243,7 +243,7 @@ def main(argv=None) -> int:
     near = float(args.near if args.near is not None else getattr(design, "target_frequency", 20e3))
     if args.converge is not None:
         return _converge(args, design, near)
-    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, **mesh_options(args))
+    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, **mesh_options(args, design))
     for name in args.clamp:
         mesh.facets(name)
     system = assemble(mesh, order=args.order)
@@ -269,6 +269,7 @@ def main(argv=None) -> int:
         data["mesh_size"] = args.mesh_size
         data["refine"] = args.refine
         data["grade"] = args.grade
+        data["mesher"] = mesh_options(args, design).get("mesher", "free")
         data = json_text(data, nonfinite="null")
     if args.render or args.vtu:
         from .matching import working_mode

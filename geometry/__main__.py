@@ -98,10 +98,10 @@ def main(argv: list[str] | None = None) -> int:
     from .report import build_report
 
     check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large,
-                 **mesh_options(args))
+                 **mesh_options(args, design))
     tm, report = build_report(design, mesh_size=args.mesh_size, order=args.order,
                               elements_per_wavelength=args.epw, algorithm=args.algorithm,
-                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout, **mesh_options(args))
+                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout, **mesh_options(args, design))
     sys.stdout.write(format_table(report) + "\n")
     if args.mesh:
         tm.write(args.mesh)
@@ -130,7 +130,8 @@ def check_options(args) -> None:
 def format_table(report: dict) -> str:
     """A plain-text summary of a build report (mm, g)."""
     lines = [f"{report['design']['name']} ({report['design']['kind']}): {report['mesh']['n_elements']} order-"
-             f"{report['mesh']['order']} tetrahedra, {report['mesh']['n_nodes']} nodes, "
+             f"{report['mesh']['order']} tetrahedra ({report['mesh'].get('mesher', 'free')} mesher), "
+             f"{report['mesh']['n_nodes']} nodes, "
              f"meshed in {report['timings_s']['total']:.2f} s; min SICN {report['quality']['min_sicn']:.3f}"]
     lines.append(f"{'part':<12} {'z0 mm':>8} {'z1 mm':>8} {'volume cm3':>11} {'closed form':>11} {'error %':>8} {'mass g':>8}")
     for name, p in report["parts"].items():

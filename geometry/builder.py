@@ -34,8 +34,8 @@ from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .cad import apply_rules, import_step
 from .tagging import parametric_model
-from .revolve import (can_revolve, orient, place_midnodes, quad_triangles, sectors_per_quarter, split_to_tets,
-                      straighten, swept_quality)
+from .revolve import (MESHERS, orient, place_midnodes, quad_triangles, resolve_mesher, sectors_per_quarter,
+                      split_to_tets, straighten, swept_quality)
 from .mesh import Electrode, Region, TaggedMesh
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
@@ -73,20 +73,6 @@ overrides it). Meshes inside the resource guard's budget take well under a minut
 GMSH_TIME_RANGE = (0.1, 86400.0)
 """Accepted Gmsh time limits, s (below 0.1 s not even Gmsh's start-up fits)."""
 
-MESHERS = ("free", "revolve")
-"""``free``: every part meshed freely (the default); ``revolve``: an RPUD's stack, flange and
-horn swept from a graded (r, z) section (:mod:`geometry.revolve`), the coupler free."""
-
-
-def resolve_mesher(design, mesher: str) -> str:
-    """The mesher, checked against the design, or a ParameterError."""
-    check_choice("--mesher", mesher, MESHERS)
-    if mesher == "revolve" and not can_revolve(design):
-        raise ParameterError("--mesher", mesher, "needs an RPUD design with a stepped or conical horn "
-                             "(its stack, flange and horn swept from their section); use free")
-    return mesher
-
-
 @dataclass
 class BuildReport:
     """What a build did: counts, quality, groups, sizes and timings (JSON friendly)."""
@@ -94,6 +80,7 @@ class BuildReport:
     design: str
     order: int
     algorithm: str
+    mesher: str = "free"
     n_nodes: int = 0
     n_elements: int = 0
     region_sizes: dict[str, float] = field(default_factory=dict)
@@ -103,7 +90,7 @@ class BuildReport:
 
     def as_dict(self) -> dict[str, Any]:
         return {
-            "design": self.design, "order": self.order, "algorithm": self.algorithm,
+            "design": self.design, "order": self.order, "algorithm": self.algorithm, "mesher": self.mesher,
             "n_nodes": self.n_nodes, "n_elements": self.n_elements,
             "mesh_size_m": self.region_sizes, "physical_groups": self.physical_groups,
             "quality": self.quality, "timings_s": self.timings,
@@ -239,9 +226,11 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     grade : bool
         Grade the mesh toward the major re-entrant edges (:func:`geometry.sizing.graded_edges`):
         off by default (about twice the elements of the default design).
-    mesher : {"revolve", "free"}
+    mesher : {"free", "revolve", "auto"}
         ``"revolve"``: an RPUD's stack, flange and horn swept from a graded (r, z) section
-        (:mod:`geometry.revolve`), the coupler free; ``"free"``: every part meshed freely.
+        (:mod:`geometry.revolve`), the coupler free; ``"free"``: every part meshed freely (the
+        library's default: fast, the pipeline and the studies use it); ``"auto"``: ``revolve``
+        where the design can be swept, else ``free`` (the command lines' default).
 
     Returns
     -------
@@ -258,7 +247,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     per_quarter = sectors_per_quarter(refine) if mesher == "revolve" else None
     if per_quarter:
         sizes = revolve_sizes(design, sizes, per_quarter)
-    report = BuildReport(design=design.name, order=order, algorithm=algorithm,
+    report = BuildReport(design=design.name, order=order, algorithm=algorithm, mesher=mesher,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
     # initialised by build() in the main thread (not interruptible: Gmsh would set SIGINT to

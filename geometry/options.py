@@ -26,9 +26,11 @@ MESH_OPTIONS = ("mesh_size", "refine", "grade", "mesher")
 
 REFINE_HELP = ("refinement factor scaling every mesh-size rule together (region sizes, feature caps, layers, "
                "graded edges, curvature): F < 1 refines, DOFs grow about as F^-3 (default 1; accepted 0.2-5)")
-MESHER_HELP = ("free: every part meshed freely (default); revolve: the stack, flange and horn swept from a "
-               "graded (r, z) section, long elements along the circular edges, the coupler free (stepped or "
-               "conical horn): working mode within 0.05 %% of the converged answer at ~1.9x the DOFs")
+MESHER_HELP = ("auto (default): revolve where the design can be swept (an RPUD with a stepped or conical horn), "
+               "else free; --match, --converge and --error mesh freely under auto. revolve: the stack, flange and "
+               "horn swept from a graded (r, z) section, long elements along the circular edges, the coupler free: "
+               "working mode within 0.05 %% of the converged answer at ~1.6x the DOFs of free. free: every part "
+               "meshed freely (fast; +0.45 %% on the working mode of the default design)")
 GRADE_HELP = ("grade the mesh toward the re-entrant edges (flange/horn, horn step): +0.12 %% instead of +0.45 %% "
               "on the working mode of the default design, ~2x the DOFs (default: off)")
 
@@ -71,7 +73,7 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
     if "grade" in include:
         parser.add_argument("--grade", action="store_true", help=GRADE_HELP)
     if "mesher" in include:
-        parser.add_argument("--mesher", choices=("free", "revolve"), default="free", help=MESHER_HELP)
+        parser.add_argument("--mesher", choices=("auto", "free", "revolve"), default="auto", help=MESHER_HELP)
     return parser
 
 
@@ -96,22 +98,34 @@ def check_design_options(ns) -> None:
         from .sizing import check_refine
 
         check_refine(ns.refine, "--refine")
-    if getattr(ns, "mesher", "free") == "revolve":
-        studies = [f"--{k}" for k in ("match", "converge", "error") if getattr(ns, k, None) not in (None, False)]
-        if studies:
-            raise ParameterError("--mesher", "revolve", f"is not combined with {', '.join(studies)} yet (their "
-                                 "studies mesh freely); drop one of them")
+    if getattr(ns, "mesher", "free") == "revolve" and _studies(ns):
+        raise ParameterError("--mesher", "revolve", f"is not combined with {', '.join(_studies(ns))} yet (their "
+                             "studies mesh freely); drop one of them")
     if getattr(ns, "select", None) is not None and _design_path(ns) is None:
         raise ParameterError("--select", ns.select, "needs --design FILE")
 
 
-def mesh_options(ns) -> dict:
-    """``refine`` and ``grade`` of the options as keyword arguments of ``geometry.build_mesh``,
-    :func:`geometry.guard.check_budget` and the settings that carry them (defaults if absent)."""
+def _studies(ns) -> list[str]:
+    return [f"--{k}" for k in ("match", "converge", "error") if getattr(ns, k, None) not in (None, False)]
+
+
+def mesh_options(ns, design=None) -> dict:
+    """``refine``, ``grade`` and ``mesher`` of the options as keyword arguments of
+    ``geometry.build_mesh``, :func:`geometry.guard.check_budget` and the settings that carry them
+    (defaults if absent). ``--mesher auto`` is ``free`` with a study option (``--match``,
+    ``--converge``, ``--error``: their studies mesh freely), else the swept mesher where
+    ``design`` can be swept; without ``design`` it stays ``auto`` (resolved by the builder)."""
+    from .revolve import resolve_mesher
+
     refine = getattr(ns, "refine", None)
     out = {"refine": 1.0 if refine is None else float(refine), "grade": bool(getattr(ns, "grade", False))}
-    if getattr(ns, "mesher", "free") != "free":
-        out["mesher"] = ns.mesher
+    mesher = getattr(ns, "mesher", "free")
+    if mesher == "auto" and _studies(ns):
+        mesher = "free"
+    if mesher == "auto" and design is not None:
+        mesher = resolve_mesher(design, mesher)
+    if mesher != "free":
+        out["mesher"] = mesher
     return out
 
 

@@ -71,7 +71,7 @@ def build_report(design: DesignBase, **build_kw: Any) -> tuple[TaggedMesh, dict]
         "electrodes": [{"name": e.name, "role": e.role, "triangles": int(len(tm.facet_sets[e.name]))}
                        for e in tm.electrodes],
         "physical_groups": d["physical_groups"],
-        "mesh": {"order": rep.order, "algorithm": rep.algorithm, "n_nodes": rep.n_nodes,
+        "mesh": {"order": rep.order, "algorithm": rep.algorithm, "mesher": rep.mesher, "n_nodes": rep.n_nodes,
                  "n_elements": rep.n_elements, "size_m": d["mesh_size_m"]},
         "quality": d["quality"],
         "timings_s": d["timings_s"],

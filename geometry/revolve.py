@@ -29,9 +29,11 @@ import math
 
 import numpy as np
 
+from rpud_common import ParameterError, check_choice
+
 from .design_rpud import RPUDDesign
 
-__all__ = ["can_revolve", "sectors_per_quarter", "revolved_parts", "stack_regions", "section_outlines", "quad_triangles", "split_to_tets", "place_midnodes",
+__all__ = ["can_revolve", "resolve_mesher", "MESHERS", "sectors_per_quarter", "revolved_parts", "stack_regions", "section_outlines", "quad_triangles", "split_to_tets", "place_midnodes",
            "swept_quality", "jacobian_ratio", "straighten", "SECTORS_PER_QUARTER", "STRAIGHTEN_BELOW"]
 
 SECTORS_PER_QUARTER = 3
@@ -51,6 +53,23 @@ def can_revolve(design) -> bool:
     """True for an RPUD whose stack, flange and horn have straight (r, z) outlines (a stepped or
     conical horn; the exponential horn is a loft, meshed freely)."""
     return isinstance(design, RPUDDesign) and design.horn.profile in ("stepped", "conical")
+
+
+MESHERS = ("auto", "free", "revolve")
+"""``free``: every part meshed freely; ``revolve``: an RPUD's stack, flange and horn swept from a
+graded (r, z) section, the coupler free; ``auto``: ``revolve`` where the design can be swept
+(:func:`can_revolve`), else ``free``."""
+
+
+def resolve_mesher(design, mesher: str) -> str:
+    """``"free"`` or ``"revolve"`` for ``design`` (``auto`` resolved), or a ParameterError."""
+    check_choice("--mesher", mesher, MESHERS)
+    if mesher == "auto":
+        return "revolve" if can_revolve(design) else "free"
+    if mesher == "revolve" and not can_revolve(design):
+        raise ParameterError("--mesher", mesher, "needs an RPUD design with a stepped or conical horn "
+                             "(its stack, flange and horn swept from their section); use free or auto")
+    return mesher
 
 
 def sectors_per_quarter(refine: float) -> int:

@@ -10,6 +10,7 @@ f_r / f_a (tests/test_axisym_reference.py): 0.05 %, issue 19's target (measured 
 """
 
 import itertools
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -153,3 +154,27 @@ def test_cli_refuses_revolve_with_a_study_in_one_line(tmp_path):
                         "--json", str(tmp_path / "m.json")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "--mesher" in r.stderr and "--converge" in r.stderr
     assert not (tmp_path / "m.json").exists()
+
+
+def test_auto_mesher_sweeps_what_it_can_and_studies_mesh_freely():
+    """The command lines' default: swept for a stepped/conical RPUD, free for any other design
+    and under --match/--converge/--error (their studies mesh freely); the library stays free."""
+    import argparse
+    import inspect
+
+    from geometry.design import load_design
+    from geometry.options import add_design_options, mesh_options
+    from geometry.revolve import resolve_mesher
+
+    parser = add_design_options(argparse.ArgumentParser(), include=("refine", "grade", "mesher"))
+    ns = parser.parse_args([])
+    assert ns.mesher == "auto"
+    rpud, cone = default_design(), default_design().replace({"horn.profile": "conical"})
+    loft = default_design().replace({"horn.profile": "exponential"})
+    stack = load_design(Path(__file__).resolve().parents[1] / "geometry" / "examples.toml", select="langevin")
+    assert mesh_options(ns, rpud)["mesher"] == mesh_options(ns, cone)["mesher"] == "revolve"
+    assert "mesher" not in mesh_options(ns, loft) and "mesher" not in mesh_options(ns, stack)
+    assert mesh_options(ns)["mesher"] == "auto" and resolve_mesher(stack, "auto") == "free"
+    for study in ("match", "converge", "error"):
+        assert "mesher" not in mesh_options(argparse.Namespace(mesher="auto", **{study: 1e-3}), rpud)
+    assert inspect.signature(build).parameters["mesher"].default == "free"
