@@ -269,8 +269,9 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
                        near_hz: float | None = None, n_modes: int = 8, harmonic: bool = True,
                        q_mech: float | None = 100.0, grade: bool = False, loss=None,
                        surfaces: tuple[str, ...] | None = None, select: Callable | None = None,
-                       harmonic_method: str = "direct") -> Level:
-    """Mesh ``design`` at ``refine`` (graded with ``grade``) and compute the working mode's
+                       harmonic_method: str = "direct", mesher: str = "free") -> Level:
+    """Mesh ``design`` at ``refine`` (graded with ``grade``, by ``mesher``: see
+    :func:`geometry.builder.build`) and compute the working mode's
     quantities (one Level): ``f_r_hz``, ``f_a_hz``, ``k_eff``; with ``harmonic`` the direct
     response at the mesh's own f_r (``loss``, default ``LossModel(q_mech=q_mech)``) on
     ``surfaces`` (default ``horn_tip`` and ``teeth_tops`` where present; the first is the tip):
@@ -286,7 +287,7 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
 
     t0 = time.perf_counter()
     near = float(near_hz if near_hz is not None else getattr(design, "target_frequency", 20e3))
-    mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=order, refine=refine, grade=grade)
+    mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=order, refine=refine, grade=grade, mesher=mesher)
     system = assemble(mesh, order=order)
     res = modal_analysis(system, near, n_modes)
     w = select(res, near) if select is not None else working_mode(system, res.f_r_hz, res.vectors, near)

@@ -175,7 +175,7 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
 def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size: float | None = None,
              grade: bool = False, order: int = 2, near_hz: float | None = None, harmonic: bool = True,
              loss=None, q_mech: float | None = 100.0, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
-             select: Callable | None = None) -> ErrorEstimate:
+             select: Callable | None = None, mesher: str = "free") -> ErrorEstimate:
     """Estimate the discretisation error of ``values`` (computed on ``design`` meshed at ``refine``
     with ``ndof`` DOFs) from one solve at ``refine`` x :data:`ESTIMATOR_RATIO`.
 
@@ -184,7 +184,8 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
     design : the design the values belong to (the tuned one after matching)
     values : quantity -> fine value (keys of :data:`QUANTITIES`; others are ignored)
     ndof : DOFs of the fine system
-    refine, mesh_size, grade, order : how the fine mesh was built (the coarse one scales ``refine``)
+    refine, mesh_size, grade, order, mesher : how the fine mesh was built (the coarse one scales
+        ``refine``; a swept mesh's section is graded: the order of a graded mesh is assumed)
     near_hz : target frequency of the modal search (default: the design's)
     harmonic : compute the coarse tip amplitude per volt and ellipse ratio from the harmonic
         response (modal basis + residual) at the coarse f_r (``loss``, default ``LossModel(q_mech=q_mech)``, on ``surfaces``);
@@ -200,10 +201,13 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
     coarse_refine = refine * ESTIMATOR_RATIO
     lev = working_mode_level(design, coarse_refine, mesh_size=mesh_size, order=order, near_hz=near_hz,
                              n_modes=n_modes, harmonic=harmonic, q_mech=q_mech, grade=grade, loss=loss,
-                             surfaces=surfaces, select=select, harmonic_method="modal")
+                             surfaces=surfaces, select=select, harmonic_method="modal", mesher=mesher)
     fine = Level(float(refine), int(ndof), {q: float(v) for q, v in values.items() if q in QUANTITIES})
     coarse = Level(lev.refine, lev.ndof, lev.values, time.perf_counter() - t0)
-    return estimate_from_levels(fine, coarse, grade=grade, corners=has_reentrant_edges(design, mesh_size, refine))
+    from geometry.revolve import resolve_mesher
+
+    graded = grade or resolve_mesher(design, mesher) == "revolve"
+    return estimate_from_levels(fine, coarse, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine))
 
 
 def annotate(record: dict, est: ErrorEstimate | None, keys: dict[str, str]) -> dict:

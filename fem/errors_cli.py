@@ -51,8 +51,11 @@ def run_study(args, design, near: float, level: Callable[[float], object], descr
     ``convergence`` to ``--json``. Exit status 0 if converged, else 1."""
     from rpud_common import atomic_write_text, json_text
     from geometry.guard import MAX_DOFS, estimate
+    from geometry.options import mesh_options
 
     from .convergence import study
+
+    mesher = mesh_options(args, design).get("mesher", "free")
 
     def run(refine):
         lev = level(refine)
@@ -61,10 +64,10 @@ def run_study(args, design, near: float, level: Callable[[float], object], descr
 
     st = study(run, tol=args.converge, start=args.refine,
                estimate_dofs=lambda F: estimate(design, args.mesh_size, getattr(args, "order", 2), refine=F,
-                                                grade=args.grade).dofs,
+                                                grade=args.grade, mesher=mesher).dofs,
                max_dofs=None if args.allow_large else MAX_DOFS)
     print(st.table())
     if args.json:
-        atomic_write_text(args.json, json_text({**record, "mesh_size": args.mesh_size, "grade": args.grade,
+        atomic_write_text(args.json, json_text({**record, "mesh_size": args.mesh_size, "grade": args.grade, "mesher": mesher,
                                                 "convergence": st.to_dict()}, nonfinite="null"))
     return 0 if st.converged else 1

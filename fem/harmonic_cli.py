@@ -204,7 +204,8 @@ def main(argv=None) -> int:
         values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
                   "tip_per_volt_m": wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
         est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
-                       near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode)
+                       near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode,
+                       mesher=mesh_options(args, design).get("mesher", "free"))
         print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
     stress = None
     if args.stress:
@@ -242,12 +243,17 @@ def main(argv=None) -> int:
 
 def _converge(args, design, near: float, loss, surfaces) -> int:
     """``--converge TOL``: the refinement study of the driven mode with its harmonic response."""
+    from geometry.options import mesh_options
+
     from .convergence import working_mode_level
     from .errors_cli import run_study
 
+    mesher = mesh_options(args, design).get("mesher", "free")
+
     def level(refine):
         return working_mode_level(design, refine, mesh_size=args.mesh_size, near_hz=near, n_modes=args.modes,
-                                  grade=args.grade, loss=loss, surfaces=surfaces, select=driven_mode)
+                                  grade=args.grade, loss=loss, surfaces=surfaces, select=driven_mode,
+                                  mesher=mesher)
 
     def describe(lev):
         v = lev.values

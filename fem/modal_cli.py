@@ -269,7 +269,7 @@ def main(argv=None) -> int:
         data["mesh_size"] = args.mesh_size
         data["refine"] = args.refine
         data["grade"] = args.grade
-        data["mesher"] = mesh_options(args, design).get("mesher", "free")
+        data["mesher"] = _mesher(args, design)
         data = json_text(data, nonfinite="null")
     if args.render or args.vtu:
         from .matching import working_mode
@@ -280,6 +280,13 @@ def main(argv=None) -> int:
     return 0
 
 
+def _mesher(args, design) -> str:
+    """The mesher the options give for ``design`` (``free`` or ``revolve``)."""
+    from geometry.options import mesh_options
+
+    return mesh_options(args, design).get("mesher", "free")
+
+
 def _converge(args, design, near) -> int:
     """``--converge TOL``: the refinement study of the working mode (fem.convergence)."""
     from rpud_common import atomic_write_text, json_text
@@ -287,9 +294,11 @@ def _converge(args, design, near) -> int:
 
     from .convergence import study, working_mode_level
 
+    mesher = _mesher(args, design)
+
     def level(refine):
         lev = working_mode_level(design, refine, mesh_size=args.mesh_size, order=args.order, near_hz=near,
-                                 n_modes=8 if args.modes is None else args.modes, grade=args.grade)
+                                 n_modes=8 if args.modes is None else args.modes, grade=args.grade, mesher=mesher)
         print(f"  refine {refine:.4f}: {lev.ndof} DOFs, f_r {lev.values['f_r_hz']:.2f} Hz, "
               f"f_a {lev.values['f_a_hz']:.2f} Hz ({lev.seconds:.1f} s)", flush=True)
         return lev
@@ -297,12 +306,12 @@ def _converge(args, design, near) -> int:
     with _solver(args.solver):
         st = study(level, tol=args.converge, start=args.refine,
                    estimate_dofs=lambda F: estimate(design, args.mesh_size, args.order, refine=F,
-                                                    grade=args.grade).dofs,
+                                                    grade=args.grade, mesher=mesher).dofs,
                    max_dofs=None if args.allow_large else MAX_DOFS)
     print(st.table())
     if args.json:
         atomic_write_text(args.json, json_text({"design": str(args.design), "mesh_size": args.mesh_size,
-                                                "grade": args.grade, "convergence": st.to_dict()},
+                                                "grade": args.grade, "mesher": mesher, "convergence": st.to_dict()},
                                                nonfinite="null"))
     return 0 if st.converged else 1
 
@@ -351,7 +360,8 @@ def _error_estimate(args, design, system, res, near):
     values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w]), "k_eff": float(res.k_eff[w])}
     with _solver(args.solver):
         est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
-                       order=args.order, near_hz=near, harmonic=False, n_modes=8, select=pick)
+                       order=args.order, near_hz=near, harmonic=False, n_modes=8, select=pick,
+                       mesher=_mesher(args, design))
     err = {"mode": int(w + 1), "f_r_err_hz": est.error("f_r_hz"), "f_a_err_hz": est.error("f_a_hz"),
            "k_eff_err": est.error("k_eff"), "coarse_f_r_hz": est.coarse["f_r_hz"],
            "coarse_f_a_hz": est.coarse["f_a_hz"], **est.to_dict()}

@@ -117,7 +117,7 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
 
 def estimate(design, mesh_size: float | None = None, order: int = 2,
              elements_per_wavelength: float | None = None, refine: float = 1.0,
-             grade: bool = False) -> Estimate:
+             grade: bool = False, mesher: str = "free") -> Estimate:
     """Predict the mesh and FE size of ``design`` meshed as :func:`geometry.builder.build` would.
 
     Parameters
@@ -131,6 +131,8 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         The builder's refinement factor (every size rule scaled by it).
     grade : bool
         The mesh is graded toward the re-entrant edges (as ``build``).
+    mesher : {"free", "revolve", "auto"}
+        As ``build``; the swept mesh is the free estimate times :data:`REVOLVE_FACTOR`.
 
     Returns
     -------
@@ -176,7 +178,14 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
     nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
     dofs = 4 * nodes
     memory = 3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3)
-    return Estimate(elements=elements, nodes=nodes, dofs=dofs, memory_bytes=memory, smallest_size=smallest)
+    est = Estimate(elements=elements, nodes=nodes, dofs=dofs, memory_bytes=memory, smallest_size=smallest)
+    from .revolve import resolve_mesher
+
+    if resolve_mesher(design, mesher) == "revolve":
+        f = REVOLVE_FACTOR
+        est = dataclasses.replace(est, elements=int(est.elements * f), nodes=int(est.nodes * f),
+                                  dofs=int(est.dofs * f), memory_bytes=est.memory_bytes * f ** (4 / 3))
+    return est
 
 
 def check_budget(design, mesh_size: float | None = None, order: int = 2,
@@ -194,21 +203,14 @@ def check_budget(design, mesh_size: float | None = None, order: int = 2,
     option : str
         Name of the override option, quoted in the message.
     refine, grade, mesher
-        The builder's refinement factor, edge grading and mesher (``"revolve"``: the free
-        estimate times :data:`REVOLVE_FACTOR`).
+        The builder's refinement factor, edge grading and mesher (as :func:`estimate`).
 
     Raises
     ------
     ParameterError
         Naming ``--mesh-size`` (with the smallest size that fits) or the design.
     """
-    est = estimate(design, mesh_size, order, elements_per_wavelength, refine, grade)
-    from .revolve import resolve_mesher
-
-    if resolve_mesher(design, mesher) == "revolve":
-        f = REVOLVE_FACTOR
-        est = dataclasses.replace(est, elements=int(est.elements * f), nodes=int(est.nodes * f),
-                                  dofs=int(est.dofs * f), memory_bytes=est.memory_bytes * f ** (4 / 3))
+    est = estimate(design, mesh_size, order, elements_per_wavelength, refine, grade, mesher)
     value, budget, what = ((est.dofs, MAX_DOFS, "DOFs") if solve else (est.elements, MAX_ELEMENTS, "tetrahedra"))
     if value <= budget:
         log.debug("resource estimate: %s", est.describe())

@@ -27,7 +27,7 @@ MESH_OPTIONS = ("mesh_size", "refine", "grade", "mesher")
 REFINE_HELP = ("refinement factor scaling every mesh-size rule together (region sizes, feature caps, layers, "
                "graded edges, curvature): F < 1 refines, DOFs grow about as F^-3 (default 1; accepted 0.2-5)")
 MESHER_HELP = ("auto (default): revolve where the design can be swept (an RPUD with a stepped or conical horn), "
-               "else free; --match, --converge and --error mesh freely under auto. revolve: the stack, flange and "
+               "else free; --match meshes freely under auto. revolve: the stack, flange and "
                "horn swept from a graded (r, z) section, long elements along the circular edges, the coupler free: "
                "working mode within 0.05 %% of the converged answer at ~1.6x the DOFs of free. free: every part "
                "meshed freely (fast; +0.45 %% on the working mode of the default design)")
@@ -99,22 +99,22 @@ def check_design_options(ns) -> None:
 
         check_refine(ns.refine, "--refine")
     if getattr(ns, "mesher", "free") == "revolve" and _studies(ns):
-        raise ParameterError("--mesher", "revolve", f"is not combined with {', '.join(_studies(ns))} yet (their "
-                             "studies mesh freely); drop one of them")
+        raise ParameterError("--mesher", "revolve", f"is not combined with {', '.join(_studies(ns))} yet (the matching "
+                             "meshes freely); drop one of them")
     if getattr(ns, "select", None) is not None and _design_path(ns) is None:
         raise ParameterError("--select", ns.select, "needs --design FILE")
 
 
 def _studies(ns) -> list[str]:
-    return [f"--{k}" for k in ("match", "converge", "error") if getattr(ns, k, None) not in (None, False)]
+    return ["--match"] if getattr(ns, "match", None) not in (None, False) else []
 
 
 def mesh_options(ns, design=None) -> dict:
     """``refine``, ``grade`` and ``mesher`` of the options as keyword arguments of
     ``geometry.build_mesh``, :func:`geometry.guard.check_budget` and the settings that carry them
-    (defaults if absent). ``--mesher auto`` is ``free`` with a study option (``--match``,
-    ``--converge``, ``--error``: their studies mesh freely), else the swept mesher where
-    ``design`` can be swept; without ``design`` it stays ``auto`` (resolved by the builder)."""
+    (defaults if absent). ``--mesher auto`` is ``free`` with ``--match`` (the matching meshes
+    freely), else the swept mesher where ``design`` can be swept; without ``design`` it stays
+    ``auto`` (resolved by the builder)."""
     from .revolve import resolve_mesher
 
     refine = getattr(ns, "refine", None)
