@@ -1,4 +1,4 @@
-"""Graded mesh (``grade=True``, ``--grade``) against the ungraded default, same run, same machine.
+"""Swept and graded meshes against the ungraded free mesh, same run, same machine.
 
 For the default design and for it without slots and teeth (whose converged working mode is
 known: f_r 19 682.31 Hz, f_a 21 410.33 Hz, issue 19), prints DOFs, meshing and modal time
@@ -7,7 +7,8 @@ mode's f_r / f_a (with the error against the axisymmetric answer where it is kno
 
 Also the swept mesher (``mesher="revolve"``, geometry/revolve.py) on both designs, and the free
 default solved with the earlier modal path (ARPACK one vector at a time, open circuit from
-scratch: the code of issue 19's "today") as the time baseline of the swept default.
+scratch) in this process. The whole-process baseline (``python -m fem.modal`` of the commit
+before issue 19's work against this checkout's) is benchmarks/bench_modal_cli.py.
 
     python benchmarks/bench_mesh_grading.py [--quick] [--study]
     # --quick: the axisymmetric design only; --study: also the finer grading rules of issue 19's
@@ -72,10 +73,11 @@ def main() -> None:
         designs.append(("default", d, False))
     rows = []
     for name, design, known in designs:
-        cases = [("ungraded (default)", False, "free", False), ("graded (--grade)", True, "free", False),
-                 ("swept (--mesher revolve)", False, "revolve", False)]
+        cases = [("free, ungraded (library default)", False, "free", False),
+                 ("free, graded (--grade)", True, "free", False),
+                 ("swept (--mesher revolve, the command lines' default)", False, "revolve", False)]
         if not known:
-            cases.insert(0, ("ungraded (default), earlier modal path (ARPACK)", False, "free", True))
+            cases.insert(0, ("free, ungraded, earlier modal path (ARPACK)", False, "free", True))
         for label, graded, mesher, old in cases:
             n, tm, tmod, fr, fa = run(design, graded, mesher, old)
             err = f"{100 * (fr / F_R - 1):+.3f} % / {100 * (fa / F_A - 1):+.3f} %" if known else "-"
