@@ -256,6 +256,8 @@ def main(argv=None) -> int:
     if args.error:
         errors, err_json = _error_estimate(args, design, system, res, near)
     print(format_table(res, errors))
+    if not args.error:
+        print(_mesh_note(args, design))
     data = None
     if args.json:
         data = res.to_dict()
@@ -278,6 +280,22 @@ def main(argv=None) -> int:
     if data is not None:
         atomic_write_text(args.json, data)
     return 0
+
+
+def _mesh_note(args, design) -> str:
+    """One line on the mesh and what is known of its discretisation error (without --error)."""
+    from fem.errors import has_reentrant_edges
+
+    if _mesher(args, design) == "revolve":
+        if args.refine <= 1 and args.mesh_size is None:
+            return ("mesh: swept (r, z) section, coupler free; working mode within 0.05 % of the converged answer "
+                    "(measured at refine 1: +0.041 % / +0.044 % f_r / f_a without slots and teeth); --error "
+                    "estimates it for this design")
+        return "mesh: swept (r, z) section, coupler free, coarser than the checked rule; --error estimates its error"
+    if has_reentrant_edges(design, args.mesh_size, args.refine):
+        return ("mesh: free; its working mode is high by ~0.1 % (--grade) to ~0.5 % (ungraded) at the re-entrant "
+                "edges (default design); --mesher revolve converges it, --error estimates it")
+    return "mesh: free; --error estimates the working mode's discretisation error"
 
 
 def _mesher(args, design) -> str:
