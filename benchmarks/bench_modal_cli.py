@@ -57,33 +57,46 @@ def main() -> None:
     ap.add_argument("--baseline", default=BASELINE, help="commit of the earlier code")
     ap.add_argument("extra", nargs="*", help="more fem.modal options for this checkout (after --)")
     args = ap.parse_args()
+    if not 1 <= args.runs <= 50:
+        ap.error(f"--runs = {args.runs}: must lie in [1, 50]")
     cmd = [sys.executable, "-m", "fem.modal"]
+    runs, outs = {"new": []}, {}
     with tempfile.TemporaryDirectory(prefix="rpud-baseline-") as tmp:
         old = Path(tmp) / "old"
-        subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(old), args.baseline],
-                       check=True)
+        made = subprocess.run(["git", "-C", str(ROOT), "worktree", "add", "--detach", "-q", str(old), args.baseline],
+                              capture_output=True, text=True)
+        if made.returncode:
+            print(f"baseline commit {args.baseline} not available ({made.stderr.strip() or 'no git'}): "
+                  "this checkout only")
+        else:
+            runs["old"] = []
         try:
-            runs = {"new": [], "old": []}
-            outs = {}
             for i in range(args.runs + 1):
                 for key, cwd, extra in (("new", ROOT, args.extra), ("old", old, [])):
+                    if key not in runs:
+                        continue
                     wall, cpu, out = timed(cmd + extra, cwd)
                     outs[key] = out
                     if i:                       # the first of each is the warm-up (caches, numba)
                         runs[key].append((wall, cpu))
         finally:
-            subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(old)], check=False)
+            if "old" in runs:
+                subprocess.run(["git", "-C", str(ROOT), "worktree", "remove", "--force", str(old)], check=False)
     rows = []
     for key, label in (("new", "this checkout: python -m fem.modal " + " ".join(args.extra)),
                        ("old", f"commit {args.baseline}: python -m fem.modal")):
+        if key not in runs:
+            continue
         wall = statistics.median(w for w, _ in runs[key])
         cpu = statistics.median(c for _, c in runs[key])
         dofs, f = summary(outs[key])
         rows.append((label.strip(), dofs, f, f"{wall:.2f}", f"{min(w for w, _ in runs[key]):.2f}-"
                      f"{max(w for w, _ in runs[key]):.2f}", f"{cpu:.2f}"))
-    ratios = [n[0] / o[0] for n, o in zip(runs["new"], runs["old"])]
     print_table(rows, headers=("command", "DOFs", "working f_r / f_a Hz", "wall s (median)", "wall min-max",
                                "CPU s (median)"))
+    if "old" not in runs:
+        return
+    ratios = [n[0] / o[0] for n, o in zip(runs["new"], runs["old"])]
     print(f"wall ratio this / baseline, pair by pair: median {statistics.median(ratios):.2f} "
           f"(min {min(ratios):.2f}, max {max(ratios):.2f}; {args.runs} pairs)")
 
