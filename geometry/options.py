@@ -29,7 +29,7 @@ REFINE_HELP = ("refinement factor scaling every mesh-size rule together (region 
 MESHER_HELP = ("auto (default): revolve where the design can be swept (an RPUD with a stepped or conical horn), "
                "else free; --match meshes freely under auto. revolve: the stack, flange and "
                "horn swept from a graded (r, z) section, long elements along the circular edges, the coupler free: "
-               "working mode within 0.05 %% of the converged answer at ~1.6x the DOFs of free. free: every part "
+               "working mode within ~0.05 %% of the converged answer (0.04-0.06 %%) at ~1.6x the DOFs of free. free: every part "
                "meshed freely (fast; +0.45 %% on the working mode of the default design)")
 GRADE_HELP = ("grade the mesh toward the re-entrant edges (flange/horn, horn step): +0.12 %% instead of +0.45 %% "
               "on the working mode of the default design, ~2x the DOFs (default: off)")
@@ -98,15 +98,15 @@ def check_design_options(ns) -> None:
         from .sizing import check_refine
 
         check_refine(ns.refine, "--refine")
-    if getattr(ns, "mesher", "free") == "revolve" and _studies(ns):
-        raise ParameterError("--mesher", "revolve", f"is not combined with {', '.join(_studies(ns))} yet (the matching "
-                             "meshes freely); drop one of them")
+    if getattr(ns, "mesher", "free") == "revolve" and _matching(ns):
+        raise ParameterError("--mesher", "revolve", "is not combined with --match yet (the matching meshes freely); "
+                             "drop one of them")
     if getattr(ns, "select", None) is not None and _design_path(ns) is None:
         raise ParameterError("--select", ns.select, "needs --design FILE")
 
 
-def _studies(ns) -> list[str]:
-    return ["--match"] if getattr(ns, "match", None) not in (None, False) else []
+def _matching(ns) -> bool:
+    return getattr(ns, "match", None) not in (None, False)
 
 
 def mesh_options(ns, design=None) -> dict:
@@ -120,7 +120,7 @@ def mesh_options(ns, design=None) -> dict:
     refine = getattr(ns, "refine", None)
     out = {"refine": 1.0 if refine is None else float(refine), "grade": bool(getattr(ns, "grade", False))}
     mesher = getattr(ns, "mesher", "free")
-    if mesher == "auto" and _studies(ns):
+    if mesher == "auto" and _matching(ns):
         mesher = "free"
     if mesher == "auto" and design is not None:
         mesher = resolve_mesher(design, mesher)

@@ -38,8 +38,10 @@ __all__ = ["can_revolve", "resolve_mesher", "MESHERS", "sectors_per_quarter", "r
 
 SECTORS_PER_QUARTER = 3
 """Element layers per quarter turn at ``refine = 1`` (12 per circle, as the free mesh's
-curvature rule); ``ceil(3 / refine)`` otherwise. 16 per circle moves the working mode of the
-default design by -0.007 %."""
+curvature rule); ``ceil(3 / refine)`` otherwise. On the default design at refine 1, 4 / 5 / 6 per
+quarter (the sector cap of the section shrinking with them) move the first bending pair by
+-0.056 / -0.090 / -0.117 %, torsion and the working mode by ~-0.03 % and ~-0.02 %
+(benchmarks/study_swept_convergence.py --sectors)."""
 
 STRAIGHTEN_BELOW = 0.05
 """A free 10-node element whose :func:`jacobian_ratio` falls below this after curving gets its
