@@ -51,11 +51,11 @@ def run_study(args, design, near: float, level: Callable[[float], object], descr
     ``convergence`` to ``--json``. Exit status 0 if converged, else 1."""
     from rpud_common import atomic_write_text, json_text
     from geometry.guard import MAX_DOFS, estimate
-    from geometry.options import mesh_options
+    from geometry.options import mesher_of
 
     from .convergence import study
 
-    mesher = mesh_options(args, design).get("mesher", "free")
+    mesher = mesher_of(args, design)
 
     def run(refine):
         lev = level(refine)

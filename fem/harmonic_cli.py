@@ -137,7 +137,7 @@ def main(argv=None) -> int:
     import geometry
     from rpud_common import atomic_write_text, json_text, setup_logging
     from geometry.guard import check_budget
-    from geometry.options import design_from_options, mesh_options
+    from geometry.options import design_from_options, mesh_options, mesher_of
 
     from .assembly import assemble
     from .modal import modal_analysis
@@ -205,7 +205,7 @@ def main(argv=None) -> int:
                   "tip_per_volt_m": wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
         est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
                        near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode,
-                       mesher=mesh_options(args, design).get("mesher", "free"))
+                       mesher=mesher_of(args, design))
         print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
     stress = None
     if args.stress:
@@ -222,7 +222,7 @@ def main(argv=None) -> int:
             "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w,
             "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
             "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
-            "mesher": mesh_options(args, design).get("mesher", "free"),
+            "mesher": mesher_of(args, design),
             "discretisation_error": est.to_dict() if est is not None else None, "stress": stress}
         text = json_text(data, nonfinite="null")
     if args.plots:
@@ -243,12 +243,12 @@ def main(argv=None) -> int:
 
 def _converge(args, design, near: float, loss, surfaces) -> int:
     """``--converge TOL``: the refinement study of the driven mode with its harmonic response."""
-    from geometry.options import mesh_options
+    from geometry.options import mesher_of
 
     from .convergence import working_mode_level
     from .errors_cli import run_study
 
-    mesher = mesh_options(args, design).get("mesher", "free")
+    mesher = mesher_of(args, design)
 
     def level(refine):
         return working_mode_level(design, refine, mesh_size=args.mesh_size, near_hz=near, n_modes=args.modes,

@@ -12,6 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
+from geometry.options import mesher_of
 from rpud_common import ParameterError
 
 from .modal import ModalResult, modal_analysis
@@ -271,7 +272,7 @@ def main(argv=None) -> int:
         data["mesh_size"] = args.mesh_size
         data["refine"] = args.refine
         data["grade"] = args.grade
-        data["mesher"] = _mesher(args, design)
+        data["mesher"] = mesher_of(args, design)
         data = json_text(data, nonfinite="null")
     if args.render or args.vtu:
         from .matching import working_mode
@@ -286,7 +287,7 @@ def _mesh_note(args, design) -> str:
     """One line on the mesh and what is known of its discretisation error (without --error)."""
     from fem.errors import has_reentrant_edges
 
-    if _mesher(args, design) == "revolve":
+    if mesher_of(args, design) == "revolve":
         if args.refine <= 1 and args.mesh_size is None and args.order == 2:
             return ("mesh: swept (r, z) section, coupler free; measured at refine 1: working mode f_r / f_a within "
                     "0.061 % / 0.049 % of converged on the default design (+0.041 % / +0.044 % without slots and "
@@ -299,13 +300,6 @@ def _mesh_note(args, design) -> str:
     return "mesh: free; --error estimates the working mode's discretisation error"
 
 
-def _mesher(args, design) -> str:
-    """The mesher the options give for ``design`` (``free`` or ``revolve``)."""
-    from geometry.options import mesh_options
-
-    return mesh_options(args, design).get("mesher", "free")
-
-
 def _converge(args, design, near) -> int:
     """``--converge TOL``: the refinement study of the working mode (fem.convergence)."""
     from rpud_common import atomic_write_text, json_text
@@ -313,7 +307,7 @@ def _converge(args, design, near) -> int:
 
     from .convergence import study, working_mode_level
 
-    mesher = _mesher(args, design)
+    mesher = mesher_of(args, design)
 
     def level(refine):
         lev = working_mode_level(design, refine, mesh_size=args.mesh_size, order=args.order, near_hz=near,
@@ -380,7 +374,7 @@ def _error_estimate(args, design, system, res, near):
     with _solver(args.solver):
         est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
                        order=args.order, near_hz=near, harmonic=False, n_modes=8, select=pick,
-                       mesher=_mesher(args, design))
+                       mesher=mesher_of(args, design))
     err = {"mode": int(w + 1), "f_r_err_hz": est.error("f_r_hz"), "f_a_err_hz": est.error("f_a_hz"),
            "k_eff_err": est.error("k_eff"), "coarse_f_r_hz": est.coarse["f_r_hz"],
            "coarse_f_a_hz": est.coarse["f_a_hz"], **est.to_dict()}

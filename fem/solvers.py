@@ -69,7 +69,7 @@ def pardiso_available() -> bool:
                     os.environ["PYPARDISO_MKL_RT"] = path
                     break
             solver = pypardiso.PyPardisoSolver()
-            # remember where MKL was found: pypardiso otherwise globs sys.prefix (~0.5 s) per solver
+            # MKL found elsewhere (find_library or pypardiso's search): remember it for the next solvers
             path = getattr(solver.libmkl, "_name", None)
             if path and "PYPARDISO_MKL_RT" not in os.environ:
                 os.environ["PYPARDISO_MKL_RT"] = path

@@ -13,6 +13,7 @@ from __future__ import annotations
 from rpud_common import ParameterError, check_range
 
 __all__ = ["add_design_options", "design_from_options", "check_design_options", "design_inputs", "mesh_options",
+           "mesher_of",
            "DESIGN_OPTIONS", "MESH_OPTIONS", "MESH_SIZE_RANGE"]
 
 DESIGN_OPTIONS = ("design", "select", "materials", "mesh_size", "refine", "grade", "mesher")
@@ -127,6 +128,11 @@ def mesh_options(ns, design=None) -> dict:
     if mesher != "free":
         out["mesher"] = mesher
     return out
+
+
+def mesher_of(ns, design) -> str:
+    """The mesher the options give for ``design``: ``"free"`` or ``"revolve"``."""
+    return mesh_options(ns, design).get("mesher", "free")
 
 
 def design_from_options(ns):

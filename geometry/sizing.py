@@ -93,9 +93,10 @@ edge 0.02 / growth 0.8 (the rule) +0.041 % / +0.044 % at 80k (112k); 0.01 / 0.7 
 104k; 0.02 / 0.6 +0.032 % at 94k; 0.03 / 1.0 +0.068 % at 64k; 0.08 / 0.5 without the bore edge
 +0.088 % at 56k. Without the sector cap of :func:`revolve_sizes`: 0.02 / 0.8 +0.047 % / +0.052 %
 (107k), 0.01 / 0.8 +0.038 % / +0.040 % (119k). The rest of the error: the sweep's 12 sectors
-(16: -0.008 %) and the coupler's free mesh (half its size: -0.008 %). The rule is the cheapest
-that keeps both within 0.045 %, so that ``python -m fem.modal`` on the default design takes no
-longer than the free 68.6k-DOF mesh did with the earlier modal path."""
+(16, with the 0.01 / 0.7 rule: -0.008 %) and the coupler's free mesh (half its size: -0.008 %).
+The rule is the cheapest measured that keeps both within 0.045 %: ``python -m fem.modal`` on the
+default design then takes 1.07x the free 68.6k-DOF run with the earlier modal path
+(benchmarks/bench_modal_cli.py)."""
 
 RING_ELEMENTS = 1.0
 """Element size cap in a ring: its thickness divided by this."""
