@@ -248,6 +248,9 @@ class PiezoSystem:
     _basis_u: object = None
     materials: dict = field(default_factory=dict)
     """name -> :class:`geometry.materials.Material`: the records assembled (JSON: ``materials_block``)."""
+    part_mass: dict | None = None
+    """part -> scalar ``n x n`` mass (kg) of that part's cells, from the same element masses as
+    ``M`` (fast path only; :func:`fem.modeshape.mass_matrix` builds it otherwise)."""
 
     def materials_block(self) -> dict:
         """``{name: record}`` of the constants assembled (layout of ``materials.toml``)."""
@@ -470,10 +473,14 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     # the node numbering (kept by the PiezoSystem); its one-point quadrature is never used
     bk = CellBasis(skmesh, elem, intorder=1)
     t1 = time.perf_counter()
+    part_mass = None
     if reference:
         blocks = _blocks_reference(skmesh, elem, qk, qm, rdata, mesh.cell_region)
     else:
-        blocks = _Blocks(**assemble_matrices(bk, qk, qm, rdata, mesh.cell_region))
+        parts = {p: [ri for ri, r in enumerate(mesh.regions) if r.part == p] for p in mesh.parts}
+        mats = assemble_matrices(bk, qk, qm, rdata, mesh.cell_region, groups=parts)
+        part_mass = mats.pop("M_groups")
+        blocks = _Blocks(**mats)
     t2 = time.perf_counter()
     n = bk.N
     n_u = 3 * n
@@ -532,4 +539,4 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
         mesh=mesh, skmesh=skmesh, basis=bk, nodes=bk.doflocs.T.copy(),
         K=K, M=M, K_loss=L, n_u=n_u, n_phi=n_phi, hot_dof=(n_u + n_phi) if has_hot else None,
         phi_scale=phi_scale, phi_nodes=interior, hot_nodes=hot, ground_nodes=ground,
-        regions=rdata, order=order, intorder=(qk, qm), timings=timings, materials=used)
+        regions=rdata, order=order, intorder=(qk, qm), timings=timings, materials=used, part_mass=part_mass)

@@ -341,7 +341,8 @@ def assemble_blocks(basis, qk, qm, regions, cell_region):
         ``kuu`` and ``luu`` (P, 3, 3): the block of ``(pi, pj)`` (N/m) and its loss part
         (``/ Q_m`` per region); ``muu`` (P,) kg; over the ceramic only ``kup_up`` (P, 3) (u at pi,
         potential at pj) and ``kup_dn`` (P, 3) (u at pj, potential at pi) in C/m, ``kpp`` (P,)
-        and ``lpp`` (``tan delta``-weighted) in F; ``piezo_pairs``: the pairs in the ceramic.
+        and ``lpp`` (``tan delta``-weighted) in F; ``piezo_pairs``: the pairs in the ceramic;
+        ``muu_region``: ``{region index: (P,) kg}``, the mass of each region's cells alone.
     """
     mesh = basis.mesh
     edofs = basis.element_dofs.T                                       # (nel, nloc)
@@ -411,7 +412,13 @@ def assemble_blocks(basis, qk, qm, regions, cell_region):
         luu += iq[a] * part
     del ke
     pp = pe[:mp]
+    # the cells of one region are one contiguous run of the sorted order
+    reg = cell_region[order]
+    starts = np.append(np.flatnonzero(np.concatenate([[True], reg[1:] != reg[:-1]])), nel)
+    muu_region = {int(reg[a]): total(me[a * npl:b * npl], pe[a * npl:b * npl])
+                  for a, b in zip(starts[:-1], starts[1:])}
     return pairs, {
+        "muu_region": muu_region,
         "kuu": kuu.reshape(P, 3, 3), "luu": luu.reshape(P, 3, 3), "muu": total(me),
         "kup_up": np.stack([total(kupe[c], pp) for c in range(3)], axis=1),
         "kup_dn": np.stack([total(kupe[c], pp) for c in range(3, 6)], axis=1),
@@ -441,14 +448,21 @@ def scalar_matrix(pairs: NodePairs, values: np.ndarray, which: np.ndarray) -> sp
     return sp.csr_matrix((np.concatenate([v, v[off]]), (rows, cols)), shape=(pairs.n, pairs.n))
 
 
-def assemble_matrices(basis, qk, qm, regions, cell_region) -> dict[str, sp.csr_matrix]:
+def assemble_matrices(basis, qk, qm, regions, cell_region, groups=None) -> dict:
     """:func:`assemble_blocks` written out as sparse matrices on the scalar node numbering
     (u DOF of node ``k``, component ``c``: ``3 k + c``): ``Kuu``, ``Luu``, ``Muu`` (3n x 3n),
-    ``Kup`` (3n x n), ``Kpp``, ``Lpp`` (n x n)."""
+    ``Kup`` (3n x n), ``Kpp``, ``Lpp`` (n x n); with ``groups`` (``{name: region indices}``)
+    also ``M_groups``: ``{name: scalar n x n mass of those regions' cells}`` (kg)."""
     pairs, t = assemble_blocks(basis, qk, qm, regions, cell_region)
     layout = VectorLayout(pairs)
     w = t["piezo_pairs"]
-    return {"Kuu": layout.blocks(t["kuu"]), "Luu": layout.blocks(t["luu"]),
-            "Muu": layout.diagonal_blocks(t["muu"]),
-            "Kup": coupling_matrix(pairs, t["kup_up"], t["kup_dn"], w),
-            "Kpp": scalar_matrix(pairs, t["kpp"], w), "Lpp": scalar_matrix(pairs, t["lpp"], w)}
+    out = {"Kuu": layout.blocks(t["kuu"]), "Luu": layout.blocks(t["luu"]),
+           "Muu": layout.diagonal_blocks(t["muu"]),
+           "Kup": coupling_matrix(pairs, t["kup_up"], t["kup_dn"], w),
+           "Kpp": scalar_matrix(pairs, t["kpp"], w), "Lpp": scalar_matrix(pairs, t["lpp"], w)}
+    if groups is not None:
+        out["M_groups"] = {}
+        for name, members in groups.items():
+            m = sum((t["muu_region"][r] for r in members if r in t["muu_region"]), np.zeros(pairs.n_pairs))
+            out["M_groups"][name] = scalar_matrix(pairs, m, np.flatnonzero(m))
+    return out

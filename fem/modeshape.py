@@ -199,7 +199,8 @@ def _masses(mesh) -> dict:
         key = (_default_intorder(2, ctx.mesh.order == 2)[1],
                tuple(r.density for r in _region_data(ctx.mesh, None)))
     if key not in ctx.masses:
-        parts = _part_masses(ctx, *key)
+        own = mesh.part_mass if isinstance(mesh, PiezoSystem) else None
+        parts = dict(own) if own is not None else _part_masses(ctx, *key)
         ctx.masses[key] = {**parts, None: sum(parts.values()).tocsr()}
     return ctx.masses[key]
 

@@ -313,6 +313,10 @@ def test_the_mass_is_the_assembled_one(sandwich_modes):
     scale = abs(M).max()
     assert abs(mass_matrix(tm) - M).max() < 1e-12 * scale
     assert abs(sum(mass_matrix(tm, part=p) for p in tm.parts) - M).max() < 1e-12 * scale
+    # the system's part masses (summed from the fast assembly's element masses) are the same
+    assert system.part_mass is not None
+    for p in tm.parts:
+        assert abs(mass_matrix(system, part=p) - mass_matrix(tm, part=p)).max() < 1e-12 * scale
     # rho V of a rigid translation: through the assembled 3n x 3n matrix, and volume by volume
     t = np.zeros(system.ndof)
     t[2:n_u:3] = 1.0
