@@ -225,7 +225,7 @@ def _upper(A: sp.csr_matrix) -> sp.csr_matrix:
     as PARDISO's symmetric types require (an explicit 0 where the diagonal is empty; scipy's
     ``triu`` goes through COO: 3x slower on the default design)."""
     n = A.shape[0]
-    A.sort_indices()
+    A.sum_duplicates()          # sorted, one entry per position (as scipy's triu leaves it)
     rows = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))
     keep = A.indices >= rows
     data, cols, rows = A.data[keep], A.indices[keep], rows[keep]

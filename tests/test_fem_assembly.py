@@ -2,6 +2,7 @@
 electrodes, capacitance, solver backends."""
 
 import numpy as np
+import scipy.sparse as sp
 import pytest
 
 from fem.assembly import assemble
@@ -129,6 +130,29 @@ def test_solver_backends_agree_real_and_complex():
         assert np.linalg.norm(xc_p - xc_lu) < 1e-8 * np.linalg.norm(xc_lu)
     with pytest.raises(ParameterError):
         factorize(A, backend="mumps")
+
+
+def test_upper_triangle_keeps_every_diagonal_entry_and_saddle_points_solve():
+    from fem.solvers import _upper
+
+    rng = np.random.default_rng(3)
+    R = sp.random(200, 200, density=0.03, random_state=4)
+    A = (R + R.T).tocsr()
+    A.setdiag(0.0)
+    A.eliminate_zeros()                     # no diagonal stored at all
+    U = _upper(A.copy())
+    assert abs(U - sp.triu(A)).max() == 0
+    rows = np.repeat(np.arange(200), np.diff(U.indptr))
+    assert np.array_equal(np.sort(U.indices[U.indices == rows]), np.arange(200))   # stored, as 0
+    assert U.has_sorted_indices
+    # a saddle point [[I, B], [B^T, 0]] with an empty (2, 2) diagonal: PARDISO against SuperLU
+    B = sp.random(40, 10, density=0.3, random_state=5) + sp.eye(40, 10)
+    S = sp.bmat([[sp.eye(40), B], [B.T, None]], format="csr")
+    b = rng.normal(size=50)
+    x = factorize(S, backend="superlu")(b)
+    assert np.linalg.norm(S @ x - b) < 1e-10 * np.linalg.norm(b)
+    if pardiso_available():
+        assert np.linalg.norm(factorize(S)(b) - x) < 1e-9 * np.linalg.norm(x)
 
 
 def test_unique_inverse_matches_numpy_including_the_fallback():
