@@ -193,7 +193,7 @@ class _Pardiso(Factor):
                        s.iparm.ctypes.data_as(i32), ctypes.byref(ctypes.c_int32(s.msglvl)),
                        b.ctypes.data_as(f64), x.ctypes.data_as(f64), ctypes.byref(err))
         if err.value != 0:
-            raise pypardiso_error(err.value)
+            raise _pardiso_error(err.value)
         return np.ascontiguousarray(x)
 
     def _solve_real(self, b):
@@ -213,7 +213,7 @@ class _Pardiso(Factor):
             pass
 
 
-def pypardiso_error(code: int) -> Exception:
+def _pardiso_error(code: int) -> Exception:
     """pypardiso's exception for a PARDISO error code."""
     from pypardiso.pardiso_wrapper import PyPardisoError
 
