@@ -9,9 +9,9 @@ API
 
 Backends
 --------
-* ``"pardiso"``: real symmetric indefinite (``mtype=-2``, upper triangle passed, METIS
-  ordering, weighted matching + scaling for the saddle-point structure of the coupled
-  piezo system); ``symmetric=False`` uses ``mtype=11``. pypardiso supports float64 only: a
+* ``"pardiso"``: real symmetric indefinite (``mtype=-2``, upper triangle passed with every
+  diagonal entry stored, parallel METIS nested dissection returned in ``perm``, weighted
+  matching + scaling for the saddle-point structure of the coupled piezo system); ``symmetric=False`` uses ``mtype=11``. pypardiso supports float64 only: a
   complex *symmetric* matrix ``A = Ar + j Ai`` is solved through the real symmetric
   equivalent ``[[Ar, Ai], [Ai, -Ar]] [xr; -xi] = [br; bi]`` (twice the size, still PARDISO).
 * ``"superlu"``: ``scipy.sparse.linalg.splu`` with the COLAMD column ordering (scipy's
