@@ -11,9 +11,10 @@ Backends
 --------
 * ``"pardiso"``: real symmetric indefinite (``mtype=-2``, upper triangle passed with every
   diagonal entry stored, parallel METIS nested dissection returned in ``perm``, weighted
-  matching + scaling for the saddle-point structure of the coupled piezo system); ``symmetric=False`` uses ``mtype=11``. pypardiso supports float64 only: a
-  complex *symmetric* matrix ``A = Ar + j Ai`` is solved through the real symmetric
-  equivalent ``[[Ar, Ai], [Ai, -Ar]] [xr; -xi] = [br; bi]`` (twice the size, still PARDISO).
+  matching + scaling for the saddle-point structure of the coupled piezo system);
+  ``symmetric=False`` uses ``mtype=11``. pypardiso supports float64 only: a complex
+  *symmetric* matrix ``A = Ar + j Ai`` is solved through the real symmetric equivalent
+  ``[[Ar, Ai], [Ai, -Ar]] [xr; -xi] = [br; bi]`` (twice the size, still PARDISO).
 * ``"superlu"``: ``scipy.sparse.linalg.splu`` with the COLAMD column ordering (scipy's
   default, a fill-reducing ordering); complex matrices are factorised as they are.
 
@@ -133,13 +134,11 @@ class _SuperLU(Factor):
 
 class _Pardiso(Factor):
     def __init__(self, A, symmetric=True, matching=True):
-        import pypardiso
-
         self.backend = "pardiso"
         self.n = A.shape[0]
         self.symmetric = symmetric
         t = time.perf_counter()
-        self.solver = pypardiso.PyPardisoSolver(mtype=-2 if symmetric else 11)
+        self.solver = self._new_solver()
         ip = self.solver.iparm
         ip[0] = 1      # user-supplied iparm
         ip[1] = 3      # METIS nested dissection, parallel (the same permutation here, ~0.3 s less)
@@ -147,7 +146,6 @@ class _Pardiso(Factor):
         # of the swept default mesh then takes 3.5 s instead of 4.3 s (free mesh 1.56 / 1.63 s;
         # measured, not documented by MKL)
         ip[4] = 2
-        self.solver.perm = np.zeros(self.n, dtype=np.int32)
         ip[9] = 8      # pivot perturbation 1e-8
         ip[10] = 1     # scaling
         ip[12] = 1 if matching else 0   # weighted matching (symmetric indefinite, saddle point)
@@ -168,15 +166,28 @@ class _Pardiso(Factor):
         if not matching and self.perturbed:
             # a pivot too small for Bunch-Kaufman within its supernode: redo with the matching
             log.info("PARDISO without matching perturbed %d pivots: factorising with it", self.perturbed)
-            self.solver.set_phase(-1)
-            self.solver._call_pardiso(sp.csr_matrix((0, 0)), np.zeros(0))
-            self.solver = pypardiso.PyPardisoSolver(mtype=-2 if symmetric else 11)
-            self.solver.iparm[:] = ip
-            self.solver.perm = np.zeros(self.n, dtype=np.int32)
+            self._release()
+            self.solver = self._new_solver(ip)
             self.solver.iparm[12] = 1
             self._call(12, np.zeros((self.n, 1)))
             self.perturbed = int(self.solver.iparm[13])
         self.seconds = time.perf_counter() - t
+
+    def _new_solver(self, iparm=None):
+        """A pypardiso solver of this matrix type (``iparm`` copied if given) with an n-sized
+        ``perm``, where PARDISO returns its ordering (``iparm[4] = 2``)."""
+        import pypardiso
+
+        solver = pypardiso.PyPardisoSolver(mtype=-2 if self.symmetric else 11)
+        if iparm is not None:
+            solver.iparm[:] = iparm
+        solver.perm = np.zeros(self.n, dtype=np.int32)
+        return solver
+
+    def _release(self):
+        """Free PARDISO's memory of the factorisation (phase -1)."""
+        self.solver.set_phase(-1)
+        self.solver._call_pardiso(sp.csr_matrix((0, 0)), np.zeros(0))
 
     def _call(self, phase, b):
         """One PARDISO call (``pypardiso.PyPardisoSolver._call_pardiso`` with the index arrays
@@ -207,8 +218,7 @@ class _Pardiso(Factor):
 
     def __del__(self):
         try:
-            self.solver.set_phase(-1)
-            self.solver._call_pardiso(sp.csr_matrix((0, 0)), np.zeros(0))
+            self._release()
         except Exception:
             pass
 
