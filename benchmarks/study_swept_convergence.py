@@ -16,10 +16,14 @@ extrapolated with p = 2 from the last change, ``|q1 - q3| + |q3 - q2| / ((h2 / h
 slots and teeth at refine 1 against its converged axisymmetric (r, z) answer.
 
     python benchmarks/study_swept_convergence.py [--quick] [--levels 1 0.8 0.64] [--max-dofs 400000]
-                                                 [--sectors 3 4 5 6] [--no-crosscheck]
+                                                 [--sectors 3 4 5 6] [--variants SPEC ...] [--no-slots]
+                                                 [--no-crosscheck]
     # --quick: refine 1 and 0.8 only (no order); levels whose mesh has more than --max-dofs
     # (3 x mesh nodes, counted before assembly) are skipped; --sectors N ...: refine 1 with N
-    # element layers per quarter turn instead of the study
+    # element layers per quarter turn instead of the study; --variants: single meshes with knobs
+    # (sectors=N, refine=F, horn=MM / ring=MM / flange=MM section caps, comma-joined); --no-slots:
+    # the design without slots and teeth, every level's (or variant's) true error against the
+    # converged (r, z) values of tests/axisym_reference.py (bending and torsion harmonics, working mode)
 
 Measured on this machine (2 cores, 24 GB, another job running), 2026-11-23, 1 min 43 s wall for
 the whole run (peak 5.6 GB; levels refine 1 / 0.8 / 0.64; refine 0.5, 551k DOFs, passed 9.9 GB
@@ -102,6 +106,11 @@ from geometry.revolve import sectors_per_quarter
 
 F_R, F_A = 19682.31, 21410.33
 """Converged working mode of the default design without slots and teeth (axisymmetric (r, z), issue 19)."""
+
+TRUE_NO_SLOTS = {"bend1": 5161.55, "bend2": 10512.14, "tors1": 15286.155, "f_r": F_R, "f_a": F_A}
+"""Converged values (Hz) of the design without slots and teeth: the (r, z) model's harmonics n = 1
+(bending pairs) and n = 0 (torsion, u_theta alone) and its working mode (tests/axisym_reference.py
+BENDING_19, TORSION_19; tests/test_axisym_reference.py asserts them to 2e-5)."""
 
 NEAR_HZ, N_MODES = 20e3, 12
 
@@ -187,22 +196,75 @@ def estimates(rows: list[dict]) -> list[tuple]:
     return out
 
 
-def sector_study(design, counts) -> None:
-    """Refine 1 with other sector counts: what the sweep's circumferential resolution moves."""
+def true_errors(rows: list[dict]) -> None:
+    """Each level's error against the converged (r, z) values (design without slots and teeth),
+    and whether the study's p=2 bound of refine 1 covers the true error of refine 1."""
+    out = []
+    for key, label, target in QUANTITIES:
+        ref = TRUE_NO_SLOTS[key]
+        errs = [r[key] / ref - 1 for r in rows]
+        bound = None
+        if len(rows) >= 3:
+            h2, h3 = (float(r["ndof"]) ** (-1 / 3) for r in rows[-2:])
+            q1, q2, q3 = rows[0][key], rows[-2][key], rows[-1][key]
+            bound = (abs(q1 - q3) + abs(q3 - q2) / ((h2 / h3) ** 2 - 1)) / ref
+        out.append((label, f"{ref:.2f}", *(f"{100 * e:+.4f}" for e in errs), f"{100 * target:g}",
+                    "-" if bound is None else f"{100 * bound:.4f} ({'covers' if bound >= abs(errs[0]) else 'DOES NOT cover'})"))
+    print_table(out, headers=("mode", "converged (r, z) Hz", *(f"true error refine {r['refine']:g} %" for r in rows),
+                              "target %", "p=2 bound of refine 1 %"))
+
+
+def parse_variant(text: str) -> dict:
+    """``"sectors=4,refine=0.8,horn=3"`` -> {"sectors": 4, "refine": 0.8, "caps": {"horn": 3e-3}}: element
+    layers per quarter turn (fixed, whatever the refine), the refine factor, and caps (mm) on the
+    section size of every swept region whose name starts with the key (horn, ring, flange)."""
+    out = {"sectors": None, "refine": 1.0, "caps": {}, "name": text}
+    for item in filter(None, text.split(",")):
+        key, _, value = item.partition("=")
+        try:
+            v = float(value)
+        except ValueError:
+            raise SystemExit(f"--variants: {item!r} is not key=number") from None
+        if key == "sectors":
+            out["sectors"] = int(v)
+        elif key == "refine":
+            out["refine"] = v
+        else:
+            out["caps"][key] = v * 1e-3
+    return out
+
+
+def variant_study(design, variants: list[dict], truth: bool) -> None:
+    """Single meshes with one knob changed each: what the sweep's circumferential resolution, the
+    refine factor and the section caps move (against the converged values when ``truth``, else
+    against the first variant)."""
+    import geometry.builder as builder
     import geometry.revolve as revolve
 
     rows, base = [], None
-    old = revolve.SECTORS_PER_QUARTER
+    old_sectors, old_sizes = revolve.SECTORS_PER_QUARTER, builder.revolve_sizes
     try:
-        for n in counts:
-            revolve.SECTORS_PER_QUARTER = n
-            r = modes(design, 1.0)
+        for v in variants:
+            def sizes(design, sizes, per_quarter, caps=v["caps"]):
+                out = old_sizes(design, sizes, per_quarter)
+                for key, cap in caps.items():
+                    for region in out:
+                        if region.startswith(key):
+                            out[region] = min(out[region], cap)
+                return out
+
+            builder.revolve_sizes = sizes
+            # sectors_per_quarter(refine) = ceil(SECTORS_PER_QUARTER / refine): fix it at v["sectors"]
+            revolve.SECTORS_PER_QUARTER = old_sectors if v["sectors"] is None else v["sectors"] * v["refine"]
+            r = modes(design, v["refine"])
             base = base or r
-            rows.append((str(n), f"{r['ndof']:,}", f"{r['modal_s']:.1f}") + tuple(
-                f"{r[k]:.2f} ({100 * (r[k] / base[k] - 1):+.4f} %)" for k, *_ in QUANTITIES))
+            ref = TRUE_NO_SLOTS if truth else base
+            rows.append((v["name"], str(sectors_per_quarter(v["refine"])), f"{r['ndof']:,}", f"{r['modal_s']:.1f}") + tuple(
+                f"{r[k]:.2f} ({100 * (r[k] / ref[k] - 1):+.4f} %)" for k, *_ in QUANTITIES))
     finally:
-        revolve.SECTORS_PER_QUARTER = old
-    print_table(rows, headers=("sectors/quarter at refine 1", "DOFs", "modal s", *(label for _k, label, _t in QUANTITIES)))
+        revolve.SECTORS_PER_QUARTER, builder.revolve_sizes = old_sectors, old_sizes
+    print_table(rows, headers=("variant", "sectors/quarter", "DOFs", "modal s",
+                               *(label + (" (true error)" if truth else "") for _k, label, _t in QUANTITIES)))
 
 
 def main() -> None:
@@ -216,12 +278,22 @@ def main() -> None:
     ap.add_argument("--sectors", type=int, nargs="+", default=None, metavar="N",
                     help="instead of the study: refine 1 with N element layers per quarter turn (the sweep's "
                          "share of the refinement; revolve_sizes caps the swept regions at the sector arc)")
+    ap.add_argument("--variants", nargs="+", default=None, metavar="SPEC",
+                    help="instead of the study: single meshes, e.g. sectors=4 refine=0.8,sectors=3 horn=3 "
+                         "(layers per quarter turn, refine factor, section caps in mm by region prefix)")
     ap.add_argument("--no-crosscheck", action="store_true", help="skip the design without slots and teeth")
+    ap.add_argument("--no-slots", action="store_true",
+                    help="study the design without slots and teeth and print every level's true error against "
+                         "the converged (r, z) values (bending, torsion, working mode)")
     args = ap.parse_args()
     levels = [1.0, 0.8] if args.quick else sorted(args.levels, reverse=True)
     d = default_design()
-    if args.sectors:
-        sector_study(d, args.sectors)
+    if args.no_slots:
+        d = d.replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+        args.no_crosscheck = True
+    if args.sectors or args.variants:
+        specs = [f"sectors={n}" for n in args.sectors or []] + list(args.variants or [])
+        variant_study(d, [parse_variant(t) for t in specs], truth=args.no_slots)
         return
 
     rows = []
@@ -252,6 +324,9 @@ def main() -> None:
         print()
         print_table([(label, f"{100 * (rows[1][k] / rows[0][k] - 1):+.4f}", f"{100 * t:g}") for k, label, t in QUANTITIES],
                     headers=("mode", f"change refine {rows[0]['refine']:g} -> {rows[1]['refine']:g} %", "target %"))
+    if args.no_slots:
+        print()
+        true_errors(rows)
 
     if not args.no_crosscheck:
         dn = d.replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})

@@ -636,3 +636,174 @@ def convergence(design, h0: float, grade_radius: float, levels: int = 3, near_hz
     pr, lr = richardson(fr, ratio)
     pa, la = richardson(fa, ratio)
     return Convergence(np.array(hs), np.array(dofs), np.array(fr), np.array(fa), pr, pa, lr, la)
+
+
+# ============================================================================ one Fourier harmonic (bending, torsion)
+#
+# The same section carries the non-axisymmetric modes of an axisymmetric body one circumferential
+# harmonic at a time (the body's symmetry decouples them exactly). Harmonic n >= 1 ("cos" family):
+#     u_r = U_r cos n t,  u_t = U_t sin n t,  u_z = U_z cos n t,  phi = Phi cos n t,
+# strains grouped by their angular factor,
+#     cos: (rr, tt, zz, rz) = (U_r,r, (U_r + n U_t) / r, U_z,z, U_r,z + U_z,r)
+#     sin: (tz, rt)         = (U_t,z - n U_z / r, U_t,r - (U_t + n U_r) / r)
+# and grad(phi) = (Phi,r cos, -n Phi / r sin, Phi,z cos); every product integrates over t to pi.
+# A transversely isotropic ceramic poled along z has the same constants in (r, t, z) as in (x, y, z),
+# and no constant couples a cos group to a sin group. n = 1 carries the bending pairs (each pair is
+# one mode here), n = 0 with u_t alone the torsional modes (no field: E_t = 0, so plain elasticity).
+# An electrode is an equipotential surface: for n >= 1 its potential, constant in t, is 0, so short
+# and open circuit coincide. On the axis (r = 0) finite energy needs U_z = Phi = 0 and U_r + U_t = 0
+# (n = 1), U_t = 0 (n = 0).
+
+
+BENDING_19 = (5161.55, 10512.14)
+"""First and second bending pairs (Hz) of the default design without slots and teeth: harmonic n = 1
+of this model, graded levels h = 2 ... 0.5 mm (ratio sqrt 2, up to 163k unknowns), observed
+order 3.8-4.4, Richardson limits 5161.553 / 10512.135 Hz (spread of the last three limits 0.05 /
+0.01 Hz)."""
+
+TORSION_19 = 15286.155
+"""First torsional mode (Hz) of the same design: harmonic n = 0 with u_theta alone, same levels,
+order 4.6-5.0, limit 15286.155 (spread 0.003 Hz)."""
+
+
+def _shear_constants(material: str, poling: int):
+    """(c44, c66 Pa, e15 C/m^2 signed by poling, eps11 F/m) of a material."""
+    m = get_material(material)
+    if not m.is_piezo:
+        mu = m.youngs_modulus / (2 * (1 + m.poisson_ratio))
+        return mu, mu, 0.0, 0.0
+    k = m.c_E
+    return k["c44"], k.get("c66", (k["c11"] - k["c12"]) / 2), poling * m.e["e15"], EPS0 * m.eps_S["eps11"]
+
+
+def _harmonic_forms(n: int, c, e, eps, c44, c66, e15, eps11, rho):
+    """Bilinear forms (elastic, coupling, permittivity, mass) of harmonic n >= 1, per unit angle pi."""
+
+    def cos_strain(u, r):
+        return [u.grad[0][0], (u.value[0] + n * u.value[1]) / r, u.grad[2][1], u.grad[0][1] + u.grad[2][0]]
+
+    def sin_strain(u, r):
+        return [u.grad[1][1] - n * u.value[2] / r, u.grad[1][0] - (u.value[1] + n * u.value[0]) / r]
+
+    def grad_cos(p):
+        return [p.grad[0], p.grad[1]]
+
+    @BilinearForm
+    def elastic(u, v, w):
+        r = w.x[0]
+        ss, sv = sin_strain(u, r), sin_strain(v, r)
+        return (_dot(c, cos_strain(v, r), cos_strain(u, r)) + c44 * sv[0] * ss[0] + c66 * sv[1] * ss[1]) * math.pi * r
+
+    @BilinearForm
+    def coupling(phi, v, w):
+        r = w.x[0]
+        return (_dot(e, grad_cos(phi), cos_strain(v, r)) + e15 * (-n * phi.value / r) * sin_strain(v, r)[0]) * math.pi * r
+
+    @BilinearForm
+    def permittivity(phi, psi, w):
+        r = w.x[0]
+        return (_dot(eps, grad_cos(psi), grad_cos(phi)) + eps11 * (n / r) ** 2 * psi.value * phi.value) * math.pi * r
+
+    @BilinearForm
+    def mass(u, v, w):
+        return rho * (u.value[0] * v.value[0] + u.value[1] * v.value[1] + u.value[2] * v.value[2]) * math.pi * w.x[0]
+
+    return elastic, coupling, permittivity, mass
+
+
+def _torsion_forms(c44, c66, rho):
+    """Bilinear forms (elastic, mass) of the torsional family (n = 0, u_t = U_t only), angle 2 pi."""
+
+    @BilinearForm
+    def elastic(u, v, w):
+        r = w.x[0]
+        return (c44 * v.grad[1] * u.grad[1] + c66 * (v.grad[0] - v.value / r) * (u.grad[0] - u.value / r)) * TWO_PI * r
+
+    @BilinearForm
+    def mass(u, v, w):
+        return rho * u.value * v.value * TWO_PI * w.x[0]
+
+    return elastic, mass
+
+
+def harmonic_modes(sec: Section, h: float, grade_radius: float, n: int, near_hz: float,
+                   n_modes: int = 3) -> tuple[np.ndarray, int]:
+    """Natural frequencies (Hz) of circumferential harmonic ``n`` nearest ``near_hz``.
+
+    ``n = 1``: the bending pairs (each listed once), short circuit (= open circuit, see above);
+    ``n = 0``: the torsional modes. Rigid-body modes (zero frequency) are dropped.
+
+    Returns
+    -------
+    (frequencies ascending (Hz), number of unknowns)
+    """
+    if n not in (0, 1):
+        raise ParameterError("n", n, "must be 0 (torsion) or 1 (bending)")
+    mesh, owner = mesh_section(sec, h, grade_radius)
+    tol = 1e-9 * (1 + np.abs(mesh.p).max())
+    axis = mesh.facets_satisfying(lambda x: np.abs(x[0]) < tol)
+    if n == 0:
+        ub = Basis(mesh, ElementTriP2(), intorder=6)
+        K, M = 0, 0
+        for k, b in enumerate(sec.blocks):
+            c44, c66, _, _ = _shear_constants(b.material, b.poling)
+            el, ms = _torsion_forms(c44, c66, get_material(b.material).density)
+            bk = Basis(mesh, ub.elem, elements=np.nonzero(owner == k)[0], intorder=6)
+            K, M = K + asm(el, bk), M + asm(ms, bk)
+        free = np.setdiff1d(np.arange(ub.N), ub.get_dofs(axis).all() if len(axis) else [])
+        T = sp.identity(ub.N, format="csr")[:, free]
+        A, Mr, nu = (T.T @ K @ T).tocsc(), (T.T @ M @ T).tocsr(), len(free)
+    else:
+        ub = Basis(mesh, ElementVector(ElementTriP2(), dim=3), intorder=6)
+        pb = Basis(mesh, ElementTriP2(), intorder=6)
+        Kuu, Kup, Kpp, M = 0, 0, 0, 0
+        for k, b in enumerate(sec.blocks):
+            c, e, eps, rho = constants(b.material, b.poling)
+            el, cp, pm, ms = _harmonic_forms(n, c, e, eps, *_shear_constants(b.material, b.poling), rho)
+            ix = np.nonzero(owner == k)[0]
+            ubk = Basis(mesh, ub.elem, elements=ix, intorder=6)
+            Kuu, M = Kuu + asm(el, ubk), M + asm(ms, ubk)
+            if b.poling:
+                pbk = Basis(mesh, pb.elem, elements=ix, intorder=6)
+                Kup, Kpp = Kup + asm(cp, pbk, ubk), Kpp + asm(pm, pbk)
+        # reduced unknowns: u off the axis, U_r on the axis (U_t = -U_r there), Phi in the ceramic off the electrodes
+        fixed = [np.array([], dtype=int)]
+        tie = np.array([], dtype=int), np.array([], dtype=int)
+        if len(axis):
+            ad = ub.get_dofs(axis)
+            fixed += [ad.all("u^2"), ad.all("u^3")]
+            tie = ad.all("u^1"), ad.all("u^2")
+        u_free = np.setdiff1d(np.arange(ub.N), np.concatenate(fixed))
+        rows = np.concatenate([u_free, tie[1]])
+        cols = np.concatenate([np.arange(len(u_free)), np.searchsorted(u_free, tie[0])])
+        vals = np.concatenate([np.ones(len(u_free)), -np.ones(len(tie[1]))])
+        Tu = sp.csr_matrix((vals, (rows, cols)), shape=(ub.N, len(u_free)))
+        nu = len(u_free)
+        piezo = np.isin(owner, [k for k, b in enumerate(sec.blocks) if b.poling])
+        if piezo.any():
+            p_all = np.unique(pb.element_dofs[:, piezo])
+            on = [np.array([], dtype=int)]
+            for ln in sec.electrodes:
+                f = mesh.facets_satisfying(lambda x, ln=ln: (np.abs(x[1] - ln.z) < tol) & (x[0] > ln.r0 - tol) & (x[0] < ln.r1 + tol))
+                on.append(pb.get_dofs(f).all())
+            p_free = np.setdiff1d(p_all, np.concatenate(on))
+            ratio = (Tu.T @ Kuu @ Tu).diagonal().mean() / Kpp.diagonal()[p_all].mean()
+            scale = 10.0 ** round(math.log10(math.sqrt(ratio)))
+            Tp = sp.identity(pb.N, format="csr")[:, p_free] * scale
+            A = sp.bmat([[Tu.T @ Kuu @ Tu, Tu.T @ Kup @ Tp], [Tp.T @ Kup.T @ Tu, -(Tp.T @ Kpp @ Tp)]]).tocsc()
+        else:
+            A = (Tu.T @ Kuu @ Tu).tocsc()
+        Mr = (Tu.T @ M @ Tu).tocsr()
+    sigma = (TWO_PI * near_hz) ** 2
+    Mfull = sp.block_diag([Mr, sp.csr_matrix((A.shape[0] - nu, A.shape[0] - nu))]).tocsc()
+    lu = sla.splu((A - sigma * Mfull).tocsc(), permc_spec="MMD_AT_PLUS_A")
+
+    def op(b):
+        rhs = np.zeros(A.shape[0])
+        rhs[:nu] = b
+        return lu.solve(rhs)[:nu]
+
+    lam, _ = _eigs(op, Mr, sigma, n_modes + 2)
+    lam = lam[lam > 1e-4 * sigma]
+    f = np.sqrt(lam) / TWO_PI
+    return f[np.argsort(np.abs(f - near_hz))][:n_modes].copy(), A.shape[0]

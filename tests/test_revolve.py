@@ -22,12 +22,21 @@ from geometry.report import mesh_part_volumes
 from geometry.revolve import _prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets
 from rpud_common import ParameterError
 
+import axisym_reference as ar
+
 ISSUE_19 = (19682.31, 21410.33)
 """Converged f_r, f_a (Hz) of the default design without slots and teeth (issue 19's (r, z) model,
 reproduced to 2e-5 by tests/axisym_reference.py in tests/test_axisym_reference.py)."""
 
 TOL_REVOLVE = 5e-4
 """Issue 19's 0.05 % on f_r and f_a."""
+
+TOL_BENDING = 2.5e-3
+"""Bending pairs of the swept default mesh against the converged (r, z) harmonic n = 1 (measured
++0.194 % / +0.128 %; issue 19 asks 0.1 %: not met)."""
+
+TOL_TORSION = 1e-3
+"""First torsion against the converged harmonic n = 0 (measured +0.069 %; issue 19's 0.1 %)."""
 
 _PRISM = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 1.0]])
 
@@ -144,6 +153,25 @@ def test_working_mode_within_issue_19_target_of_the_converged_answer(axisymmetri
                    mesher="revolve")
     for key, value, exact in (("f_r_hz", f_r, ISSUE_19[0]), ("f_a_hz", f_a, ISSUE_19[1])):
         assert abs(value - exact) <= est.error(key) <= 4 * abs(value - exact), (key, est.error(key))
+
+
+def test_bending_and_torsion_against_the_converged_harmonics(axisymmetric_build):
+    """The swept mesh's non-axisymmetric modes against the (r, z) harmonics n = 1 / n = 0
+    (tests/axisym_reference.py, converged to ~1e-5): stiff (too high) and within TOL_BENDING /
+    TOL_TORSION. Measured +0.194 % / +0.128 % (first / second bending pair), +0.069 % (torsion):
+    issue 19's 0.1 % holds for torsion, not for the bending pairs (3 sectors per quarter and the
+    horn's 6.3 mm section size; see README, "true errors")."""
+    _design, tm, _rep = axisymmetric_build
+    res = fem.modal_analysis(fem.assemble(tm), 8e3, 12)
+    f = np.asarray(res.f_r_hz)
+    bend = np.sort(f[[k for k, lab in enumerate(res.labels) if lab == "bending"]])
+    tors = np.sort(f[[k for k, lab in enumerate(res.labels) if lab == "torsional"]])
+    assert len(bend) >= 4 and len(tors) >= 1, res.labels
+    assert bend[1] / bend[0] - 1 < 1e-4 and bend[3] / bend[2] - 1 < 1e-4          # degenerate pairs
+    for value, ref, tol in ((bend[:2].mean(), ar.BENDING_19[0], TOL_BENDING),
+                            (bend[2:4].mean(), ar.BENDING_19[1], TOL_BENDING),
+                            (tors[0], ar.TORSION_19, TOL_TORSION)):
+        assert 0 < value / ref - 1 < tol, (value, ref)
 
 
 def test_revolve_refuses_a_loft_horn_in_one_line():
