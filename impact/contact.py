@@ -167,12 +167,14 @@ def contact_phase(hc: HuntCrossley, horn_tab: dict, t0: float, w: float, wd: flo
     def rhs(t, y):
         d, dd = pen(t, y)
         F = k * d ** 1.5 * (1.0 + chi * dd / v_in) if d > 0.0 else 0.0
+        # F on the free mass; F d' (the power into the contact) less the elastic energy's rate
+        # k d^1.5 d' is lost: k chi d^1.5 d'^2 / v_in, or -k d^1.5 d' where F is clipped to 0
+        lost = (k * chi * d ** 1.5 * dd * dd / v_in if F >= 0.0 else -k * d ** 1.5 * dd) if d > 0.0 else 0.0
         F = max(F, 0.0)
         qq, qv = y[2:2 + n], y[2 + n:2 + 2 * n]
         f = fc * math.cos(W * t) + fs * math.sin(W * t)
         acc = (f - s * F) / m - c2 * qv - om * om * qq
-        # F on the free mass; F d' (the power into the contact) splits into elastic and damped parts
-        return np.concatenate(([y[1], a + F / m_free], qv, acc, [F, k * chi * d ** 1.5 * dd * dd / v_in if d > 0 else 0.0]))
+        return np.concatenate(([y[1], a + F / m_free], qv, acc, [F, lost]))
 
     def sep(t, y):
         return pen(t, y)[0]

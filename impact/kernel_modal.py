@@ -381,11 +381,16 @@ def _hc_rhs(t, y, tab, xs, n, k, chi, v_in, m_free, a, out):
     F = 0.0
     diss = 0.0
     if d > 0.0:
+        # the power into the contact, F d', less the elastic energy's rate k d^1.5 d' is lost:
+        # k chi d^1.5 d'^2 / v_in while F > 0; where the damping would pull (F clipped to 0) the
+        # unloading spring's energy, -k d^1.5 d', is lost instead
         d15 = d * math.sqrt(d)
         F = k * d15 * (1.0 + chi * dd / v_in)
         if F < 0.0:
             F = 0.0
-        diss = k * chi * d15 * dd * dd / v_in
+            diss = -k * d15 * dd
+        else:
+            diss = k * chi * d15 * dd * dd / v_in
     out[0] = y[1]
     out[1] = a + F / m_free
     V0 = xs[X_V0]
