@@ -22,17 +22,14 @@ of the representative element sizes ``h = DOFs^(-1/3)`` and an assumed order ``p
 edges, whose 270-degree corners limit the rate to h^1.1; 2 graded or without such edges; both
 below the observed rates, so the estimate errs on the large side). Validated against exact
 answers in ``tests/test_discretisation_error.py`` for f_r, f_a, k_eff and the tip amplitude
-(between 1x and 5x the true error, measured 1.45x-2.4x). The teeth ellipse ratio has no exact
+(between 1x and 5x the true error, measured 1.21x-2.4x). The teeth ellipse ratio has no exact
 reference; on the default design its estimate (0.158 ± 0.097) is ~15x the difference from the
 finest graded level (0.1641): safe but loose, because at refine 1.4 the slot webs are about one
 element thick (``benchmarks/study_discretisation_error.py``, README). The same
-command gives the same estimate: the solvers are deterministic (MKL's reproducible mode), and
-the coarse values are kept to 2 significant digits of their difference from the fine ones and
-the errors to 2 significant digits, because gmsh's high-order optimiser, which repairs folded
-curved elements of some coarse meshes, is not deterministic: it moves nodes by ~1e-8 m from one
-build to the next (measured on the pipeline test's coarse mesh: up to 2e-6 in f_r, 6e-4 of the
-fine-coarse difference; far inside one unit of the second digit). The default design's coarse
-mesh builds identically.
+command gives the same estimate: the meshes are bit-identical (``geometry.builder``) and the
+solvers deterministic (MKL's reproducible mode); the coarse values are kept to 2 significant
+digits of their difference from the fine ones and the errors to 2 significant digits (an
+estimate has no more).
 
 A refinement study (``--converge TOL``, :func:`fem.convergence.study`) gives the observed order
 and a Richardson estimate instead; ``benchmarks/study_discretisation_error.py`` compares the two
@@ -158,9 +155,8 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
         raise ParameterError("coarse", coarse.ndof, f"must have fewer DOFs than the fine mesh ({fine.ndof})")
     ratio = (fine.ndof / coarse.ndof) ** (1 / 3)
     p = estimator_order(grade, corners) if order is None else float(order)
-    # reproducible to the digit: the coarse value enters through its difference from the fine one,
-    # kept to DIFFERENCE_DIGITS, and the error to ERROR_DIGITS (gmsh's high-order optimiser moves a
-    # coarse mesh's nodes by ~1e-8 m from one build to the next: up to 2e-6 in f_r)
+    # the coarse value enters through its difference from the fine one, kept to DIFFERENCE_DIGITS,
+    # and the error to ERROR_DIGITS: an estimate has no more digits
     near = {q: (float(fine.values[q]) + _round_sig(float(v) - float(fine.values[q]), DIFFERENCE_DIGITS)
                 if q in fine.values and math.isfinite(fine.values[q]) and math.isfinite(v) else float(v))
             for q, v in coarse.values.items()}

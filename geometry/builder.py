@@ -35,7 +35,7 @@ from .design_stack import StackDesign
 from .cad import apply_rules, import_step
 from .tagging import parametric_model
 from .revolve import (MESHERS, orient, place_midnodes, quad_triangles, resolve_mesher, sectors_per_quarter,
-                      split_to_tets, straighten, swept_quality)
+                      split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP)
 from .mesh import Electrode, Region, TaggedMesh
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
@@ -309,17 +309,20 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             gmsh.model.mesh.optimize("", dimTags=free)
             free_tags = _element_tags(gmsh, free, tets_only=True)
         report.timings["optimise"] = time.perf_counter() - t0
+        folded = False
         if order == 2:
             t0 = time.perf_counter()
             gmsh.model.mesh.setOrder(2)
             # Curving the edges onto the geometry can fold an element near the slots at some
-            # lengths (seen: SICN 4e-4); gmsh's high-order optimiser repairs it, run when needed.
+            # lengths (seen: SICN 4e-4): such elements get straight edges (revolve.straighten,
+            # after the extraction). Gmsh's high-order optimiser repairs them too, but it is not
+            # deterministic (it moved nodes by ~3e-8 m from one identical build to the next) and
+            # stalls on the pyramids of swept builds.
             sicn = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "minSICN"))
-            # (swept builds: the optimiser stalls on the pyramids; revolve.straighten instead)
-            if len(sicn) and sicn.min() < MIN_SICN_DEFAULT and not swept_vols:
-                log.info("min SICN %.3g < %.3g after curving: high-order optimisation", sicn.min(),
+            folded = bool(len(sicn) and sicn.min() < MIN_SICN_DEFAULT)
+            if folded:
+                log.info("min SICN %.3g < %.3g after curving: folded elements straightened", sicn.min(),
                          MIN_SICN_DEFAULT)
-                gmsh.model.mesh.optimize("HighOrder", dimTags=free)
             report.timings["order_2"] = time.perf_counter() - t0
         if msh_path is not None:
             gmsh.write(str(msh_path))
@@ -327,8 +330,12 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         # ---- extract
         t0 = time.perf_counter()
         tm, tags, swept = _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_vols)
-        if swept.any() and order == 2:
-            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept)
+        if order == 2 and (swept.any() or folded):
+            # swept builds straighten whole edges (their measured error tables); a free build
+            # keeps what curvature it can
+            step = 1.0 if swept.any() else STRAIGHTEN_STEP
+            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept,
+                                                                         rounds=int(round(1 / step)) + 4, step=step)
             # the free elements' quality below is Gmsh's: hand it the nodes moved here
             moved = np.unique(tm.cells[~swept])
             moved = moved[np.any(points[moved] != tm.points[moved], axis=1)]
