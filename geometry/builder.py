@@ -314,8 +314,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             t0 = time.perf_counter()
             gmsh.model.mesh.setOrder(2)
             # Curving the edges onto the geometry can fold an element near the slots at some
-            # lengths (seen: SICN 4e-4): such elements get straight edges (revolve.straighten,
-            # after the extraction). Gmsh's high-order optimiser repairs them too, but it is not
+            # lengths (seen: SICN 4e-4): such elements are pulled toward straight edges
+            # (revolve.straighten, after the extraction). Gmsh's high-order optimiser repairs them too, but it is not
             # deterministic (it moved nodes by ~3e-8 m from one identical build to the next) and
             # stalls on the pyramids of swept builds.
             sicn = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "minSICN"))

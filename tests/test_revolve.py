@@ -19,7 +19,8 @@ import fem
 from geometry.builder import build
 from geometry.design import default_design
 from geometry.report import mesh_part_volumes
-from geometry.revolve import _prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets
+from geometry.revolve import (_prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets,
+                              straighten)
 from rpud_common import ParameterError
 
 import axisym_reference as ar
@@ -99,6 +100,26 @@ def test_split_keeps_mid_nodes_and_orient_makes_volumes_positive():
     assert (_volume(ref[tets[:, :4]]) > 0).all()
     # every mid node is the midpoint of its edge, so the straight P2 map has a constant Jacobian
     assert np.allclose(jacobian_ratio(ref, tets), 1.0)
+
+
+def test_stepwise_straightening_unfolds_and_keeps_what_curvature_it_can():
+    """A 10-node element folded by one bent edge (its mid-node pushed across the element): whole
+    edges (step 1) put the node on the chord; steps of 1/8 stop at the first pull that clears the
+    threshold, between the arc and the chord."""
+    corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1.0]])
+    edges = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
+    pts = np.vstack([corners, [0.5 * (corners[i] + corners[j]) for i, j in edges]])
+    pts[4] += [0.0, 0.45, 0.45]                 # edge 0-1 bent deep into the element
+    cells = np.arange(10)[None, :]
+    free = np.array([True])
+    assert jacobian_ratio(pts, cells)[0] < 0.05
+    whole, n_whole = straighten(pts, cells, free)
+    assert n_whole == 1 and np.array_equal(whole[4], [0.5, 0.0, 0.0])
+    part, n_part = straighten(pts, cells, free, rounds=12, step=0.125)
+    pull = np.linalg.norm(part[4] - [0.5, 0, 0]) / np.linalg.norm(pts[4] - [0.5, 0, 0])
+    assert n_part == 1 and jacobian_ratio(part, cells)[0] >= 0.05
+    assert 0 < pull < 1 and pull * 8 == pytest.approx(round(pull * 8), abs=1e-12)   # whole 1/8 steps
+    assert np.array_equal(part[[0, 1, 2, 3, 5, 6, 7, 8, 9]], pts[[0, 1, 2, 3, 5, 6, 7, 8, 9]])
 
 
 def test_sectors_scale_with_refine():
