@@ -23,7 +23,7 @@ edges, whose 270-degree corners limit the rate to h^1.1; 2 graded or without suc
 below the observed rates, so the estimate errs on the large side). Validated against exact
 answers in ``tests/test_discretisation_error.py`` for f_r, f_a, k_eff and the tip amplitude
 (between 1x and 5x the true error, measured 1.21x-2.4x). The teeth ellipse ratio has no exact
-reference; on the default design its estimate (0.158 ± 0.094) is ~15x the difference from the
+reference; on the default design its estimate (0.158 ± 0.091) is ~15x the difference from the
 finest graded level (0.1641): safe but loose, because at refine 1.4 the slot webs are about one
 element thick (``benchmarks/study_discretisation_error.py``, README). The same
 command gives the same estimate: the meshes are bit-identical (``geometry.builder``) and the
