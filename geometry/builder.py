@@ -35,7 +35,7 @@ from .design_stack import StackDesign
 from .cad import apply_rules, import_step
 from .tagging import parametric_model
 from .revolve import (MESHERS, orient, place_midnodes, quad_triangles, resolve_mesher, sectors_per_quarter,
-                      split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP)
+                      split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP, _VTK_EDGES)
 from .mesh import Electrode, Region, TaggedMesh
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
@@ -399,6 +399,15 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_v
     cells = np.concatenate(cells)
     cell_region = np.concatenate(cell_region)
     swept = np.concatenate(swept)
+    if order == 2:
+        # the rounding moved the mid-nodes of straight edges off their corners' midpoint (by up to
+        # one grid step): put them back on it exactly, so that fem.fastasm still finds those
+        # elements affine (constant Jacobian; about two thirds of a free mesh)
+        ends = np.asarray(_VTK_EDGES)
+        mids = cells[:, 4:]
+        exact = 0.5 * (coords[cells[:, ends[:, 0]]] + coords[cells[:, ends[:, 1]]])
+        straight = np.abs(coords[mids] - exact).max(axis=2) <= 2 * SNAP_M
+        coords[mids[straight]] = exact[straight]
     if order == 2 and swept.any():
         coords = place_midnodes(coords, cells[swept])
     cells = orient(cells, coords)

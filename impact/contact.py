@@ -144,7 +144,8 @@ def contact_phase(hc: HuntCrossley, horn_tab: dict, t0: float, w: float, wd: flo
     Returns ``(t1, w1, wd1, q1, qd1, impulse, dissipated)`` at separation (penetration back to 0),
     or the state at ``t_max`` if the contact lasts beyond it (``t1 = t_max``). ``impulse`` is the
     contact force's impulse on the free mass (N s), ``dissipated`` the energy lost in the contact
-    (J, the Hunt-Crossley damping's work)."""
+    (J: the Hunt-Crossley damping's work while the force pushes, the unloading spring's energy
+    where the damping would pull and the force is clipped to 0)."""
     from scipy.integrate import solve_ivp
 
     n = q.size

@@ -735,7 +735,7 @@ def harmonic_modes(sec: Section, h: float, grade_radius: float, n: int, near_hz:
 
     Returns
     -------
-    (frequencies ascending (Hz), number of unknowns)
+    (the ``n_modes`` frequencies nearest ``near_hz``, ascending (Hz), number of unknowns)
     """
     if n not in (0, 1):
         raise ParameterError("n", n, "must be 0 (torsion) or 1 (bending)")
@@ -782,7 +782,7 @@ def harmonic_modes(sec: Section, h: float, grade_radius: float, n: int, near_hz:
         piezo = np.isin(owner, [k for k, b in enumerate(sec.blocks) if b.poling])
         if piezo.any():
             p_all = np.unique(pb.element_dofs[:, piezo])
-            on = [np.array([], dtype=int)]
+            on = [pb.get_dofs(axis).all() if len(axis) else np.array([], dtype=int)]    # Phi = 0 on the axis
             for ln in sec.electrodes:
                 f = mesh.facets_satisfying(lambda x, ln=ln: (np.abs(x[1] - ln.z) < tol) & (x[0] > ln.r0 - tol) & (x[0] < ln.r1 + tol))
                 on.append(pb.get_dofs(f).all())
@@ -806,4 +806,4 @@ def harmonic_modes(sec: Section, h: float, grade_radius: float, n: int, near_hz:
     lam, _ = _eigs(op, Mr, sigma, n_modes + 2)
     lam = lam[lam > 1e-4 * sigma]
     f = np.sqrt(lam) / TWO_PI
-    return f[np.argsort(np.abs(f - near_hz))][:n_modes].copy(), A.shape[0]
+    return np.sort(f[np.argsort(np.abs(f - near_hz))][:n_modes]), A.shape[0]
