@@ -334,8 +334,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             # swept builds straighten whole edges (their measured error tables); a free build
             # keeps what curvature it can
             step = 1.0 if swept.any() else STRAIGHTEN_STEP
-            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept,
-                                                                         rounds=int(round(1 / step)) + 4, step=step)
+            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=step)
             # the free elements' quality below is Gmsh's: hand it the nodes moved here
             moved = np.unique(tm.cells[~swept])
             moved = moved[np.any(points[moved] != tm.points[moved], axis=1)]

@@ -324,7 +324,7 @@ def swept_quality(tm, swept: np.ndarray) -> dict[str, float]:
 
 
 def straighten(points: np.ndarray, cells: np.ndarray, free: np.ndarray, below: float = STRAIGHTEN_BELOW,
-               rounds: int = 5, step: float = 1.0) -> tuple[np.ndarray, int]:
+               rounds: int | None = None, step: float = 1.0) -> tuple[np.ndarray, int]:
     """Points with the mid-edge nodes of folded free elements moved toward (``step`` = 1: onto)
     their straight edges, and how many elements were moved.
 
@@ -335,8 +335,11 @@ def straighten(points: np.ndarray, cells: np.ndarray, free: np.ndarray, below: f
     geometric error of one sagitta (0.26 mm on a 7.5 mm bore at 12 per circle) on a few elements
     of a free surface. With ``step`` < 1 each round moves the mid-edge nodes of the elements still
     below ``below`` a further ``step`` of the way from the arc to the chord, so an element keeps
-    as much of its curvature as it can (``rounds`` >= 1 / step to allow full straightening).
+    as much of its curvature as it can. ``rounds`` (default ``1 / step + 4``, 5 for whole edges)
+    bounds the passes; at least ``1 / step`` allow full straightening.
     """
+    if rounds is None:
+        rounds = int(round(1 / step)) + 4
     pts = points.copy()
     share = np.zeros(len(cells))            # how far each element pulls its edges to the chord
     node_share = np.zeros(len(points))      # per mid-edge node: the largest pull on its edge, so

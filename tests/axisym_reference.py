@@ -400,6 +400,18 @@ class Model:
         return K, L, Mr, nu
 
 
+def _electrode_dofs(mesh, pb, line: ElectrodeLine, tol: float) -> np.ndarray:
+    """Potential DOFs of ``pb`` on an electrode line (its facets on the plane z, r0 <= r <= r1)."""
+    f = mesh.facets_satisfying(lambda x: (np.abs(x[1] - line.z) < tol) & (x[0] > line.r0 - tol) & (x[0] < line.r1 + tol))
+    return pb.get_dofs(f).all()
+
+
+def _potential_scale(stiffness_diag_mean: float, permittivity_diag_mean: float) -> float:
+    """Power of ten that brings the potential block to the magnitude of the stiffness block
+    (unscaled they differ by ~20 orders of magnitude)."""
+    return 10.0 ** round(math.log10(math.sqrt(stiffness_diag_mean / permittivity_diag_mean)))
+
+
 def assemble(sec: Section, h: float, grade_radius: float, fixed=()) -> Model:
     """Mesh the section and assemble the axisymmetric piezo-elastic matrices (P2, P2).
 
@@ -436,19 +448,15 @@ def assemble(sec: Section, h: float, grade_radius: float, fixed=()) -> Model:
     p_all = np.unique(pb.element_dofs[:, piezo]) if piezo.any() else np.array([], dtype=int)
     on = {"hot": [], "ground": []}
     for el in sec.electrodes:
-        f = mesh.facets_satisfying(lambda x, el=el: (np.abs(x[1] - el.z) < tol) & (x[0] > el.r0 - tol) & (x[0] < el.r1 + tol))
-        on[el.role].append(pb.get_dofs(f).all())
+        on[el.role].append(_electrode_dofs(mesh, pb, el, tol))
     hot = np.unique(np.concatenate(on["hot"])) if on["hot"] else np.array([], dtype=int)
     ground = np.unique(np.concatenate(on["ground"])) if on["ground"] else np.array([], dtype=int)
     if len(p_all) and not len(ground):
         raise ParameterError("electrodes", [], "a piezoceramic needs a ground electrode")
     p_free = np.setdiff1d(p_all, np.concatenate([hot, ground]))
-    # scale the potential so that its block has the magnitude of the stiffness block
-    # (unscaled they differ by ~20 orders of magnitude)
     scale = 1.0
     if len(p_all):
-        ratio = sum(Kuu).diagonal()[u_free].mean() / sum(Kpp).diagonal()[p_all].mean()
-        scale = 10.0 ** round(math.log10(math.sqrt(ratio)))
+        scale = _potential_scale(sum(Kuu).diagonal()[u_free].mean(), sum(Kpp).diagonal()[p_all].mean())
     return Model(mesh, owner, sec, Kuu, sp.csr_matrix(Kup), Kpp, sp.csr_matrix(M), u_free, p_free, hot, scale)
 
 
@@ -783,12 +791,9 @@ def harmonic_modes(sec: Section, h: float, grade_radius: float, n: int, near_hz:
         if piezo.any():
             p_all = np.unique(pb.element_dofs[:, piezo])
             on = [pb.get_dofs(axis).all() if len(axis) else np.array([], dtype=int)]    # Phi = 0 on the axis
-            for ln in sec.electrodes:
-                f = mesh.facets_satisfying(lambda x, ln=ln: (np.abs(x[1] - ln.z) < tol) & (x[0] > ln.r0 - tol) & (x[0] < ln.r1 + tol))
-                on.append(pb.get_dofs(f).all())
+            on += [_electrode_dofs(mesh, pb, ln, tol) for ln in sec.electrodes]
             p_free = np.setdiff1d(p_all, np.concatenate(on))
-            ratio = (Tu.T @ Kuu @ Tu).diagonal().mean() / Kpp.diagonal()[p_all].mean()
-            scale = 10.0 ** round(math.log10(math.sqrt(ratio)))
+            scale = _potential_scale((Tu.T @ Kuu @ Tu).diagonal().mean(), Kpp.diagonal()[p_all].mean())
             Tp = sp.identity(pb.N, format="csr")[:, p_free] * scale
             A = sp.bmat([[Tu.T @ Kuu @ Tu, Tu.T @ Kup @ Tp], [Tp.T @ Kup.T @ Tu, -(Tp.T @ Kpp @ Tp)]]).tocsc()
         else:
