@@ -90,6 +90,7 @@ rule was tuned on the working mode only (``geometry.sizing.REVOLVE_GROWTH``).
 from __future__ import annotations
 
 import argparse
+import math
 import resource
 import sys
 import time
@@ -103,6 +104,7 @@ from fem.convergence import ConvergenceStudy, Level
 from fem.modal import modal_analysis, working_mode
 from geometry.design_rpud import default_design
 from geometry.revolve import sectors_per_quarter
+from geometry.sizing import REFINE_RANGE
 
 F_R, F_A = 19682.31, 21410.33
 """Converged working mode of the default design without slots and teeth (axisymmetric (r, z), issue 19)."""
@@ -224,7 +226,11 @@ def parse_variant(text: str) -> dict:
         try:
             v = float(value)
         except ValueError:
-            raise SystemExit(f"--variants: {item!r} is not key=number") from None
+            v = math.nan
+        lo, hi = {"sectors": (1, 24), "refine": REFINE_RANGE}.get(key, (0.1, 100.0))   # caps in mm
+        if not key or not lo <= v <= hi or (key == "sectors" and v != int(v)):
+            raise ValueError(f"--variants: {item!r} must be key=number with {key or 'key'} in [{lo:g}, {hi:g}]"
+                             + (" (an integer)" if key == "sectors" else ""))
         if key == "sectors":
             out["sectors"] = int(v)
         elif key == "refine":
@@ -293,7 +299,12 @@ def main() -> None:
         args.no_crosscheck = True
     if args.sectors or args.variants:
         specs = [f"sectors={n}" for n in args.sectors or []] + list(args.variants or [])
-        variant_study(d, [parse_variant(t) for t in specs], truth=args.no_slots)
+        try:
+            variants = [parse_variant(t) for t in specs]
+        except ValueError as exc:      # before any meshing: one line, exit 2
+            print(f"error: {exc}", file=sys.stderr)
+            sys.exit(2)
+        variant_study(d, variants, truth=args.no_slots)
         return
 
     rows = []
