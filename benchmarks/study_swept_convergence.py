@@ -67,6 +67,9 @@ largest credible order) the refine-1 errors would be bending ~0.18 %, torsion ~0
 f_a ~0.045 %. Only f_a is within its target (0.049 % by the p = 2 bound). The axisymmetric variant's
 working mode at refine 1 is +0.041 % / +0.044 % from its converged (r, z) answer (the cross-check),
 so the default design's slotted, toothed (free-meshed) coupler adds error to f_r.
+Correction (2026-11-26): for torsion, f_r and f_a the p = 2 bound is too small: the coupler's notch
+edges converge at a corner's rate; refined alone (``study_coupler_convergence.py``) they put the
+refine-1 errors at torsion ~+0.28 %, f_r ~+0.09 to +0.11 %, f_a ~+0.07 to +0.09 % (bending +0.20 %).
 
 The sweep's share (``--sectors 3 4 5 6``: refine 1 with more element layers per quarter turn;
 ``geometry.sizing.revolve_sizes`` then also caps the swept regions' section sizes at the shorter

@@ -32,8 +32,9 @@ MESHER_HELP = ("auto (default): revolve where the design can be swept (an RPUD w
                "horn swept from a graded (r, z) section, long elements along the circular edges, the coupler free: "
                "working mode within ~0.05 %% of the converged answer (0.04-0.06 %%) at ~1.6x the DOFs of free. free: every part "
                "meshed freely (fast; +0.45 %% on the working mode of the default design)")
-GRADE_HELP = ("grade the mesh toward the re-entrant edges (flange/horn, horn step): +0.12 %% instead of +0.45 %% "
-              "on the working mode of the default design, ~2x the DOFs (default: off)")
+GRADE_HELP = ("grade the mesh toward the re-entrant edges (flange/horn, horn step; the coupler's slot and tooth "
+              "notches): free mesh +0.12 %% instead of +0.45 %% on the working mode of the default design, ~2x the "
+              "DOFs; swept mesh (notches only) 1.22x the DOFs (default: off)")
 
 _DEFAULT_WORD = "default"
 
