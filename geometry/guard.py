@@ -174,16 +174,11 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         # integral of 2 pi r (3 pi / 2) d dd / h^3 over d > 0 = 3 pi^2 r / (2 g^2 h_edge)
         smallest = min(smallest, e.h_edge)
         n += TETS_PER_CUBE * 1.5 * math.pi ** 2 * e.r / (e.growth ** 2 * e.h_edge)
-    h_zone = sizes.get("@slots", sizes.get("@teeth"))
-    if grade and h_zone:
-        from .notches import NOTCH_ANGLE, NOTCH_FRACTION, NOTCH_GROWTH, notch_length
+    if grade:
+        from .notches import notch_cells
 
-        # a wedge of NOTCH_ANGLE along the notch edges, h = a + g d up to the zone's size H: the
-        # integral of angle d (h^-3 - H^-3) dd = angle / g^2 (1/(2a) - 1/H + a/(2H^2) - (H-a)^2/(2H^3))
-        a, H, g = NOTCH_FRACTION * h_zone, h_zone, NOTCH_GROWTH * refine
-        smallest = min(smallest, a)
-        per_m = NOTCH_ANGLE / g ** 2 * (1 / (2 * a) - 1 / H + a / (2 * H ** 2) - (H - a) ** 2 / (2 * H ** 3))
-        n += TETS_PER_CUBE * per_m * notch_length(design)
+        cells, h_edge = notch_cells(design, sizes, refine)
+        n, smallest = n + TETS_PER_CUBE * cells, min(smallest, h_edge)
     elements = int(min(n, 1e18))
     nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
     dofs = 4 * nodes

@@ -13,10 +13,12 @@ corners got: a size ``h_edge`` on the edge that grows by ``growth`` per unit dis
 
 API
 ---
+``add_notch_field(gmsh, design, sizes, region_vols, refine) -> int | None``: the graded size field
+of a synchronised model (``None``: no notches), used by :func:`geometry.sizing.apply_fields`.
+``notch_cells(design, sizes, refine) -> (float, float)``: the graded wedges' integral of h^-3
+(elements up to the guard's tets-per-cube factor) and the edge size (m), for :mod:`geometry.guard`.
 ``notch_edges(gmsh, design, coupler_vols) -> list[int]``: the curve tags of those edges (after
-fragmenting and synchronising).
-``notch_field(gmsh, curves, h_edge, growth, h_max, vols) -> int``: a Gmsh field, the graded size.
-``notch_length(design) -> float``: the edges' total length (m), for the mesh-size guard.
+fragmenting and synchronising). ``notch_length(design) -> float``: their total length (m).
 
 Opt-in (``grade=True``, CLIs ``--grade``), like the graded edges of the free mesh: on the default
 design's swept mesh it costs 1.22x the DOFs and ~1.3x the modal time (111.6k -> 136.0k DOFs; 9.7 -> 12.4 s).
@@ -30,7 +32,8 @@ import numpy as np
 
 from .design_rpud import RPUDDesign
 
-__all__ = ["notch_edges", "notch_field", "notch_length", "NOTCH_FRACTION", "NOTCH_GROWTH", "NOTCH_ANGLE"]
+__all__ = ["add_notch_field", "notch_cells", "notch_edges", "notch_field", "notch_length", "NOTCH_FRACTION",
+           "NOTCH_GROWTH", "NOTCH_ANGLE"]
 
 NOTCH_FRACTION = 0.4
 """Edge size at a notch's re-entrant edge as a fraction of the slot zone's size (``@slots``, or
@@ -117,3 +120,37 @@ def notch_field(gmsh, curves: list[int], h_edge: float, growth: float, h_max: fl
     field.setNumbers(out, "VolumesList", vols)
     field.setNumber(out, "IncludeBoundary", 1)
     return out
+
+
+def _rule(design, sizes: dict[str, float], refine: float) -> tuple[float, float, float] | None:
+    """``(h_edge, h_zone, growth)`` (m, m, -) of a design's notches, ``None`` without them."""
+    h_zone = sizes.get("@slots", sizes.get("@teeth"))
+    if not isinstance(design, RPUDDesign) or not h_zone:
+        return None
+    return NOTCH_FRACTION * h_zone, h_zone, NOTCH_GROWTH * refine
+
+
+def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str, list[int]],
+                    refine: float) -> int | None:
+    """The graded size field toward the coupler's notch edges (``None`` if it has none)."""
+    rule = _rule(design, sizes, refine)
+    curves = notch_edges(gmsh, design, region_vols["coupler"]) if rule and "coupler" in region_vols else []
+    if not curves:
+        return None
+    h_edge, _h_zone, growth = rule
+    # the default 1e-9 integrates the kinked distance field along every curve for seconds
+    gmsh.option.setNumber("Mesh.LcIntegrationPrecision", 1e-5)
+    return notch_field(gmsh, curves, h_edge, growth, sizes["coupler"], region_vols["coupler"])
+
+
+def notch_cells(design, sizes: dict[str, float], refine: float) -> tuple[float, float]:
+    """The graded wedges' extra integral of h^-3 (m^-3 m^3) beyond the zone's own size, and the edge
+    size (m; ``inf`` without notches): a wedge of :data:`NOTCH_ANGLE` along the edges with
+    h = a + g d up to the zone's size H, integral of angle d (h^-3 - H^-3) dd =
+    angle / g^2 (1/(2a) - 1/H + a/(2H^2) - (H-a)^2/(2H^3)) per metre of edge."""
+    rule = _rule(design, sizes, refine)
+    if rule is None:
+        return 0.0, math.inf
+    a, H, g = rule
+    per_m = NOTCH_ANGLE / g ** 2 * (1 / (2 * a) - 1 / H + a / (2 * H ** 2) - (H - a) ** 2 / (2 * H ** 3))
+    return per_m * notch_length(design), a

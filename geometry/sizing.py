@@ -47,7 +47,7 @@ from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .layers import Layer, layer_plan, rim_fields
 from .materials import Material, get_material
-from . import notches
+from .notches import add_notch_field
 
 __all__ = ["region_sizes", "mesh_layers", "feature_caps", "shear_wavelength", "graded_edges", "GradedEdge", "apply_fields",
            "REFINE_RANGE", "CURVATURE_ELEMENTS", "EDGE_FRACTION", "GROWTH", "MAJOR_STEP",
@@ -384,15 +384,8 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
         field.setString(fid, "F", f"{e.h_edge!r} + {e.growth!r} * Sqrt((Sqrt(x*x + y*y) - {e.r!r})^2 "
                                   f"+ (z - {e.z!r})^2)")
         fields.append(fid)
-    h_zone = sizes.get("@slots", sizes.get("@teeth"))
-    if grade and isinstance(design, RPUDDesign) and h_zone and "coupler" in region_vols:
-        curves = notches.notch_edges(gmsh, design, region_vols["coupler"])
-        if curves:
-            fields.append(notches.notch_field(gmsh, curves, notches.NOTCH_FRACTION * h_zone,
-                                              notches.NOTCH_GROWTH * refine, sizes["coupler"],
-                                              region_vols["coupler"]))
-            # the default 1e-9 integrates the kinked distance field along every curve for seconds
-            gmsh.option.setNumber("Mesh.LcIntegrationPrecision", 1e-5)
+    notch = add_notch_field(gmsh, design, sizes, region_vols, refine) if grade else None
+    fields += [notch] if notch is not None else []
     fmin = field.add("Min")
     field.setNumbers(fmin, "FieldsList", fields)
     field.setAsBackgroundMesh(fmin)

@@ -8,6 +8,8 @@
 * Grading is opt-in (``grade=True``): the default mesh is unchanged; the graded one puts the edge
   size along every apex line (node count within 15 % of length / (h_edge / 2)), the ungraded one
   less than 0.6 of that.
+* The two-level error estimate of ``fem.modal --error`` on the default swept mesh covers the error
+  that the coupler-alone refinement study puts on it (the p = 2 bound of the uniform study did not).
 """
 
 import gmsh
@@ -77,3 +79,30 @@ def test_grading_puts_the_edge_size_along_the_apex_lines(grade):
     # the guard counts the graded wedges only when asked
     assert (estimate(d, refine=refine, grade=grade, mesher="revolve").elements
             > estimate(d, refine=refine, mesher="revolve").elements) == grade
+
+
+DEFAULT_CONVERGED = {"f_r_hz": (19892.7, 19896.8), "f_a_hz": (21647.1, 21651.8)}
+"""Converged working mode of default_design() (Hz, a range): the coupler refined alone with its
+notches graded (benchmarks/study_coupler_convergence.py, p = 2 in the coupler's size from levels
+0.7 / 0.5 and 0.5 / 0.4) plus the swept parts' true error at refine 1 (the design without slots
+and teeth against its converged (r, z) answer, +0.041 % / +0.044 %)."""
+
+
+def test_error_estimate_of_the_default_swept_mesh_covers_the_coupler_study():
+    """``fem.modal --error`` on the default design (swept, refine 1) against the error the coupler
+    study puts on it: at least the smallest of the range, at most 4x its largest (measured 30 / 27 Hz
+    against 18.4-22.5 / 14.6-19.3 Hz)."""
+    import fem
+    from fem.errors import estimate as error_estimate
+
+    d = default_design()
+    tm, _rep = geometry.build(d, mesher="revolve")
+    system = fem.assemble(tm)
+    res = fem.modal_analysis(system, 20e3, 12)
+    w = fem.working_mode(system, res.f_r_hz, res.vectors, 20e3)
+    values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w])}
+    est = error_estimate(d, values, system.ndof, harmonic=False, n_modes=12, mesher="revolve")
+    for key, (lo, hi) in DEFAULT_CONVERGED.items():
+        smallest, largest = values[key] - hi, values[key] - lo
+        assert smallest > 0                                  # converging from above
+        assert smallest <= est.error(key) <= 4 * largest, (key, est.error(key), smallest, largest)
