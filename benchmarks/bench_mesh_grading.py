@@ -78,6 +78,7 @@ def main() -> None:
                  ("swept (--mesher revolve, the command lines' default)", False, "revolve", False)]
         if not known:
             cases.insert(0, ("free, ungraded, earlier modal path (ARPACK)", False, "free", True))
+            cases.append(("swept, notch edges graded (--mesher revolve --grade)", True, "revolve", False))
         for label, graded, mesher, old in cases:
             n, tm, tmod, fr, fa = run(design, graded, mesher, old)
             err = f"{100 * (fr / F_R - 1):+.3f} % / {100 * (fa / F_A - 1):+.3f} %" if known else "-"
