@@ -169,7 +169,11 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
             inside = min(math.prod(box[i + 3] - box[i] for i in range(3)), sum(r[1] for r in _regions(design)))
             smallest = min(smallest, h)
             n += TETS_PER_CUBE * inside / h ** 3
-    for e in (graded_edges(design, sizes, refine) if grade else []):
+    from .revolve import resolve_mesher
+
+    swept = resolve_mesher(design, mesher) == "revolve"
+    # a swept section's graded edges are in REVOLVE_FACTOR: --grade adds only the notches there
+    for e in (graded_edges(design, sizes, refine) if grade and not swept else []):
         # a torus of 270 degrees around the edge with h(d) = h_edge + g d:
         # integral of 2 pi r (3 pi / 2) d dd / h^3 over d > 0 = 3 pi^2 r / (2 g^2 h_edge)
         smallest = min(smallest, e.h_edge)
@@ -184,9 +188,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
     dofs = 4 * nodes
     memory = 3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3)
     est = Estimate(elements=elements, nodes=nodes, dofs=dofs, memory_bytes=memory, smallest_size=smallest)
-    from .revolve import resolve_mesher
-
-    if resolve_mesher(design, mesher) == "revolve":
+    if swept:
         f = REVOLVE_FACTOR
         est = dataclasses.replace(est, elements=int(est.elements * f), nodes=int(est.nodes * f),
                                   dofs=int(est.dofs * f), memory_bytes=est.memory_bytes * f ** (4 / 3))
