@@ -178,11 +178,6 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         # integral of 2 pi r (3 pi / 2) d dd / h^3 over d > 0 = 3 pi^2 r / (2 g^2 h_edge)
         smallest = min(smallest, e.h_edge)
         n += TETS_PER_CUBE * 1.5 * math.pi ** 2 * e.r / (e.growth ** 2 * e.h_edge)
-    if grade:
-        from .notches import notch_cells
-
-        cells, h_edge = notch_cells(design, sizes, refine)
-        n, smallest = n + TETS_PER_CUBE * cells, min(smallest, h_edge)
     elements = int(min(n, 1e18))
     nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
     dofs = 4 * nodes
@@ -192,6 +187,17 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         f = REVOLVE_FACTOR
         est = dataclasses.replace(est, elements=int(est.elements * f), nodes=int(est.nodes * f),
                                   dofs=int(est.dofs * f), memory_bytes=est.memory_bytes * f ** (4 / 3))
+    if grade:
+        # the coupler is free-meshed by both meshers: its notch wedges are added after the swept factor
+        from .notches import notch_cells
+
+        cells, h_edge = notch_cells(design, sizes, refine)
+        extra = int(TETS_PER_CUBE * cells)
+        nodes = est.nodes + int(extra * (1.45 if order == 2 else 0.2))
+        dofs = 4 * nodes
+        est = dataclasses.replace(est, elements=est.elements + extra, nodes=nodes, dofs=dofs,
+                                  memory_bytes=3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3),
+                                  smallest_size=min(est.smallest_size, h_edge))
     return est
 
 

@@ -17,6 +17,8 @@ The smooth case (a free-free steel cylinder, observed order 4.25, order 2 assume
 study's Richardson error) is tests/test_mesh_grading.py's. The teeth ellipse ratio has no exact
 reference (slots and teeth are not axisymmetric): benchmarks/study_discretisation_error.py
 compares its estimate with a 3-D refinement study of the default design (README).
+On the default design itself (slots and teeth, swept mesh) the estimate of ``fem.modal --error``
+is checked against the error that benchmarks/study_coupler_convergence.py puts on that mesh.
 """
 
 import math
@@ -106,3 +108,30 @@ def test_reentrant_edges_detected():
     rod = StackDesign(name="rod", target_frequency=40e3, segments=(Segment("rod", 0.04, material="steel_45",
                                                                            outer_diameter=0.02),))
     assert not has_reentrant_edges(rod)
+
+
+DEFAULT_CONVERGED = {"f_r_hz": (19892.7, 19896.8), "f_a_hz": (21647.1, 21651.8)}
+"""Converged working mode of default_design() (Hz, a range): the coupler refined alone with its
+notches graded (benchmarks/study_coupler_convergence.py, p = 2 in the coupler's size from levels
+0.7 / 0.5 and 0.5 / 0.4) plus the swept parts' true error at refine 1 (the design without slots
+and teeth against its converged (r, z) answer, +0.041 % / +0.044 %)."""
+
+
+def test_error_estimate_of_the_default_swept_mesh_covers_the_coupler_study():
+    """``fem.modal --error`` on the default design (swept, refine 1) against the error the coupler
+    study puts on it: at least the smallest of the range, at most 4x its largest (measured 30 / 27 Hz
+    against 18.4-22.5 / 14.6-19.3 Hz)."""
+    import fem
+    from geometry.design import default_design
+
+    d = default_design()
+    tm, _rep = geometry.build(d, mesher="revolve")
+    system = fem.assemble(tm)
+    res = fem.modal_analysis(system, 20e3, 12)
+    w = fem.working_mode(system, res.f_r_hz, res.vectors, 20e3)
+    values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w])}
+    est = estimate(d, values, system.ndof, harmonic=False, n_modes=12, mesher="revolve")
+    for key, (lo, hi) in DEFAULT_CONVERGED.items():
+        smallest, largest = values[key] - hi, values[key] - lo
+        assert smallest > 0                                  # converging from above
+        assert smallest <= est.error(key) <= 4 * largest, (key, est.error(key), smallest, largest)
