@@ -168,6 +168,9 @@ def launch(module: str, prog: str, func: str = "main") -> int:
     try:
         install_handlers()
         target = getattr(importlib.import_module(module), func)
+        # a signal whose exception the import swallowed (a __del__, C code clearing errors) is
+        # still recorded: report it now, run_cli starts with a clean record
+        raise_pending()
         # by name, like the entry module: rpud_common.cli builds on this module's primitives
         run_cli = importlib.import_module("rpud_common.cli").run_cli
 

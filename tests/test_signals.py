@@ -227,3 +227,24 @@ def test_later_pipeline_stages_end_cleanly(tmp_path, coarse_design, sig, code, w
     _assert_clean_end(rc, err, code, word)
     assert _tree(tmp_path) == before
     assert (out / "old.txt").read_text() == "previous run"
+
+
+def test_signal_swallowed_during_the_imports_is_still_reported(tmp_path):
+    """A SIGINT whose KeyboardInterrupt an imported module swallows (seen once in a full suite: the
+    impact CLI then ran to the end, exit 0 and no line): ``launch`` reports it before ``run_cli``
+    starts with a clean record."""
+    (tmp_path / "swallowing.py").write_text(
+        "import os, signal, time\n"
+        "try:\n"
+        "    os.kill(os.getpid(), signal.SIGINT)\n"
+        "    time.sleep(0.5)\n"
+        "except KeyboardInterrupt:\n"
+        "    pass\n"
+        "def main(argv=None):\n"
+        "    return 0\n")
+    code = ("import sys; sys.path.insert(0, sys.argv[1]); from rpud_common.launch import launch; "
+            "sys.exit(launch('swallowing', prog='swallow'))")
+    env = dict(os.environ, PYTHONPATH=str(ROOT))
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path)], capture_output=True, text=True, timeout=60,
+                       env=env)
+    _assert_clean_end(r.returncode, r.stderr, 130, "interrupted")
