@@ -115,6 +115,11 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
     return out
 
 
+def _memory(dofs: int) -> float:
+    """Peak memory of assembly and factorisation, bytes (fill-in grows as DOFs^(4/3))."""
+    return 3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3)
+
+
 def estimate(design, mesh_size: float | None = None, order: int = 2,
              elements_per_wavelength: float | None = None, refine: float = 1.0,
              grade: bool = False, mesher: str = "free") -> Estimate:
@@ -181,8 +186,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
     elements = int(min(n, 1e18))
     nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
     dofs = 4 * nodes
-    memory = 3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3)
-    est = Estimate(elements=elements, nodes=nodes, dofs=dofs, memory_bytes=memory, smallest_size=smallest)
+    est = Estimate(elements=elements, nodes=nodes, dofs=dofs, memory_bytes=_memory(dofs), smallest_size=smallest)
     if swept:
         f = REVOLVE_FACTOR
         est = dataclasses.replace(est, elements=int(est.elements * f), nodes=int(est.nodes * f),
@@ -196,7 +200,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         nodes = est.nodes + int(extra * (1.45 if order == 2 else 0.2))
         dofs = 4 * nodes
         est = dataclasses.replace(est, elements=est.elements + extra, nodes=nodes, dofs=dofs,
-                                  memory_bytes=3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3),
+                                  memory_bytes=_memory(dofs),
                                   smallest_size=min(est.smallest_size, h_edge))
     return est
 
