@@ -166,12 +166,12 @@ def notch_field(gmsh, curves: list[int], h_edge: float, growth: float, h_max: fl
     return out
 
 
-def _rule(design, sizes: dict[str, float], refine: float) -> tuple[float, float, float] | None:
-    """``(h_edge, h_zone, growth)`` (m, m, -) of a design's notches, ``None`` without them."""
+def _rule(design, sizes: dict[str, float], refine: float) -> tuple[float, float] | None:
+    """``(h_edge, growth)`` (m, -) of a design's notches, ``None`` without them."""
     h_zone = sizes.get("@slots", sizes.get("@teeth"))
     if not isinstance(design, RPUDDesign) or not h_zone:
         return None
-    return NOTCH_FRACTION * h_zone, h_zone, NOTCH_GROWTH * refine
+    return NOTCH_FRACTION * h_zone, NOTCH_GROWTH * refine
 
 
 def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str, list[int]],
@@ -204,8 +204,7 @@ def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str
     curves = notch_edges(gmsh, design, region_vols["coupler"]) if rule and "coupler" in region_vols else []
     if not curves:
         return None
-    h_edge, _h_zone, growth = rule
-    # the default 1e-9 integrates the kinked distance field along every curve for seconds
+    h_edge, growth = rule
     gmsh.option.setNumber("Mesh.LcIntegrationPrecision", 1e-5)
     return notch_field(gmsh, curves, h_edge, growth, sizes["coupler"], region_vols["coupler"])
 
@@ -220,7 +219,6 @@ def notch_cells(design, sizes: dict[str, float], refine: float) -> tuple[float, 
     rule = _rule(design, sizes, refine)
     if rule is None:
         return 0.0, math.inf
-    a, _h_zone, g = rule
-    H = sizes["coupler"]
+    (a, g), H = rule, sizes["coupler"]
     per_m = NOTCH_ANGLE / g ** 2 * (1 / (2 * a) - 1 / H + a / (2 * H ** 2) - (H - a) ** 2 / (2 * H ** 3))
     return per_m * notch_length(design), a

@@ -385,7 +385,8 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
                                   f"+ (z - {e.z!r})^2)")
         fields.append(fid)
     notch = add_notch_field(gmsh, design, sizes, region_vols, refine) if grade else None
-    fields += [notch] if notch is not None else []
+    if notch is not None:
+        fields.append(notch)
     fmin = field.add("Min")
     field.setNumbers(fmin, "FieldsList", fields)
     field.setAsBackgroundMesh(fmin)

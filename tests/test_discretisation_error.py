@@ -122,9 +122,8 @@ def test_error_estimate_of_the_default_swept_mesh_covers_the_coupler_study():
     study puts on it: at least the smallest of the range, at most 4x its largest (measured 30 / 27 Hz
     against 18.4-22.5 / 14.6-19.3 Hz)."""
     import fem
-    from geometry.design import default_design
 
-    d = default_design()
+    d = geometry.default_design()
     tm, _rep = geometry.build(d, mesher="revolve")
     system = fem.assemble(tm)
     res = fem.modal_analysis(system, 20e3, 4)          # the working mode and its neighbours
