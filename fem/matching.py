@@ -45,6 +45,9 @@ Bracketing: from the start value the next trial scales the tuned length by
 tuned), then secant steps with 20 % overshoot follow until the target is bracketed; Brent's
 method finishes inside that bracket. The search never leaves the user's
 bracket (default 0.5x-2x the start value, clipped where the design becomes invalid).
+Every trial length is snapped to a 10 nm grid (1000x finer than the default ``xtol``): the
+solvers' round-off (thread count, BLAS build) moves a secant step by ~1e-13 m, which the grid
+absorbs, so the tuned design, its mesh and everything downstream are the same numbers.
 """
 
 from __future__ import annotations
@@ -71,6 +74,7 @@ __all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half"
 
 log = logging.getLogger(__name__)
 
+GRID_DECIMALS = 8                 # trial lengths in m to 8 decimals: a 10 nm lattice (module docstring)
 FRONT_PARTS = ("horn", "flange")
 BACK_PARTS = ("coupler", "stack", "electrodes")
 
@@ -296,6 +300,10 @@ def _side(design, path: str) -> str:
     raise ParameterError("tune", path, "must be a length of the horn/flange (front) or coupler/stack (back)")
 
 
+def _snap(value: float) -> float:
+    return round(float(value), GRID_DECIMALS)
+
+
 def _tune(evaluate, v0: float, target: float, bounds: tuple[float, float], xtol: float,
           path: str, label: str) -> float:
     """Bracket the root of ``evaluate(v) - target`` from ``v0`` inside ``bounds``, then Brent."""
@@ -350,7 +358,9 @@ def _bounds(design, path: str, factors: tuple[float, float]) -> tuple[float, flo
         if valid(hi):
             break
         hi = 0.5 * (hi + v0)
-    return lo, hi
+    # on the trial lattice, inward: a clipped trial then snaps onto itself, never outside
+    scale = 10.0 ** GRID_DECIMALS
+    return _snap(np.ceil(lo * scale) / scale), _snap(np.floor(hi * scale) / scale)
 
 
 def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh | None = None,
@@ -405,6 +415,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         best = {}
 
         def evaluate(value):
+            value = _snap(value)
             if value in cache:
                 return cache[value]
             _, m = _morphed(design, mesh, path, value)
@@ -424,8 +435,8 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
             return f[i]
 
         v0 = float(design.get(path))
-        tuned = _tune(evaluate, v0, target, _bounds(design, path, settings.bracket), settings.xtol, path,
-                      "the horn side" if name == "horn" else "the working mode")
+        tuned = _snap(_tune(evaluate, v0, target, _bounds(design, path, settings.bracket), settings.xtol,
+                            path, "the horn side" if name == "horn" else "the working mode"))
         new, m = _morphed(design, mesh, path, tuned)
         reuse = (best["system"], best["factor"]) if best.get("value") == tuned else None
         return new, m, prev["shape"], reuse

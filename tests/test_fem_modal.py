@@ -123,15 +123,17 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path, capsys):
 
 
 def test_blas_threads_limits_openblas_only_inside_the_block():
-    from threadpoolctl import threadpool_info
+    from threadpoolctl import threadpool_info, threadpool_limits
 
     from fem.solvers import blas_threads
 
     def openblas():
         return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "openblas"]
 
-    before = openblas()
-    assert before, "numpy/scipy bundle OpenBLAS on every supported platform"
-    with blas_threads(1):
-        assert openblas() == [1] * len(before)
-    assert openblas() == before
+    # two threads outside, whatever the environment asks (make test runs single-threaded)
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = openblas()
+        assert before and set(before) == {2}, "numpy/scipy bundle OpenBLAS on every supported platform"
+        with blas_threads(1):
+            assert openblas() == [1] * len(before)
+        assert openblas() == before
