@@ -40,14 +40,7 @@ axial zones differ from those the mesh was built for by more than ``max_stretch`
 tuned design is meshed afresh and both stages run again from there (few iterations: the start is
 already close).
 
-Bracketing: from the start value the next trial scales the tuned length by
-``(f / f_target)^1.5`` (a quarter-wave section has ``f ~ 1/L``; only part of the resonator is
-tuned), then secant steps with 20 % overshoot follow until the target is bracketed; Brent's
-method finishes inside that bracket. The search never leaves the user's
-bracket (default 0.5x-2x the start value, clipped where the design becomes invalid).
-Every trial length is snapped to a 10 nm grid (1000x finer than the default ``xtol``): the
-solvers' round-off (thread count, BLAS build) moves a secant step by ~1e-13 m, which the grid
-absorbs, so the tuned design, its mesh and everything downstream are the same numbers.
+Bracketing, Brent's method and the 10 nm lattice of trial lengths: :mod:`fem.tuning`.
 """
 
 from __future__ import annotations
@@ -58,9 +51,8 @@ from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
-from scipy.optimize import brentq
 
-from rpud_common import ParameterError, check_integer, check_positive, check_range
+from rpud_common import ParameterError, check_choice, check_integer, check_positive, check_range
 from rpud_common.result import Result
 from geometry.mesh import TaggedMesh
 
@@ -69,12 +61,12 @@ from .eigen import block_eigs, smooth_start
 from .modal import working_mode
 from .modeshape import surface_motion
 from .solvers import blas_threads, factorize
+from .tuning import find_length, snap, valid_bounds
 
 __all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half", "nodal_plane", "default_tune"]
 
 log = logging.getLogger(__name__)
 
-GRID_DECIMALS = 8                 # trial lengths in m to 8 decimals: a 10 nm lattice (module docstring)
 FRONT_PARTS = ("horn", "flange")
 BACK_PARTS = ("coupler", "stack", "electrodes")
 
@@ -107,6 +99,10 @@ class MatchSettings:
         Mesh refinement factor (:mod:`geometry.sizing`; < 1 refines, DOFs ~ refine^-3).
     grade : bool
         Grade the mesh toward the re-entrant edges (off by default; ~2x the DOFs).
+    mesher : str
+        How a re-mesh of the tuned design is built (``geometry.build``): ``"free"`` (default),
+        ``"revolve"`` (stack, flange and horn swept) or ``"auto"``; the mesh passed to
+        :func:`match` should be built the same way.
     order : int
         Field order (2: P2).
     reuse : bool
@@ -127,6 +123,7 @@ class MatchSettings:
     order: int = 2
     refine: float = 1.0
     grade: bool = False
+    mesher: str = "free"
     reuse: bool = True
 
     def __post_init__(self):
@@ -146,6 +143,9 @@ class MatchSettings:
         from geometry.sizing import check_refine
 
         check_refine(self.refine)
+        from geometry.revolve import MESHERS
+
+        check_choice("mesher", self.mesher, MESHERS)
 
 
 # --------------------------------------------------------------------------- morphing
@@ -300,69 +300,6 @@ def _side(design, path: str) -> str:
     raise ParameterError("tune", path, "must be a length of the horn/flange (front) or coupler/stack (back)")
 
 
-def _snap(value: float) -> float:
-    return round(float(value), GRID_DECIMALS)
-
-
-def _tune(evaluate, v0: float, target: float, bounds: tuple[float, float], xtol: float,
-          path: str, label: str) -> float:
-    """Bracket the root of ``evaluate(v) - target`` from ``v0`` inside ``bounds``, then Brent."""
-    lo_b, hi_b = bounds
-    g0 = evaluate(v0) - target
-    if g0 == 0:
-        return v0
-    # a longer section resonates lower; only part of the resonator is tuned, so scale by
-    # (f / f_target)^1.5 rather than ^1, then follow secants (20 % overshoot) until bracketed
-    step = float(np.clip(((g0 + target) / target) ** 1.5, 0.77, 1.3))
-    v_prev, g_prev = v0, g0
-    v = float(np.clip(v0 * step, lo_b, hi_b))
-    seen = [(v0, g0 + target)]
-    while v != v_prev:
-        g = evaluate(v) - target
-        seen.append((v, g + target))
-        if np.sign(g) != np.sign(g_prev):
-            a, b = sorted((v_prev, v))
-            return brentq(lambda x: evaluate(x) - target, a, b, xtol=xtol, rtol=4 * np.finfo(float).eps,
-                          maxiter=60)
-        slope = (g - g_prev) / (v - v_prev)
-        if slope * (v - v_prev) * g < 0:             # the error shrinks: secant, overshoot by 20 %
-            v_next = v - 1.2 * g / slope
-        else:                                         # no progress: keep going the same way
-            v_next = v + (v - v_prev)
-        v_next = float(np.clip(v_next, v - 0.3 * abs(v), v + 0.3 * abs(v)))
-        v_prev, g_prev = v, g
-        v = float(np.clip(v_next, lo_b, hi_b))
-    fs = [f for _, f in seen]
-    raise ParameterError("target_hz", target,
-                         f"outside the bracket: {label} spans {min(fs):.1f}-{max(fs):.1f} Hz for {path} in "
-                         f"[{lo_b * 1e3:.2f}, {hi_b * 1e3:.2f}] mm")
-
-
-def _bounds(design, path: str, factors: tuple[float, float]) -> tuple[float, float]:
-    """The user's bracket, shrunk to where the design is valid (checked on a few trial values)."""
-    v0 = float(design.get(path))
-    lo, hi = v0 * factors[0], v0 * factors[1]
-
-    def valid(v):
-        try:
-            design.replace({path: v})
-            return True
-        except ParameterError:
-            return False
-
-    for _ in range(40):
-        if valid(lo):
-            break
-        lo = 0.5 * (lo + v0)
-    for _ in range(40):
-        if valid(hi):
-            break
-        hi = 0.5 * (hi + v0)
-    # on the trial lattice, inward: a clipped trial then snaps onto itself, never outside
-    scale = 10.0 ** GRID_DECIMALS
-    return _snap(np.ceil(lo * scale) / scale), _snap(np.floor(hi * scale) / scale)
-
-
 def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh | None = None,
           progress: Callable[[dict], None] | None = None) -> MatchResult:
     """Tune the design lengths until horn and coupler resonate together at the target.
@@ -390,7 +327,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
     target = settings.target_hz
     if mesh is None:
         mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine,
-                                   grade=settings.grade)
+                                   grade=settings.grade, mesher=settings.mesher)
     t_mesh = time.perf_counter() - t_start
     iterations: list[dict] = []
     start = {p: float(design.get(p)) for p in settings.tune}
@@ -415,7 +352,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         best = {}
 
         def evaluate(value):
-            value = _snap(value)
+            value = snap(value)
             if value in cache:
                 return cache[value]
             _, m = _morphed(design, mesh, path, value)
@@ -435,8 +372,8 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
             return f[i]
 
         v0 = float(design.get(path))
-        tuned = _snap(_tune(evaluate, v0, target, _bounds(design, path, settings.bracket), settings.xtol,
-                            path, "the horn side" if name == "horn" else "the working mode"))
+        tuned = find_length(evaluate, v0, target, valid_bounds(design, path, settings.bracket), settings.xtol,
+                            path, "the horn side" if name == "horn" else "the working mode")
         new, m = _morphed(design, mesh, path, tuned)
         reuse = (best["system"], best["factor"]) if best.get("value") == tuned else None
         return new, m, prev["shape"], reuse
@@ -468,7 +405,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
                  100 * _distortion(mesh_design, design))
         mesh_design = design
         mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine,
-                                   grade=settings.grade)
+                                   grade=settings.grade, mesher=settings.mesher)
         timings["mesh_s"] += time.perf_counter() - t0
     prev = {"shape": last_shape}
 

@@ -825,13 +825,15 @@ def _surface(mesh, surface: str, axis_point, axis_dir) -> _Surface:
     key = (surface, _key(axis_point, axis_dir))
     if key in ctx.surfaces:
         return ctx.surfaces[key]
-    from skfem import ElementVector, FacetBasis, LinearForm
+    from skfem import ElementVector, LinearForm
     from skfem.helpers import dot
+
+    from .facets import facet_basis
 
     facets = ctx.sk.boundaries[surface]
     if len(facets) == 0:
         raise ParameterError("surface", surface, "is empty")
-    fb = FacetBasis(ctx.sk, ElementVector(ctx.basis.elem), facets=facets)
+    fb = facet_basis(ctx.sk, ElementVector(ctx.basis.elem), facets)
     fr = _frame(mesh, axis_point, axis_dir)
     x = np.moveaxis(np.asarray(fb.global_coordinates()), 0, -1)            # (nf, nq, 3)
     p0, _ = _axis(axis_point, axis_dir)

@@ -45,13 +45,15 @@ _NORMAL_TOL = 1e-6
 
 
 def _facet_basis(system: PiezoSystem, name: str, vector: bool):
-    from skfem import ElementVector, FacetBasis
+    from skfem import ElementVector
+
+    from .facets import facet_basis
 
     facets = system.skmesh.boundaries.get(name) if system.skmesh.boundaries else None
     if facets is None:
         system.mesh.facets(name)            # the clear ParameterError for unknown names
     elem = ElementVector(system.basis.elem) if vector else system.basis.elem
-    return FacetBasis(system.skmesh, elem, facets=facets, intorder=2 * system.order + 2)
+    return facet_basis(system.skmesh, elem, facets, intorder=2 * system.order + 2)
 
 
 def face_area(system: PiezoSystem, name: str) -> float:

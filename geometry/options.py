@@ -28,7 +28,7 @@ MESH_OPTIONS = ("mesh_size", "refine", "grade", "mesher")
 REFINE_HELP = ("refinement factor scaling every mesh-size rule together (region sizes, feature caps, layers, "
                "graded edges, curvature): F < 1 refines, DOFs grow about as F^-3 (default 1; accepted 0.2-5)")
 MESHER_HELP = ("auto (default): revolve where the design can be swept (an RPUD with a stepped or conical horn), "
-               "else free; --match meshes freely under auto. revolve: the stack, flange and "
+               "else free; --match meshes freely under auto (--match --mesher revolve: ~3x its time). revolve: the stack, flange and "
                "horn swept from a graded (r, z) section, long elements along the circular edges, the coupler free: "
                "working mode +0.04 %% from the converged answer without slots and teeth, ~+0.1 %% on the slotted default design, "
                "at ~1.6x the DOFs of free. free: every part meshed freely (fast; ~+0.5 %% on the working mode of the "
@@ -101,9 +101,6 @@ def check_design_options(ns) -> None:
         from .sizing import check_refine
 
         check_refine(ns.refine, "--refine")
-    if getattr(ns, "mesher", "free") == "revolve" and _matching(ns):
-        raise ParameterError("--mesher", "revolve", "is not combined with --match yet (the matching meshes freely); "
-                             "drop one of them")
     if getattr(ns, "select", None) is not None and _design_path(ns) is None:
         raise ParameterError("--select", ns.select, "needs --design FILE")
 

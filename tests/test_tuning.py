@@ -1,0 +1,71 @@
+"""The 1-D length tuning of the matching (fem.tuning) on closed-form frequency laws.
+
+References: the exact root of f(L) = f0 (L0 / L)^p, and the lattice's promise that round-off in
+the frequencies (as a different thread count gives) cannot move the tuned length.
+"""
+
+import numpy as np
+import pytest
+
+from rpud_common import ParameterError
+from fem.tuning import find_length, snap, valid_bounds
+
+F0, L0, P = 20_000.0, 0.05, 0.8          # Hz, m, exponent: a section that resonates lower when longer
+
+
+def _law(noise=0.0, seed=0, trials=None):
+    rng = np.random.default_rng(seed)
+
+    def evaluate(v):
+        v = snap(v)
+        if trials is not None:
+            trials.append(v)
+        return F0 * (L0 / v) ** P * (1.0 + noise * rng.standard_normal())
+    return evaluate
+
+
+def test_finds_the_exact_root_to_xtol_and_tries_only_lattice_lengths():
+    trials = []
+    target = 21_000.0
+    exact = L0 * (F0 / target) ** (1 / P)
+    got = find_length(_law(trials=trials), L0, target, (0.025, 0.1), 1e-7, "horn.length", "the law")
+    assert abs(got - exact) <= 1e-7 + 1e-8
+    assert got == snap(got) and all(t == snap(t) for t in trials)
+    assert len(trials) < 20
+
+
+def test_round_off_in_the_frequencies_does_not_move_the_tuned_length():
+    """1e-13 relative noise (as thread counts give, measured ~1e-14 to 1e-11) on every
+    evaluation: 20 noisy searches return the same length, bit for bit."""
+    got = {find_length(_law(noise=1e-13, seed=s), L0, 20_300.0, (0.025, 0.1), 1e-5, "horn.length", "the law")
+           for s in range(20)}
+    assert len(got) == 1
+
+
+class _Design:
+    """A one-length design that is valid up to ``limit`` (m)."""
+
+    def __init__(self, value, limit):
+        self.value, self.limit = value, limit
+
+    def get(self, path):
+        return self.value
+
+    def replace(self, changes):
+        (v,) = changes.values()
+        if not 0 < v <= self.limit:
+            raise ParameterError("length", v, f"must be in (0, {self.limit}] m")
+        return _Design(v, self.limit)
+
+
+def test_bounds_shrink_to_valid_designs_on_the_lattice():
+    d = _Design(0.05, limit=0.0712345678)
+    lo, hi = valid_bounds(d, "length", (0.5, 2.0))
+    assert lo == pytest.approx(0.025, abs=1e-8) and lo == snap(lo)
+    assert 0.05 < hi <= d.limit and hi == snap(hi)
+    d.replace({"length": hi})                                 # valid: no error
+
+
+def test_a_target_outside_the_bracket_is_a_clear_error():
+    with pytest.raises(ParameterError, match=r"outside the bracket: the law spans .* for horn.length in \[25.00, 100.00\] mm"):
+        find_length(_law(), L0, 40_000.0, (0.025, 0.1), 1e-5, "horn.length", "the law")
