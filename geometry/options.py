@@ -43,7 +43,8 @@ _DEFAULT_WORD = "default"
 def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | None = None,
                        mesh_size_help: str = "base element size, m: replaces the elements-per-wavelength rule of "
                                              "every region; the feature caps, layers, edge grading and curvature "
-                                             "rule stay, so it does not refine uniformly (use --refine)", number_type=float, metavar="FILE"):
+                                             "rule stay, so it does not refine uniformly (use --refine)", number_type=float, metavar="FILE",
+                       mesher_default: str = "auto"):
     """Add the design options to ``parser`` (or an argument group).
 
     Parameters
@@ -54,6 +55,8 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
         Default of ``--design`` (``"default"`` means the built-in design, as ``None`` does).
     number_type : callable
         Parser of ``--mesh-size`` and ``--refine`` (a CLI's own finite-number type, if it has one).
+    mesher_default : str
+        Default of ``--mesher`` (``"free"`` where a time budget is set on the free mesh).
     """
     include = tuple(include)
     if "design" in include:
@@ -76,7 +79,9 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
     if "grade" in include:
         parser.add_argument("--grade", action="store_true", help=GRADE_HELP)
     if "mesher" in include:
-        parser.add_argument("--mesher", choices=("auto", "free", "revolve"), default="auto", help=MESHER_HELP)
+        note = "" if mesher_default == "auto" else f"default here: {mesher_default}. "
+        parser.add_argument("--mesher", choices=("auto", "free", "revolve"), default=mesher_default,
+                            help=note + (MESHER_HELP if mesher_default == "auto" else MESHER_HELP.replace(" (default)", "")))
     return parser
 
 
@@ -112,8 +117,8 @@ def _matching(ns) -> bool:
 def mesh_options(ns, design=None) -> dict:
     """``refine``, ``grade`` and ``mesher`` of the options as keyword arguments of
     ``geometry.build_mesh``, :func:`geometry.guard.check_budget` and the settings that carry them
-    (defaults if absent). ``--mesher auto`` is ``free`` with ``--match`` (the matching meshes
-    freely), else the swept mesher where ``design`` can be swept; without ``design`` it stays
+    (defaults if absent). ``--mesher auto`` is ``free`` with ``--match`` (a swept match takes
+    ~3x the time; ``--mesher revolve`` asks for it), else the swept mesher where ``design`` can be swept; without ``design`` it stays
     ``auto`` (resolved by the builder)."""
     from .revolve import resolve_mesher
 

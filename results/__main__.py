@@ -31,7 +31,8 @@ def build_parser() -> CliParser:
                    help="drive voltage amplitude on the hot electrodes, V (default 225, the article's)")
     p.add_argument("--out", metavar="DIR",
                    help="output folder (default results/default for the built-in design, else results/<name>)")
-    add_design_options(p, include=("mesh_size", "refine", "grade"))
+    # free by default: the minute that `make run` promises is set on the free mesh
+    add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"), mesher_default="free")
     p.add_argument("--q-mech", type=float, default=100.0, metavar="Q",
                    help="mechanical quality factor of the assembled transducer (default 100); 0 = datasheet values")
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")

@@ -42,7 +42,7 @@ def estimate_stage(design, settings, system, modal, w: int, wp, surfaces, near_h
               TIP: wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
     est = estimate(design, values, system.ndof, refine=settings.refine, mesh_size=settings.mesh_size,
                    grade=settings.grade, near_hz=near_hz, q_mech=settings.q_mech, surfaces=tuple(surfaces),
-                   n_modes=4)
+                   n_modes=4, mesher=settings.mesher)
     if say:
         v, e = est.values, est.error
         say(f"      discretisation error ({est.coarse_ndof} DOFs at refine {est.coarse_refine:g}, order {est.order:g}): "
