@@ -231,7 +231,8 @@ def main(argv=None) -> int:
                   f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
         est = _match_error(args, res_m) if args.error else None
         # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
-        text = json_text({**_match_record(res_m, est), "mesher": settings.mesher}, nonfinite="null") if args.json else None
+        record = {**_match_record(res_m, est), "mesher": settings.mesher}
+        text = json_text(record, nonfinite="null") if args.json else None
         if out_design:
             res_m.design.save(out_design)
             print(f"tuned design: {out_design}")

@@ -9,7 +9,8 @@ start value, shrunk to where the design is valid).
 
 The lattice: every trial length is snapped to 10 nm (8 decimals in m, 1000x finer than the
 default ``xtol`` of 10 um). The solvers' round-off, which depends on their thread count and BLAS
-build, moves a secant step by ~1e-13 m; the lattice absorbs it, so the tuned design, its mesh and
+build, moves a secant step by ~1e-13 m; the lattice absorbs it unless the step lands within that
+distance of a rounding boundary (a chance of ~1e-5 per trial), so the tuned design, its mesh and
 everything downstream are the same numbers whatever the threads (tests/test_results_pipeline.py).
 """
 
@@ -34,8 +35,23 @@ def snap(value: float) -> float:
 
 
 def valid_bounds(design, path: str, factors: tuple[float, float]) -> tuple[float, float]:
-    """The user's bracket ``factors`` x the start value of ``path`` (m), shrunk to where the
-    design is valid (checked on a few trial values) and onto the lattice, inward."""
+    """The bracket of a tuned length, m.
+
+    Parameters
+    ----------
+    design : DesignBase
+        The design; ``design.get(path)`` is the start length, m.
+    path : str
+        The tuned length's path.
+    factors : (float, float)
+        The user's bracket as factors of the start length.
+
+    Returns
+    -------
+    (float, float)
+        ``factors`` x the start length, shrunk to where the design is valid (checked on a few
+        trial values) and onto the lattice, inward, m.
+    """
     v0 = float(design.get(path))
     lo, hi = v0 * factors[0], v0 * factors[1]
 
@@ -59,28 +75,62 @@ def valid_bounds(design, path: str, factors: tuple[float, float]) -> tuple[float
     return snap(math.ceil(lo * scale) / scale), snap(math.floor(hi * scale) / scale)
 
 
+def _trial(v: float, towards: float, bounds: tuple[float, float]) -> float:
+    """``towards`` clipped to ``bounds`` and snapped, but at least one lattice cell away from
+    ``v`` (a secant step below 10 nm would otherwise stall on ``v``) unless ``v`` is the bound."""
+    t = snap(np.clip(towards, *bounds))
+    if t == v and towards != v:
+        t = snap(np.clip(v + math.copysign(10.0 ** -GRID_DECIMALS, towards - v), *bounds))
+    return t
+
+
 def find_length(evaluate: Callable[[float], float], v0: float, target: float,
-                bounds: tuple[float, float], xtol: float, path: str, label: str) -> float:
-    """The length (m, on the lattice) at which ``evaluate`` (Hz; it snaps its argument) meets
-    ``target`` (Hz): bracketed from ``v0`` inside ``bounds``, then Brent's method to ``xtol`` (m).
+                bounds: tuple[float, float], xtol: float, path: str, label: str,
+                max_steps: int = 200) -> float:
+    """The length at which ``evaluate`` meets ``target``: bracketed from ``v0``, then Brent's method.
+
+    Parameters
+    ----------
+    evaluate : callable
+        Frequency (Hz) of the design with the length (m); called with lattice lengths while
+        bracketing, and with Brent's own trial points, which it should :func:`snap`.
+    v0 : float
+        Start length, m.
+    target : float
+        Target frequency, Hz.
+    bounds : (float, float)
+        Bracket of the length, m (:func:`valid_bounds`).
+    xtol : float
+        Length tolerance of Brent's method, m (>= the 10 nm lattice).
+    path, label : str
+        The length's name and the model's, for the error message.
+    max_steps : int
+        Bracketing steps before giving up.
+
+    Returns
+    -------
+    float
+        The tuned length on the lattice, m.
 
     Raises
     ------
     ParameterError
-        If the whole bracket passes without crossing the target (``label`` names the model,
-        ``path`` the length in the message).
+        If the whole bracket passes without crossing the target.
     """
     lo_b, hi_b = bounds
+    v0 = snap(v0)
     g0 = evaluate(v0) - target
     if g0 == 0:
-        return snap(v0)
+        return v0
     # a longer section resonates lower; only part of the resonator is tuned, so scale by
     # (f / f_target)^1.5 rather than ^1, then follow secants (20 % overshoot) until bracketed
     step = float(np.clip(((g0 + target) / target) ** 1.5, 0.77, 1.3))
     v_prev, g_prev = v0, g0
-    v = float(np.clip(v0 * step, lo_b, hi_b))
+    v = _trial(v0, v0 * step, bounds)
     seen = [(v0, g0 + target)]
-    while v != v_prev:
+    for _ in range(max_steps):
+        if v == v_prev:                               # stopped at the end of the bracket
+            break
         g = evaluate(v) - target
         seen.append((v, g + target))
         if np.sign(g) != np.sign(g_prev):
@@ -94,7 +144,7 @@ def find_length(evaluate: Callable[[float], float], v0: float, target: float,
             v_next = v + (v - v_prev)
         v_next = float(np.clip(v_next, v - 0.3 * abs(v), v + 0.3 * abs(v)))
         v_prev, g_prev = v, g
-        v = float(np.clip(v_next, lo_b, hi_b))
+        v = _trial(v, v_next, bounds)
     fs = [f for _, f in seen]
     raise ParameterError("target_hz", target,
                          f"outside the bracket: {label} spans {min(fs):.1f}-{max(fs):.1f} Hz for {path} in "

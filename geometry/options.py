@@ -28,7 +28,8 @@ MESH_OPTIONS = ("mesh_size", "refine", "grade", "mesher")
 REFINE_HELP = ("refinement factor scaling every mesh-size rule together (region sizes, feature caps, layers, "
                "graded edges, curvature): F < 1 refines, DOFs grow about as F^-3 (default 1; accepted 0.2-5)")
 MESHER_HELP = ("auto (default): revolve where the design can be swept (an RPUD with a stepped or conical horn), "
-               "else free; --match meshes freely under auto (--match --mesher revolve: ~3x its time). revolve: the stack, flange and "
+               "else free; a match meshes freely under auto (--mesher revolve: a swept match, ~3x the time). "
+               "revolve: the stack, flange and "
                "horn swept from a graded (r, z) section, long elements along the circular edges, the coupler free: "
                "working mode +0.04 %% from the converged answer without slots and teeth, ~+0.1 %% on the slotted default design, "
                "at ~1.6x the DOFs of free. free: every part meshed freely (fast; ~+0.5 %% on the working mode of the "
@@ -43,8 +44,8 @@ _DEFAULT_WORD = "default"
 def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | None = None,
                        mesh_size_help: str = "base element size, m: replaces the elements-per-wavelength rule of "
                                              "every region; the feature caps, layers, edge grading and curvature "
-                                             "rule stay, so it does not refine uniformly (use --refine)", number_type=float, metavar="FILE",
-                       mesher_default: str = "auto"):
+                                             "rule stay, so it does not refine uniformly (use --refine)",
+                       number_type=float, metavar="FILE", mesher_default: str = "auto"):
     """Add the design options to ``parser`` (or an argument group).
 
     Parameters
@@ -80,8 +81,9 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
         parser.add_argument("--grade", action="store_true", help=GRADE_HELP)
     if "mesher" in include:
         note = "" if mesher_default == "auto" else f"default here: {mesher_default}. "
+        text = MESHER_HELP if mesher_default == "auto" else MESHER_HELP.replace(" (default)", "")
         parser.add_argument("--mesher", choices=("auto", "free", "revolve"), default=mesher_default,
-                            help=note + (MESHER_HELP if mesher_default == "auto" else MESHER_HELP.replace(" (default)", "")))
+                            help=note + text)
     return parser
 
 
@@ -111,15 +113,16 @@ def check_design_options(ns) -> None:
 
 
 def _matching(ns) -> bool:
-    return getattr(ns, "match", None) not in (None, False)
+    """True when the command matches: ``--match`` given, or a pipeline without ``--no-match``."""
+    return getattr(ns, "match", None) not in (None, False) or getattr(ns, "no_match", True) is False
 
 
 def mesh_options(ns, design=None) -> dict:
     """``refine``, ``grade`` and ``mesher`` of the options as keyword arguments of
     ``geometry.build_mesh``, :func:`geometry.guard.check_budget` and the settings that carry them
-    (defaults if absent). ``--mesher auto`` is ``free`` with ``--match`` (a swept match takes
-    ~3x the time; ``--mesher revolve`` asks for it), else the swept mesher where ``design`` can be swept; without ``design`` it stays
-    ``auto`` (resolved by the builder)."""
+    (defaults if absent). ``--mesher auto`` is ``free`` when the command matches (a swept match
+    takes ~3x the time; ``--mesher revolve`` asks for it), else the swept mesher where ``design``
+    can be swept; without ``design`` it stays ``auto`` (resolved by the builder)."""
     from .revolve import resolve_mesher
 
     refine = getattr(ns, "refine", None)

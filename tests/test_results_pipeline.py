@@ -134,14 +134,24 @@ def test_rerun_gives_identical_json(run, tmp_path):
 
 def test_another_thread_count_moves_round_off_only_and_never_the_chaotic_stages(run, tmp_path):
     """The solvers' round-off depends on their thread count (measured: up to 1e-11 relative in
-    the FE numbers, 4e-7 in the fitted ring-up). The handed-over A0 and frequency are rounded
+    the FE numbers, 4e-7 in the fitted ring-up; asserted within 1e-5). The handed-over A0 and frequency are rounded
     and the matched lengths snapped to a grid, so the chaotic impact stages see the same inputs
     and give the same statistics, bit for bit."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
+    from fem.solvers import pardiso_available
+
+    if not pardiso_available():
+        pytest.skip("SuperLU runs single-threaded: no thread-dependent round-off to test")
     _, first = run
-    now = max(i["num_threads"] for i in threadpool_info())
-    with threadpool_limits(limits=1 if now > 1 else 2):
+
+    def mkl_threads():
+        return {i["num_threads"] for i in threadpool_info() if i["internal_api"] == "mkl"}
+
+    now = max(mkl_threads(), default=1)
+    other = 1 if now > 1 else 2
+    with threadpool_limits(limits=other):
+        assert mkl_threads() == {other}                                 # PARDISO's threads changed
         second = run_pipeline(DESIGN, SETTINGS, tmp_path / "threads").summary
     a, b = _without_timings(first), _without_timings(second)
     assert a["matching"]["tuned"] == b["matching"]["tuned"]          # the same geometry and mesh
@@ -151,7 +161,7 @@ def test_another_thread_count_moves_round_off_only_and_never_the_chaotic_stages(
     assert [{k: v for k, v in r.items() if not k.endswith("_error")} for r in a["kinetic_energy_table"]] == \
         [{k: v for k, v in r.items() if not k.endswith("_error")} for r in b["kinetic_energy_table"]]
     assert (a["A0"]["used_m"], a["A0"]["unloaded_m"]) == (b["A0"]["used_m"], b["A0"]["unloaded_m"])
-    _assert_close(a, b, rel=1e-6)
+    _assert_close(a, b, rel=1e-5)
 
 
 def _assert_close(x, y, rel, path=""):
@@ -225,6 +235,6 @@ def test_mesher_is_checked_before_anything_runs(tmp_path):
     loft = tmp_path / "loft.toml"
     geometry.default_design().replace({"horn.profile": "exponential"}).save(loft)
     r = subprocess.run([sys.executable, "-m", "results", "--mesher", "revolve", "--design", str(loft),
-                        "--out", str(tmp_path / "x")], capture_output=True, text=True)
+                        "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "stepped or conical" in r.stderr
     assert not (tmp_path / "x").exists()

@@ -249,6 +249,9 @@ def test_auto_mesher_sweeps_what_it_can_and_studies_mesh_freely():
     assert "mesher" not in mesh_options(ns, loft) and "mesher" not in mesh_options(ns, stack)
     assert mesh_options(ns)["mesher"] == "auto" and resolve_mesher(stack, "auto") == "free"
     assert "mesher" not in mesh_options(argparse.Namespace(mesher="auto", match=True), rpud)
+    # python -m results matches unless --no-match: auto is free there too
+    assert "mesher" not in mesh_options(argparse.Namespace(mesher="auto", no_match=False), rpud)
+    assert mesh_options(argparse.Namespace(mesher="auto", no_match=True), rpud)["mesher"] == "revolve"
     for study in ("converge", "error"):
         assert mesh_options(argparse.Namespace(mesher="auto", **{study: 1e-3}), rpud)["mesher"] == "revolve"
     assert inspect.signature(build).parameters["mesher"].default == "free"

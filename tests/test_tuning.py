@@ -17,21 +17,34 @@ def _law(noise=0.0, seed=0, trials=None):
     rng = np.random.default_rng(seed)
 
     def evaluate(v):
-        v = snap(v)
         if trials is not None:
-            trials.append(v)
+            trials.append(v)                          # as find_length passes it
+        v = snap(v)
         return F0 * (L0 / v) ** P * (1.0 + noise * rng.standard_normal())
     return evaluate
 
 
-def test_finds_the_exact_root_to_xtol_and_tries_only_lattice_lengths():
+def test_finds_the_exact_root_to_xtol_and_brackets_on_lattice_lengths():
     trials = []
     target = 21_000.0
     exact = L0 * (F0 / target) ** (1 / P)
-    got = find_length(_law(trials=trials), L0, target, (0.025, 0.1), 1e-7, "horn.length", "the law")
+    got = find_length(_law(trials=trials), L0 + 3.3e-9, target, (0.025, 0.1), 1e-7, "horn.length", "the law")
     assert abs(got - exact) <= 1e-7 + 1e-8
-    assert got == snap(got) and all(t == snap(t) for t in trials)
+    assert got == snap(got)
+    # the start (off the lattice) and the bracketing steps are snapped; Brent's own points are not
+    bracketing = trials[:3]
+    assert all(t == snap(t) for t in bracketing) and bracketing[0] == snap(L0)
     assert len(trials) < 20
+
+
+def test_a_start_a_fraction_of_a_cell_from_the_root_still_brackets():
+    """The first step would be below 10 nm: it is widened to one lattice cell, not mistaken for
+    the end of the bracket."""
+    root = 0.05
+    target = F0 * (L0 / root) ** P
+    start = root - 2e-9                                          # 4e-8 relative: a sub-cell first step
+    got = find_length(_law(), start, target * (1 - 1e-12), (0.025, 0.1), 1e-8, "horn.length", "the law")
+    assert abs(got - root) <= 2e-8
 
 
 def test_round_off_in_the_frequencies_does_not_move_the_tuned_length():
@@ -67,5 +80,13 @@ def test_bounds_shrink_to_valid_designs_on_the_lattice():
 
 
 def test_a_target_outside_the_bracket_is_a_clear_error():
-    with pytest.raises(ParameterError, match=r"outside the bracket: the law spans .* for horn.length in \[25.00, 100.00\] mm"):
+    message = r"outside the bracket: the law spans .* for horn.length in \[25.00, 100.00\] mm"
+    with pytest.raises(ParameterError, match=message):
         find_length(_law(), L0, 40_000.0, (0.025, 0.1), 1e-5, "horn.length", "the law")
+
+
+def test_match_settings_refuse_an_xtol_below_the_lattice():
+    from fem.matching import MatchSettings
+
+    with pytest.raises(ParameterError, match="xtol.*10 nm lattice"):
+        MatchSettings(xtol=1e-9)
