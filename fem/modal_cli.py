@@ -230,6 +230,8 @@ def main(argv=None) -> int:
             print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
                   f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
         est = _match_error(args, res_m) if args.error else None
+        if est is None:
+            print(_mesh_note(args, res_m.design))
         # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
         record = {**_match_record(res_m, est), "mesher": settings.mesher}
         text = json_text(record, nonfinite="null") if args.json else None
@@ -348,7 +350,8 @@ def _match_error(args, res_m):
         values["teeth_ellipse_ratio"] = float(res_m.teeth["ellipse_ratio"])
     with _solver(args.solver):
         est = estimate(res_m.design, values, res_m.system.ndof, refine=args.refine, mesh_size=args.mesh_size,
-                       grade=args.grade, order=args.order, near_hz=res_m.target_hz, harmonic=False)
+                       grade=args.grade, order=args.order, near_hz=res_m.target_hz, harmonic=False,
+                       mesher=mesher_of(args, res_m.design))
     print("\n".join(error_lines(est, teeth="teeth ellipse ratio (mode shape)")))
     return est
 

@@ -213,10 +213,12 @@ def test_matching_on_the_swept_mesh_agrees_with_a_fresh_mesh_of_the_tuned_design
 
     out = tmp_path / "m.json"
     r = subprocess.run([sys.executable, "-m", "fem.modal", "--mesher", "revolve", "--match", "--refine", "2",
-                        "--json", str(out)], capture_output=True, text=True, timeout=300)
+                        "--error", "--json", str(out)], capture_output=True, text=True, timeout=300)
     assert r.returncode == 0, r.stderr[-2000:]
     m = json.loads(out.read_text())
     assert m["mesher"] == "revolve" and m["converged"]
+    # the error estimate's coarse mesh is swept too (order 2; a free one would assume order 1 here)
+    assert "order 2" in m["discretisation_error"]["method"], m["discretisation_error"]["method"]
     assert m["matched_hz"] == pytest.approx(20e3, rel=2e-4)
     assert 0 < abs(m["flange_to_tip_axial_ratio"]) < 0.25                    # the flange facets integrate
     tuned = tmp_path / "rpud-default-tuned.toml"
