@@ -61,7 +61,7 @@ from .eigen import block_eigs, smooth_start
 from .modal import working_mode
 from .modeshape import surface_motion
 from .solvers import blas_threads, factorize
-from .tuning import GRID_DECIMALS, find_length, snap, valid_bounds
+from .tuning import CELL, find_length, snap, valid_bounds
 
 __all__ = ["MatchSettings", "MatchResult", "match", "working_mode", "front_half", "nodal_plane", "default_tune"]
 
@@ -134,7 +134,7 @@ class MatchSettings:
         lo, hi = self.bracket
         if not (0 < lo < 1 < hi):
             raise ParameterError("bracket", self.bracket, "must be two factors lo < 1 < hi, lo > 0")
-        check_range("xtol", self.xtol, 10.0 ** -GRID_DECIMALS, 1e-3, "m (not below the 10 nm lattice of trial lengths)")
+        check_range("xtol", self.xtol, CELL, 1e-3, "m (not below the 10 nm lattice of trial lengths)")
         check_integer("max_rounds", self.max_rounds, 1)
         check_range("max_stretch", self.max_stretch, 0.0, 1.0, lo_open=True)
         check_integer("n_modes", self.n_modes, 1)

@@ -24,9 +24,10 @@ from scipy.optimize import brentq
 
 from rpud_common import ParameterError
 
-__all__ = ["GRID_DECIMALS", "snap", "valid_bounds", "find_length"]
+__all__ = ["GRID_DECIMALS", "CELL", "snap", "valid_bounds", "find_length"]
 
 GRID_DECIMALS = 8                 # lengths in m to 8 decimals: the 10 nm lattice
+CELL = 10.0 ** -GRID_DECIMALS     # m, one cell of the lattice
 
 
 def snap(value: float) -> float:
@@ -80,7 +81,7 @@ def _trial(v: float, towards: float, bounds: tuple[float, float]) -> float:
     ``v`` (a secant step below 10 nm would otherwise stall on ``v``) unless ``v`` is the bound."""
     t = snap(np.clip(towards, *bounds))
     if t == v and towards != v:
-        t = snap(np.clip(v + math.copysign(10.0 ** -GRID_DECIMALS, towards - v), *bounds))
+        t = snap(np.clip(v + math.copysign(CELL, towards - v), *bounds))
     return t
 
 

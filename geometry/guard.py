@@ -115,6 +115,11 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
     return out
 
 
+def _nodes(elements: int, order: int) -> int:
+    """Nodes of a tetrahedral mesh of ``elements`` cells (vertices, and edge midpoints at order 2)."""
+    return int(elements * (1.45 if order == 2 else 0.2))
+
+
 def _memory(dofs: int) -> float:
     """Peak memory of assembly and factorisation, bytes (fill-in grows as DOFs^(4/3))."""
     return 3e8 + 1e4 * dofs * (dofs / 7e4) ** (1 / 3)
@@ -184,7 +189,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
         smallest = min(smallest, e.h_edge)
         n += TETS_PER_CUBE * 1.5 * math.pi ** 2 * e.r / (e.growth ** 2 * e.h_edge)
     elements = int(min(n, 1e18))
-    nodes = int(elements * (1.45 if order == 2 else 0.2)) + 1
+    nodes = _nodes(elements, order) + 1
     dofs = 4 * nodes
     est = Estimate(elements=elements, nodes=nodes, dofs=dofs, memory_bytes=_memory(dofs), smallest_size=smallest)
     if swept:
@@ -197,7 +202,7 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
 
         cells, h_edge = notch_cells(design, sizes, refine)
         extra = int(TETS_PER_CUBE * cells)
-        nodes = est.nodes + int(extra * (1.45 if order == 2 else 0.2))
+        nodes = est.nodes + _nodes(extra, order)
         dofs = 4 * nodes
         est = dataclasses.replace(est, elements=est.elements + extra, nodes=nodes, dofs=dofs,
                                   memory_bytes=_memory(dofs),
