@@ -37,6 +37,8 @@ from .tagging import parametric_model
 from .revolve import (MESHERS, orient, place_midnodes, quad_triangles, resolve_mesher, sectors_per_quarter,
                       split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP, _VTK_EDGES)
 from .mesh import Electrode, Region, TaggedMesh
+from .sector import check_sectors, set_periodic
+from .sector_sweep import mesh_swept_sector
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
 __all__ = ["build", "build_mesh", "BuildReport", "MESHERS", "shear_wavelength", "region_sizes", "mesh_layers", "ALGORITHMS",
@@ -85,6 +87,8 @@ class BuildReport:
     order: int
     algorithm: str
     mesher: str = "free"
+    sectors: int | None = None
+    """The mesh is one of this many identical sectors (:mod:`geometry.sector`); None: the whole drill."""
     n_nodes: int = 0
     n_elements: int = 0
     region_sizes: dict[str, float] = field(default_factory=dict)
@@ -95,7 +99,7 @@ class BuildReport:
     def as_dict(self) -> dict[str, Any]:
         return {
             "design": self.design, "order": self.order, "algorithm": self.algorithm, "mesher": self.mesher,
-            "n_nodes": self.n_nodes, "n_elements": self.n_elements,
+            "sectors": self.sectors, "n_nodes": self.n_nodes, "n_elements": self.n_elements,
             "mesh_size_m": self.region_sizes, "physical_groups": self.physical_groups,
             "quality": self.quality, "timings_s": self.timings,
         }
@@ -113,7 +117,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
           verbose: bool = False, msh_path: str | None = None,
           time_limit: float | None = None, refine: float = 1.0,
-          grade: bool = False, mesher: str = "free") -> tuple[TaggedMesh, BuildReport]:
+          grade: bool = False, mesher: str = "free", sectors: int | None = None) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
 
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
@@ -126,6 +130,8 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     """
     refine = check_refine(refine)
     mesher = resolve_mesher(design, mesher)
+    if sectors is not None:
+        sectors = check_sectors(design, sectors)
     if time_limit is None:
         env = os.environ.get("RPUD_GMSH_TIMEOUT")
         try:
@@ -166,7 +172,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path, refine, grade, mesher)
+                                   msh_path, refine, grade, mesher, sectors)
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -204,7 +210,8 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
            elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
            verbose: bool = False, msh_path: str | None = None,
-           refine: float = 1.0, grade: bool = False, mesher: str = "free") -> tuple[TaggedMesh, BuildReport]:
+           refine: float = 1.0, grade: bool = False, mesher: str = "free",
+           sectors: int | None = None) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -235,6 +242,10 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         (:mod:`geometry.revolve`), the coupler free; ``"free"``: every part meshed freely (the
         library's default: fast, the pipeline and the studies use it); ``"auto"``: ``revolve``
         where the design can be swept, else ``free`` (the command lines' default).
+    sectors : int, optional
+        Mesh only the sector ``0 <= theta <= 2 pi / sectors`` of a cyclically symmetric RPUD
+        (:mod:`geometry.sector`), its far cut face a rotated copy of the near one (swept:
+        :mod:`geometry.sector_sweep`).
 
     Returns
     -------
@@ -251,7 +262,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     per_quarter = sectors_per_quarter(refine) if mesher == "revolve" else None
     if per_quarter:
         sizes = revolve_sizes(design, sizes, per_quarter)
-    report = BuildReport(design=design.name, order=order, algorithm=algorithm, mesher=mesher,
+    report = BuildReport(design=design.name, order=order, algorithm=algorithm, mesher=mesher, sectors=sectors,
                          region_sizes={k: float(v) for k, v in sizes.items()})
     t_start = time.perf_counter()
     # initialised by build() in the main thread (not interruptible: Gmsh would set SIGINT to
@@ -265,6 +276,17 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         gmsh.option.setNumber("Mesh.RandomSeed", 1)
         gmsh.model.add(design.name)
 
+        if sectors and per_quarter:
+            t0 = time.perf_counter()
+            tm, swept, folded = mesh_swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter,
+                                                  ALGORITHMS[algorithm], SNAP_M, MIN_SICN_DEFAULT)
+            if order == 2:
+                points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=1.0)
+                tm = tm.replace(points=points)
+            report.quality.update(swept_quality(tm, swept))
+            report.timings["mesh"] = time.perf_counter() - t0
+            return _finish(tm, report, t_start)
+
         # ---- solids and their names
         t0 = time.perf_counter()
         layers = mesh_layers(design, mesh_size, elements_per_wavelength, refine)
@@ -272,7 +294,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             vols, labels = import_step(gmsh, design.step)
             region_vols, region_meta, facet_surfs = apply_rules(gmsh, design, vols, labels)
         else:
-            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers, per_quarter)
+            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers, per_quarter, sectors)
+            if sectors:
+                set_periodic(gmsh, [v for vs in region_vols.values() for v in vs], sectors)
         report.timings["geometry"] = time.perf_counter() - t0
         clash = sorted(set(region_vols) & set(facet_surfs))
         if clash:
@@ -357,11 +381,16 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
                                             "elements": int(len(tm.facet_sets[name]))}
     finally:
         gmsh.finalize()
+    return _finish(tm, report, t_start)
+
+
+def _finish(tm: TaggedMesh, report: BuildReport, t_start: float) -> tuple[TaggedMesh, BuildReport]:
     report.n_nodes, report.n_elements = tm.n_points, tm.n_cells
     report.timings["total"] = time.perf_counter() - t_start
-    log.info("meshed %s: %d nodes, %d order-%d tetrahedra in %.2f s (min SICN %.3f)", design.name,
-             tm.n_points, tm.n_cells, order, report.timings["total"], report.quality.get("min_sicn", float("nan")))
+    log.info("meshed %s: %d nodes, %d order-%d tetrahedra in %.2f s (min SICN %.3f)", report.design,
+             tm.n_points, tm.n_cells, report.order, report.timings["total"], report.quality.get("min_sicn", float("nan")))
     return tm, report
+
 
 def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_vols=frozenset()):
     node_tags, coords, _ = gmsh.model.mesh.getNodes()

@@ -339,7 +339,7 @@ def graded_edges(design: DesignBase, sizes: dict[str, float], refine: float = 1.
 
 def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols: dict[str, list[int]],
                  refine: float = 1.0, *, layers: dict[str, Layer] | None = None, grade: bool = False,
-                 revolve: bool = False) -> None:
+                 revolve: bool = False, region_faces: dict[str, list[int]] | None = None) -> None:
     """Install the size fields and the size options of a synchronised Gmsh model.
 
     Parameters
@@ -360,6 +360,9 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
     revolve : bool
         The bodies of revolution are a swept section: their edges graded by the section's rule
         (whatever ``grade``).
+    region_faces : dict, optional
+        Region name -> Gmsh face tags of regions meshed as faces only (a swept sector's section,
+        :mod:`geometry.sector_sweep`).
     """
     field = gmsh.model.mesh.field
     fields = []
@@ -367,6 +370,12 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
         fid = field.add("Constant")
         field.setNumber(fid, "VIn", sizes[region])
         field.setNumbers(fid, "VolumesList", vols)
+        field.setNumber(fid, "IncludeBoundary", 1)
+        fields.append(fid)
+    for region, faces in (region_faces or {}).items():
+        fid = field.add("Constant")
+        field.setNumber(fid, "VIn", sizes[region])
+        field.setNumbers(fid, "SurfacesList", faces)
         field.setNumber(fid, "IncludeBoundary", 1)
         fields.append(fid)
     for key, (_cap, box, _region) in feature_caps(design)[1].items():

@@ -18,7 +18,7 @@ from .design_stack import StackDesign
 from .layers import Layer, make_layer
 from .revolve import revolved_parts, stack_regions
 
-__all__ = ["make_rpud", "make_stack"]
+__all__ = ["make_rpud", "make_coupler", "make_stack"]
 
 
 def _annular_cylinder(occ, z0, length, r_out, r_in):
@@ -127,13 +127,10 @@ def _horn(occ, h, z0, bore):
     return vols
 
 
-def make_rpud(occ, d: RPUDDesign, revolve: int | None = None):
-    """OCC solids of the RPUD: list of (region, part, material, poling, dimtags); with
-    ``revolve`` (element layers per quarter turn) the stack, flange and horn are swept from
-    their (r, z) section (:func:`geometry.revolve.revolved_parts`)."""
-    c, s, f = d.coupler, d.stack, d.flange
-    pieces = []
-    # ---- coupler
+def make_coupler(occ, d: RPUDDesign, sectors: int | None = None):
+    """OCC solid(s) of the coupler (teeth gaps and slots cut away); ``sectors``: only its part
+    in 0 <= theta <= 2 pi / sectors."""
+    c = d.coupler
     body = _annular_cylinder(occ, -c.length, c.length, c.outer_diameter / 2, d.coupler_bore / 2)
     tools = []
     R = c.outer_diameter / 2
@@ -149,7 +146,19 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None):
             tools += _slot_tool(occ, c, z_slot, _slot_phase(c) + 2 * math.pi * k / c.n_slots)
     if tools:
         body, _ = occ.cut(body, tools)
-    pieces.append(("coupler", "coupler", c.material, None, body))
+    if sectors:
+        wedge = _sector_prism(occ, 0.0, 2 * math.pi / sectors, R + 1e-3, -c.length - 1e-3, c.length + 2e-3)
+        body, _ = occ.intersect(body, wedge)
+    return body
+
+
+def make_rpud(occ, d: RPUDDesign, revolve: int | None = None, sectors: int | None = None):
+    """OCC solids of the RPUD: list of (region, part, material, poling, dimtags); with
+    ``revolve`` (element layers per quarter turn) the stack, flange and horn are swept from
+    their (r, z) section (:func:`geometry.revolve.revolved_parts`). ``sectors`` (free parts
+    only): every part cut down to the sector 0 <= theta <= 2 pi / sectors (:mod:`geometry.sector`)."""
+    s, f = d.stack, d.flange
+    pieces = [("coupler", "coupler", d.coupler.material, None, make_coupler(occ, d))]
     if revolve:
         return pieces + revolved_parts(occ, d, revolve)
     # ---- stack
@@ -159,7 +168,21 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None):
     pieces.append(("flange_disc", "flange", f.material, None,
                    _annular_cylinder(occ, zf, f.thickness, f.outer_diameter / 2, d.bore_diameter / 2)))
     pieces.append(("horn", "horn", d.horn.material, None, _horn(occ, d.horn, zf + f.thickness, d.bore_diameter)))
-    return pieces
+    return _sector(occ, d, pieces, sectors)
+
+
+def _sector(occ, d: RPUDDesign, pieces, sectors):
+    """``pieces`` cut down to the sector 0 <= theta <= 2 pi / sectors (all of them: None)."""
+    if not sectors:
+        return pieces
+    r = max(d.coupler.outer_diameter, d.stack.outer_diameter, d.flange.outer_diameter, d.horn.back_diameter) / 2
+    z0, z1 = -d.coupler.length - 1e-3, d.stack.length + d.flange.thickness + d.horn.length + 1e-3
+    out = []
+    for region, part, material, poling, dimtags in pieces:
+        wedge = _sector_prism(occ, 0.0, 2 * math.pi / sectors, r + 1e-3, z0, z1 - z0)
+        kept, _ = occ.intersect(dimtags, wedge)
+        out.append((region, part, material, poling, kept))
+    return out
 
 
 def make_stack(occ, d: StackDesign, layers: dict[str, Layer]):

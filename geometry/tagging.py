@@ -64,15 +64,16 @@ def surface_rules(d: DesignBase) -> list[tuple[str, str, str, float, float]]:
     return rules
 
 
-def parametric_model(gmsh, design: DesignBase, layers, revolve: int | None = None):
+def parametric_model(gmsh, design: DesignBase, layers, revolve: int | None = None, sectors: int | None = None):
     """Solids of a parametric design, fragmented, with their regions and named faces
-    (``revolve``: an RPUD's bodies of revolution swept, see :func:`geometry.solids.make_rpud`).
+    (``revolve``: an RPUD's bodies of revolution swept, ``sectors``: one sector of them, see
+    :func:`geometry.solids.make_rpud`).
 
     Returns ``(region_vols, region_meta, facet_surfs)``: region -> volume tags, region ->
     (part, material, poling), facet set -> face tags.
     """
     occ = gmsh.model.occ
-    pieces = make_rpud(occ, design, revolve) if isinstance(design, RPUDDesign) else make_stack(occ, design, layers)
+    pieces = make_rpud(occ, design, revolve, sectors) if isinstance(design, RPUDDesign) else make_stack(occ, design, layers)
     all_tags = [dt for p in pieces for dt in p[4]]
     if len(all_tags) > 1:
         _out, out_map = occ.fragment(all_tags, [])
