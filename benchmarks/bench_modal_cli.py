@@ -46,7 +46,14 @@ def timed(cmd: list[str], cwd: Path) -> tuple[float, float, str]:
 def summary(stdout: str) -> tuple[str, str]:
     """DOFs and the longitudinal mode's f_r / f_a (kHz) from a fem.modal table."""
     dofs = re.search(r"^(\d+) DOFs", stdout, re.M)
-    mode = re.search(r"^\s*\d+\s+([\d.]+)\s+([\d.]+).*longitudinal", stdout, re.M)
+    # a cyclic run (fem.cyclic_cli): a harmonic column before f_r, the reduced unknowns per harmonic
+    mode = (re.search(r"^\s*\d+\s+0\s+([\d.]+)\s+([\d.]+).*longitudinal", stdout, re.M)
+            or re.search(r"^\s*\d+\s+([\d.]+)\s+([\d.]+).*longitudinal", stdout, re.M))
+    if dofs is None:
+        cyc = re.search(r"reduced unknowns (k=0 \d+), (k=1 \d+)", stdout)
+        if cyc:
+            return (f"{cyc.group(1)} / {cyc.group(2)} (sector)",
+                    f"{float(mode.group(1)) * 1e3:.1f} / {float(mode.group(2)) * 1e3:.1f}" if mode else "?")
     return (f"{int(dofs.group(1)):,}" if dofs else "?",
             f"{float(mode.group(1)) * 1e3:.1f} / {float(mode.group(2)) * 1e3:.1f}" if mode else "?")
 

@@ -36,7 +36,7 @@ from .assembly import PiezoSystem
 from .eigen import block_eigs, smooth_start
 from .solvers import blas_threads, factorize
 
-__all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics"]
+__all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "harmonic_shares", "harmonic_labels", "expand"]
 
 log = logging.getLogger(__name__)
 
@@ -133,17 +133,22 @@ def cyclic_basis(system: PiezoSystem, pairs: SectorPairs, k: int, electrical: st
 
 
 def _real_pencil(T: sp.csr_matrix, K: sp.csr_matrix, M: sp.csr_matrix):
-    """``(K_r, M_r, T_r)``: the reduced real pencil and its real basis (doubled if ``T`` is complex)."""
+    """``(K_r, M_r, T_r)``: the reduced real pencil and its real basis. A complex ``T = A + i B``
+    gives the Hermitian ``H = T^H K T`` as the real symmetric ``[[Re H, -Im H], [Im H, Re H]]``
+    over ``q = [Re q; Im q]``, with ``T_r = [[A, -B], [B, A]]``."""
     A, B = T.real.tocsr(), T.imag.tocsr()
     B.eliminate_zeros()
     if B.nnz == 0:
-        Tr = A
-    else:
-        Tr = sp.bmat([[A, -B], [B, A]], format="csr")
-        K, M = sp.block_diag([K, K], format="csr"), sp.block_diag([M, M], format="csr")
-    Kr = (Tr.T @ K @ Tr).tocsr()
-    Mr = (Tr.T @ M @ Tr).tocsr()
-    return Kr, Mr, Tr
+        At = A.T.tocsr()
+        return (At @ (K @ A)).tocsr(), (At @ (M @ A)).tocsr(), A
+    At, Bt = A.T.tocsr(), B.T.tocsr()
+    out = []
+    for X in (K, M):
+        XA, XB = (X @ A).tocsr(), (X @ B).tocsr()
+        Hr = (At @ XA + Bt @ XB).tocsr()
+        Hi = (At @ XB - Bt @ XA).tocsr()
+        out.append(sp.bmat([[Hr, -Hi], [Hi, Hr]], format="csr"))
+    return out[0], out[1], sp.bmat([[A, -B], [B, A]], format="csr")
 
 
 @dataclass
@@ -167,19 +172,36 @@ class CyclicModes:
     timings: dict = field(default_factory=dict)
 
 
-def _solve(Kr, Mr, Tr, system, n_modes, sigma, backend, tol):
+def _solve(Kr, Mr, Tr, system, n_modes, sigma, backend, tol, hot: bool = False):
     """Eigenpairs of the reduced pencil nearest ``sigma`` (block shift-invert Lanczos, started
-    from the smooth fields of :func:`fem.eigen.smooth_start` projected onto the harmonic)."""
+    from the smooth fields of :func:`fem.eigen.smooth_start` projected onto the harmonic).
+
+    ``hot``: the last unknown is the hot electrode's potential; the pencil without it is the
+    short circuit, and the open circuit comes from the same Lanczos run (the bordered
+    Rayleigh-Ritz of :mod:`fem.modal`). Returns ``(lam, vectors, lam_open, vectors_open)`` (the
+    open ones None without ``hot`` or when the joint run could not give them).
+    """
+    if hot:
+        krow = Kr[-1].toarray().ravel()
+        a_hot, alpha = krow[:-1], float(krow[-1])
+        Kr, Mr, Tr = Kr[:-1, :-1].tocsr(), Mr[:-1, :-1].tocsr(), Tr[:, :-1]
     F = factorize((Kr - sigma * Mr).tocsr(), backend=backend, matching=False)
     n = Kr.shape[0]
     b = min(max(8, n_modes // 2 + 2), max(n - 2, 1))
     x = smooth_start(system.nodes, np.arange(system.ndof), system.ndof, b, n_random=max(2, b // 4))
     if Tr.shape[0] != system.ndof:            # the doubled pencil: both halves
         x = np.vstack([x, np.roll(x, 1, axis=1)])
-    start = Tr.T @ x
+    start = np.asarray(Tr.T @ x)
+    border = None
+    if hot:
+        z = np.asarray(F(a_hot)).ravel()
+        border = (a_hot, alpha, z)
+        start = np.column_stack([start, z / np.linalg.norm(z)])
     with blas_threads(1):
-        res = block_eigs(F, Kr, Mr, sigma, start, n_wanted=min(n_modes, n - 2), tol=tol)
-    return res.lam, res.vectors
+        res = block_eigs(F, Kr, Mr, sigma, start, n_wanted=min(n_modes, n - 2), tol=tol, border=border)
+    if hot and res.converged_open and res.lam_open is not None:
+        return res.lam, res.vectors, res.lam_open, res.vectors_open
+    return res.lam, res.vectors, None, None
 
 
 def _freq(lam):
@@ -218,32 +240,40 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
     # rigid motions of the harmonic: k = 0 axial translation and spin, k = 1 the lateral ones
     extra = (2 if harmonic in (0, 1) else 0) if free_body else 0
 
-    def run(electrical):
+    joint = harmonic == 0 and open_circuit and system.hot_dof is not None
+
+    def run(electrical, hot=False):
         T = cyclic_basis(system, pairs, harmonic, electrical, clamp)
         Kr, Mr, Tr = _real_pencil(T, system.K, system.M)
         doubled = Tr.shape[1] != T.shape[1]
         want = (n_modes + extra) * (2 if doubled else 1)
-        lam, vec = _solve(Kr, Mr, Tr, system, want, sigma, backend, tol)
-        order = np.argsort(lam)
-        f, vec = _freq(lam[order]), vec[:, order]
-        nq = T.shape[1]
-        q = vec[:nq] + 1j * vec[nq:] if doubled else vec.astype(complex)
-        f, q = _collapse(f, q, doubled)
-        x = T @ q
-        return f, x, Kr.shape[0]
+        lam, vec, lam_o, vec_o = _solve(Kr, Mr, Tr, system, want, sigma, backend, tol, hot=hot)
+        nq = T.shape[1] - int(hot)
+        out = []
+        for lam_, vec_, T_ in ((lam, vec, T[:, :nq]), (lam_o, vec_o, T)):
+            if lam_ is None:
+                out.append(None)
+                continue
+            order = np.argsort(lam_)
+            f, v = _freq(lam_[order]), vec_[:, order]
+            m = T_.shape[1]
+            q = v[:m] + 1j * v[m:] if doubled else v.astype(complex)
+            f, q = _collapse(f, q, doubled)
+            out.append((f, T_ @ q))
+        return out[0], out[1], Kr.shape[0] - int(hot)
 
-    f, x, ndof = run("short")
+    (f, x), opened, ndof = run("open" if joint else "short", hot=joint)
     rigid = np.abs(f) < rigid_hz
     f_r, x_r = f[~rigid], x[:, ~rigid]
-    order = np.argsort(np.abs(f_r - near_hz))[:n_modes]
-    order = np.sort(order)
+    order = np.sort(np.argsort(np.abs(f_r - near_hz))[:n_modes])
     f_r, x_r = f_r[order], x_r[:, order]
     t1 = time.perf_counter()
-    if harmonic == 0 and open_circuit and system.hot_dof is not None:
-        f_o, x_o, _ = run("open")
+    if joint:
+        if opened is None:         # the joint run lost the border: the open circuit on its own
+            opened = run("open")[0]
+        f_o, x_o = opened
         keep = np.abs(f_o) >= rigid_hz
-        f_o, x_o = f_o[keep], x_o[:, keep]
-        f_open = _pair_open(system, x_r, x_o, f_o)
+        f_open = _pair_open(system, x_r, x_o[:, keep], f_o[keep])
     else:
         f_open = f_r.copy()
     t2 = time.perf_counter()
@@ -265,3 +295,65 @@ def _pair_open(system, x_r, x_o, f_o, mac_min: float = 0.5):
     mac = cross / np.outer(na, nb)
     best = mac.argmax(axis=1)
     return np.where(mac.max(axis=1) >= mac_min, f_o[best], np.nan)
+
+
+def harmonic_shares(system: PiezoSystem, x: np.ndarray) -> np.ndarray:
+    """``(n, 3)`` kinetic-energy shares of sector vectors ``x`` (``(ndof, n)``, complex) in
+    axial, tangential and radial motion (node-wise cylindrical projection, consistent mass)."""
+    theta = np.arctan2(system.nodes[:, 1], system.nodes[:, 0])
+    c, s = np.cos(theta)[:, None], np.sin(theta)[:, None]
+    u = x[: system.n_u].reshape(system.n_nodes, 3, -1)          # node, component, mode
+    ur = c * u[:, 0] + s * u[:, 1]
+    ut = -s * u[:, 0] + c * u[:, 1]
+    zero = np.zeros_like(ur)
+    fields = (np.stack([zero, zero, u[:, 2]], axis=1), np.stack([-s * ut, c * ut, zero], axis=1),
+              np.stack([c * ur, s * ur, zero], axis=1))
+    Mu = system.M[: system.n_u, : system.n_u]
+    e = np.stack([np.real(np.einsum("ij,ij->j", f.reshape(system.n_u, -1).conj(), Mu @ f.reshape(system.n_u, -1)))
+                  for f in fields], axis=1)
+    return e / np.maximum(e.sum(axis=1, keepdims=True), 1e-300)
+
+
+def harmonic_labels(shares: np.ndarray, harmonic: int, coupled: float = 0.15) -> list[str]:
+    """Labels of :data:`fem.modeshape.LABELS` for modes of ``harmonic`` with ``shares`` (axial,
+    tangential, radial): ``k = 0`` longitudinal / torsional / longitudinal-torsional / radial by
+    the largest share; ``k = 1`` is bending (a cross-section that tilts moves axially too);
+    ``k >= 2`` radial (lobed)."""
+    if harmonic == 1:
+        return ["bending"] * len(shares)
+    if harmonic > 1:
+        return ["radial"] * len(shares)
+    out = []
+    for a, t, r in shares:
+        if a >= coupled and t >= coupled:
+            out.append("longitudinal-torsional")
+        else:
+            out.append(("longitudinal", "torsional", "radial")[int(np.argmax([a, t, r]))])
+    return out
+
+
+def expand(system: PiezoSystem, x: np.ndarray, harmonic: int, sectors: int, nodes: np.ndarray) -> np.ndarray:
+    """The whole drill's displacement ``(n, len(nodes), 3)`` (complex) at ``nodes`` (m; e.g. the
+    P2 nodes of :func:`geometry.sector.replicate`'s mesh) from sector vectors ``x``: node
+    ``p`` in copy ``s`` (``theta`` in ``[s alpha, (s+1) alpha]``) moves as
+    ``exp(i k s alpha) R(s alpha) u(R(-s alpha) p)``. Its real and imaginary parts are the two
+    members of a pair (``k > 0``)."""
+    from scipy.spatial import cKDTree
+
+    alpha = 2 * math.pi / sectors
+    theta = np.mod(np.arctan2(nodes[:, 1], nodes[:, 0]), 2 * math.pi)
+    copy = np.minimum(np.floor(theta / alpha + 1e-9).astype(np.int64), sectors - 1)
+    copy[np.hypot(nodes[:, 0], nodes[:, 1]) < 1e-12] = 0
+    back = np.empty_like(nodes)
+    for s in range(sectors):
+        m = copy == s
+        back[m] = nodes[m] @ rotation(s * alpha)        # rotated by -s alpha
+    dist, j = cKDTree(system.nodes).query(back)
+    if dist.max() > 1e-7 * max(float(np.ptp(nodes, axis=0).max()), 1e-3):
+        raise ParameterError("nodes", f"{dist.max():.3g} m from the sector's", "must be the replicated mesh's nodes")
+    u = x[: system.n_u].T.reshape(x.shape[1], system.n_nodes, 3)[:, j]          # (n, P, 3)
+    out = np.empty(u.shape, dtype=complex)
+    for s in range(sectors):
+        m = copy == s
+        out[:, m] = np.exp(1j * harmonic * s * alpha) * (u[:, m] @ rotation(s * alpha).T)
+    return out

@@ -17,6 +17,7 @@ gmsh is imported inside the functions, so importing this module is cheap.
 from __future__ import annotations
 
 import logging
+import math
 import os
 import signal
 import threading
@@ -37,7 +38,7 @@ from .tagging import parametric_model
 from .revolve import (MESHERS, orient, place_midnodes, quad_triangles, resolve_mesher, sectors_per_quarter,
                       split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP, _VTK_EDGES)
 from .mesh import Electrode, Region, TaggedMesh
-from .sector import check_sectors, set_periodic
+from .sector import SectorMeshing, check_sectors, set_periodic
 from .sector_sweep import mesh_swept_sector
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
@@ -117,7 +118,8 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
           elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
           verbose: bool = False, msh_path: str | None = None,
           time_limit: float | None = None, refine: float = 1.0,
-          grade: bool = False, mesher: str = "free", sectors: int | None = None) -> tuple[TaggedMesh, BuildReport]:
+          grade: bool = False, mesher: str = "free", sectors: int | None = None,
+          sector_meshing: SectorMeshing | None = None) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh, within a wall-clock limit.
 
     Gmsh runs in a worker thread while this (main) thread waits, so SIGINT/SIGTERM are
@@ -132,6 +134,15 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     mesher = resolve_mesher(design, mesher)
     if sectors is not None:
         sectors = check_sectors(design, sectors)
+    if sector_meshing is not None:
+        if not (sectors and mesher == "revolve"):
+            raise ParameterError("sector_meshing", sector_meshing, "applies to swept sectors only (sectors= with "
+                                 "mesher='revolve')")
+        check_refine(sector_meshing.coupler_refine, "coupler_refine")
+        if sector_meshing.layer_deg is not None:
+            check_range("layer_deg", sector_meshing.layer_deg, 0.5, 120.0, "degrees")
+        if sector_meshing.notch_fraction is not None:
+            check_range("notch_fraction", sector_meshing.notch_fraction, 0.01, 1.0)
     if time_limit is None:
         env = os.environ.get("RPUD_GMSH_TIMEOUT")
         try:
@@ -172,7 +183,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path, refine, grade, mesher, sectors)
+                                   msh_path, refine, grade, mesher, sectors, sector_meshing)
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -211,7 +222,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
            elements_per_wavelength: float | None = None, algorithm: str = "delaunay",
            verbose: bool = False, msh_path: str | None = None,
            refine: float = 1.0, grade: bool = False, mesher: str = "free",
-           sectors: int | None = None) -> tuple[TaggedMesh, BuildReport]:
+           sectors: int | None = None, sector_meshing: SectorMeshing | None = None) -> tuple[TaggedMesh, BuildReport]:
     """Build, fragment, tag and mesh a design with Gmsh (OpenCASCADE kernel).
 
     Parameters
@@ -246,6 +257,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         Mesh only the sector ``0 <= theta <= 2 pi / sectors`` of a cyclically symmetric RPUD
         (:mod:`geometry.sector`), its far cut face a rotated copy of the near one (swept:
         :mod:`geometry.sector_sweep`).
+    sector_meshing : SectorMeshing, optional
+        Swept sectors: the coupler refined further, its notch edges graded, the layers narrowed
+        (:class:`geometry.sector.SectorMeshing`; the command line's rules per harmonic).
 
     Returns
     -------
@@ -260,6 +274,9 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         raise ParameterError("design", type(design).__name__, "must be an RPUDDesign, a StackDesign or a CadDesign")
     sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
     per_quarter = sectors_per_quarter(refine) if mesher == "revolve" else None
+    if per_quarter and sectors and sector_meshing is not None and sector_meshing.layer_deg is not None:
+        # the section's triangles no longer than the layers' arcs (revolve_sizes)
+        per_quarter = max(per_quarter, math.ceil(90.0 / sector_meshing.layer_deg - 1e-9))
     if per_quarter:
         sizes = revolve_sizes(design, sizes, per_quarter)
     report = BuildReport(design=design.name, order=order, algorithm=algorithm, mesher=mesher, sectors=sectors,
@@ -279,7 +296,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         if sectors and per_quarter:
             t0 = time.perf_counter()
             tm, swept, folded = mesh_swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter,
-                                                  ALGORITHMS[algorithm], SNAP_M, MIN_SICN_DEFAULT)
+                                                  ALGORITHMS[algorithm], SNAP_M, MIN_SICN_DEFAULT,
+                                                  sector_meshing or SectorMeshing())
             if order == 2:
                 points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=1.0)
                 tm = tm.replace(points=points)

@@ -166,16 +166,17 @@ def notch_field(gmsh, curves: list[int], h_edge: float, growth: float, h_max: fl
     return out
 
 
-def _rule(design, sizes: dict[str, float], refine: float) -> tuple[float, float] | None:
-    """``(h_edge, growth)`` (m, -) of a design's notches, ``None`` without them."""
+def _rule(design, sizes: dict[str, float], refine: float, fraction: float | None = None) -> tuple[float, float] | None:
+    """``(h_edge, growth)`` (m, -) of a design's notches, ``None`` without them (``fraction``:
+    the edge size over the slot zone's size, default :data:`NOTCH_FRACTION`)."""
     h_zone = sizes.get("@slots", sizes.get("@teeth"))
     if not isinstance(design, RPUDDesign) or not h_zone:
         return None
-    return NOTCH_FRACTION * h_zone, NOTCH_GROWTH * refine
+    return (NOTCH_FRACTION if fraction is None else fraction) * h_zone, NOTCH_GROWTH * refine
 
 
 def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str, list[int]],
-                    refine: float) -> int | None:
+                    refine: float, fraction: float | None = None) -> int | None:
     """The graded size field toward the coupler's notch edges (``None`` if it has none).
 
     Also lowers Gmsh's ``Mesh.LcIntegrationPrecision`` (every curve of the model) from 1e-9 to 1e-5:
@@ -194,13 +195,15 @@ def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str
         Region name -> volume tags.
     refine : float
         The refinement factor (scales the growth; the sizes carry it already).
+    fraction : float, optional
+        Edge size over the slot zone's size (default :data:`NOTCH_FRACTION`).
 
     Returns
     -------
     int or None
         The field's tag.
     """
-    rule = _rule(design, sizes, refine)
+    rule = _rule(design, sizes, refine, fraction)
     curves = notch_edges(gmsh, design, region_vols["coupler"]) if rule and "coupler" in region_vols else []
     if not curves:
         return None

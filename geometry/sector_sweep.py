@@ -290,20 +290,35 @@ def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.nd
 
 
 def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bool, order: int, sectors: int,
-                      per_quarter: int, algorithm3d: int, snap: float, min_sicn: float):
+                      per_quarter: int, algorithm3d: int, snap: float, min_sicn: float, meshing=None):
     """Build and mesh the swept sector in the current (empty) Gmsh model (see the module docstring).
+
+    ``meshing``: a :class:`geometry.sector.SectorMeshing` (coupler refined further, notch
+    grading, layer angle); ``grade`` grades the notch edges at its fraction or the default.
 
     Returns ``(mesh, swept_mask, folded)``; coordinates rounded to multiples of ``snap`` (m),
     ``folded``: some free element's min SICN fell below ``min_sicn`` when curved.
     """
     from .revolve import split_to_tets
-    from .sizing import apply_fields
+    from .sizing import CURVATURE_ELEMENTS, apply_fields
 
+    from .sector import SectorMeshing
+
+    meshing = meshing or SectorMeshing()
     check_sweepable(d)
     layers = sector_layers(per_quarter, sectors)
+    if meshing.layer_deg is not None:
+        layers = max(1, math.ceil(360.0 / sectors / meshing.layer_deg - 1e-9))
+    coupler_refine = meshing.coupler_refine
+    grade = grade or meshing.notch_fraction is not None
     vols, section, top, meta = sector_model(gmsh, d, sectors)
     set_periodic(gmsh, vols, sectors)
-    apply_fields(gmsh, d, sizes, {"coupler": vols}, refine, grade=grade, revolve=True, region_faces=section)
+    if coupler_refine != 1.0:
+        sizes = {k: v * coupler_refine if k == "coupler" or k.startswith("@") else v for k, v in sizes.items()}
+    apply_fields(gmsh, d, sizes, {"coupler": vols}, refine, grade=grade, revolve=True, region_faces=section,
+                 notch_fraction=meshing.notch_fraction)
+    if coupler_refine != 1.0:
+        gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", CURVATURE_ELEMENTS / (refine * coupler_refine))
     gmsh.option.setNumber("Mesh.Algorithm", 6)
     gmsh.option.setNumber("Mesh.Algorithm3D", algorithm3d)
     gmsh.option.setNumber("Mesh.Optimize", 1)

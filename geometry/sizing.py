@@ -339,7 +339,8 @@ def graded_edges(design: DesignBase, sizes: dict[str, float], refine: float = 1.
 
 def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols: dict[str, list[int]],
                  refine: float = 1.0, *, layers: dict[str, Layer] | None = None, grade: bool = False,
-                 revolve: bool = False, region_faces: dict[str, list[int]] | None = None) -> None:
+                 revolve: bool = False, region_faces: dict[str, list[int]] | None = None,
+                 notch_fraction: float | None = None) -> None:
     """Install the size fields and the size options of a synchronised Gmsh model.
 
     Parameters
@@ -363,6 +364,9 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
     region_faces : dict, optional
         Region name -> Gmsh face tags of regions meshed as faces only (a swept sector's section,
         :mod:`geometry.sector_sweep`).
+    notch_fraction : float, optional
+        With ``grade``: the notch edges' size over the slot zone's (default
+        :data:`geometry.notches.NOTCH_FRACTION`).
     """
     field = gmsh.model.mesh.field
     fields = []
@@ -393,7 +397,7 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
         field.setString(fid, "F", f"{e.h_edge!r} + {e.growth!r} * Sqrt((Sqrt(x*x + y*y) - {e.r!r})^2 "
                                   f"+ (z - {e.z!r})^2)")
         fields.append(fid)
-    notch = add_notch_field(gmsh, design, sizes, region_vols, refine) if grade else None
+    notch = add_notch_field(gmsh, design, sizes, region_vols, refine, notch_fraction) if grade else None
     if notch is not None:
         fields.append(notch)
     fmin = field.add("Min")

@@ -248,7 +248,8 @@ MODAL_OPTS = {"--mesh-size": BAD_FLOAT, "--refine": BAD_FLOAT + ["0.1", "6"], "-
               "--tol": BAD_FLOAT + ["0", "0.5"], "--bracket": ["1,2", "0,2", "nan,2", "0.5,inf", "x", "0.5"],
               "--tune": ["horn.lenght"], "--design": ["", "missing.toml", "adir"], "--select": ["x"],
               "--json": ["x.txt"], "--vtu": ["x.json"], "--out-design": ["x.json"],
-              "--clamp": ["nowhere"]}
+              "--clamp": ["nowhere"], "--sectors": ["x", "4", "2", "1e9", "-6", "nan", ""],
+              "--harmonics": ["9", "x", "-1", "", "0,,1"]}
 
 
 @settings(max_examples=EXAMPLES["fem.modal"], **_SETTINGS)

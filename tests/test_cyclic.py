@@ -22,7 +22,7 @@ from fem.cyclic import cyclic_basis, cyclic_modes, harmonics
 from fem.modal import modal_analysis
 from geometry.builder import build
 from geometry.design import default_design
-from geometry.sector import check_sectors, replicate, sector_pairs, symmetry_order
+from geometry.sector import AXIAL_RULE, LATERAL_RULE, check_sectors, replicate, sector_pairs, symmetry_order
 from rpud_common import ParameterError
 
 N = 6
@@ -138,19 +138,64 @@ model, reproduced by tests/axisym_reference.py: harmonic n = 0 for the working m
 torsion, n = 1 for the first bending pair)."""
 
 
-def test_swept_sector_meets_issue_19_on_the_design_without_slots():
-    """Issue 19's targets: f_r, f_a within 0.05 %, first torsion and bending within 0.1 %
-    (measured at refine 0.7: +0.015 / +0.018 / +0.015 / +0.060 %)."""
+def test_command_line_rules_meet_issue_19_on_the_design_without_slots():
+    """Issue 19's targets for the meshes ``python -m fem.modal`` uses by default (AXIAL_RULE for
+    k = 0, LATERAL_RULE for k = 1): f_r, f_a within 0.05 %, first torsion and bending within
+    0.1 % (measured +0.019 / +0.023 / +0.023 / +0.075 %)."""
     d = default_design()
     d = dataclasses.replace(d, coupler=dataclasses.replace(d.coupler, n_slots=0, n_teeth=0))
-    tm, _ = build(d, mesher="revolve", sectors=N, refine=0.7)
-    system = assemble(tm)
-    k0 = cyclic_modes(system, N, 0, 17000.0, 4)
-    k1 = cyclic_modes(system, N, 1, 5000.0, 1)
-    work = np.argmin(abs(k0.f_hz - PLAIN_REFERENCE["f_r"]))
-    tors = np.argmin(abs(k0.f_hz - PLAIN_REFERENCE["torsion"]))
-    got = {"f_r": k0.f_hz[work], "f_a": k0.f_open_hz[work], "torsion": k0.f_hz[tors], "bending": k1.f_hz[0]}
+    got = {}
+    for (refine, meshing), k, near in ((AXIAL_RULE, 0, 17000.0), (LATERAL_RULE, 1, 5000.0)):
+        tm, _ = build(d, mesher="revolve", sectors=N, refine=refine, sector_meshing=meshing)
+        m = cyclic_modes(assemble(tm), N, k, near, 4 if k == 0 else 1)
+        if k == 0:
+            work = np.argmin(abs(m.f_hz - PLAIN_REFERENCE["f_r"]))
+            got.update(f_r=m.f_hz[work], f_a=m.f_open_hz[work],
+                       torsion=m.f_hz[np.argmin(abs(m.f_hz - PLAIN_REFERENCE["torsion"]))])
+        else:
+            got["bending"] = m.f_hz[0]
     for key, tol in (("f_r", 5e-4), ("f_a", 5e-4), ("torsion", 1e-3), ("bending", 1e-3)):
         err = got[key] / PLAIN_REFERENCE[key] - 1
         # P2 on a finer mesh converges from above (tests/test_revolve.py)
         assert 0 < err < tol, (key, err)
+
+
+def _modal(tmp_path, *args):
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "fem.modal", *args], capture_output=True, text=True, cwd=tmp_path,
+                          timeout=600)
+
+
+def test_command_line_solves_the_default_design_by_harmonics(tmp_path):
+    """``python -m fem.modal`` (sectors by default) at --refine 2: its working mode equals
+    cyclic_modes on the same rule's mesh, every listed mode count sums to --modes (a pair twice),
+    and the JSON says how it was solved."""
+    import json
+
+    r = _modal(tmp_path, "--refine", "2", "--modes", "8", "--json", "m.json")
+    assert r.returncode == 0, r.stderr
+    data = json.loads((tmp_path / "m.json").read_text())
+    assert data["sectors"] == 6 and data["harmonics"] == [0, 1] and data["mesher"] == "revolve"
+    modes = data["modes"]
+    assert sum(m["multiplicity"] for m in modes) in (8, 9)       # the last row may be a pair
+    assert {m["harmonic"] for m in modes} == {0, 1}
+    assert all(m["multiplicity"] == (2 if m["harmonic"] == 1 else 1) for m in modes)
+    assert all(m["label"] == "bending" for m in modes if m["harmonic"] == 1)
+    work = [m for m in modes if m["label"] == "longitudinal" and m["harmonic"] == 0]
+    assert work and work[0]["f_a_hz"] > work[0]["f_r_hz"] and 0.3 < work[0]["k_eff"] < 0.5
+    refine, meshing = AXIAL_RULE
+    tm, _ = build(default_design(), mesher="revolve", sectors=N, refine=refine * 2, sector_meshing=meshing.scaled(2))
+    m = cyclic_modes(assemble(tm), N, 0, 20000.0, 4)
+    assert min(abs(m.f_hz - work[0]["f_r_hz"])) < 1e-9 * work[0]["f_r_hz"]
+    assert "swept sector (1/6)" in r.stdout and "+0.035 %" in r.stdout
+
+
+@pytest.mark.parametrize("args, word", [(["--sectors", "4"], "--sectors"), (["--sectors", "6", "--match"], "--match"),
+                                        (["--harmonics", "4"], "--harmonics"),
+                                        (["--sectors", "off", "--harmonics", "0"], "--harmonics")])
+def test_command_line_refuses_sector_options_in_one_line(tmp_path, args, word):
+    r = _modal(tmp_path, *args, "--json", "m.json")
+    assert r.returncode == 2 and r.stderr.count("\n") == 1 and word in r.stderr
+    assert list(tmp_path.iterdir()) == []
