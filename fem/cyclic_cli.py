@@ -18,12 +18,12 @@ from rpud_common import ParameterError
 __all__ = ["sectors_for", "parse_harmonics", "run", "format_rows", "CYCLIC_NOTE"]
 
 CYCLIC_NOTE = ("mesh: swept sector (1/{n}), a mesh per harmonic family as listed. Measured at --refine 1 on the "
-               "default design against the best estimates of the converged values (README): f_r +0.035 %, f_a "
-               "+0.032 %, first torsion +0.080 %, first bending pair +0.077 % (each +-0.015 %); without slots and "
+               "default design against the best estimates of the converged values (README): f_r +0.034 %, f_a "
+               "+0.031 %, first torsion +0.084 % (+-0.02 %), first bending pair +0.083 %; without slots and "
                "teeth against the converged (r, z) model: {plain}")
 """The discretisation error of the command line's sector meshes (``{n}``: sectors)."""
 
-CYCLIC_PLAIN = "f_r +0.017 %, f_a +0.019 %, torsion +0.025 %, bending +0.068 %"
+CYCLIC_PLAIN = "f_r +0.019 %, f_a +0.023 %, torsion +0.023 %, bending +0.075 %"
 """Measured errors of the same rules on the default design without slots and teeth."""
 
 

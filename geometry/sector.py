@@ -67,14 +67,14 @@ AXIAL_RULE = (0.8, SectorMeshing(coupler_refine=1.0, notch_fraction=0.15, layer_
 """``(refine, meshing)`` of the swept sector that solves harmonic 0 (the working mode, its
 anti-resonance, the torsion) at the command line's ``--refine 1``. The coupler's notch edges
 converge slowest (about h^0.7 to h^1 measured): they are graded to 0.15 of the slot zone's size
-(``--grade`` uses 0.4). Default design: f_r / f_a / first torsion 19 900.31 / 21 655.25 /
-15 377.85 Hz, 78 770 DOFs, against best estimates of the converged values 19 893.3 / 21 648.3 /
-15 365.6 Hz (README): +0.035 / +0.032 / +0.080 %."""
+(``--grade`` uses 0.4). Default design: f_r / f_a / first torsion 19 900.01 / 21 654.85 /
+15 377.44 Hz, 80 162 DOFs, against best estimates of the converged values 19 893.2 / 21 648.2 /
+15 364.6 Hz (README): +0.034 / +0.031 / +0.084 %."""
 
 LATERAL_RULE = (0.8, SectorMeshing(coupler_refine=2.0, notch_fraction=None, layer_deg=15.0))
 """The same for harmonics k >= 1 (the bending pairs): their error lies in the swept parts' layers
 (the coupler holds ~0.01 %), so the coupler stays coarse. Default design: first bending pair
-5 207.53 Hz, 40 651 DOFs (+0.077 % against 5 203.5 Hz)."""
+5 207.53 Hz, 40 651 DOFs (+0.083 % against 5 203.2 Hz)."""
 
 
 def symmetry_order(design) -> int:
