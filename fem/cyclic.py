@@ -136,7 +136,8 @@ def _real_pencil(T: sp.csr_matrix, K: sp.csr_matrix, M: sp.csr_matrix):
     """``(K_r, M_r, T_r)``: the reduced real pencil and its real basis. A complex ``T = A + i B``
     gives the Hermitian ``H = T^H K T`` as the real symmetric ``[[Re H, -Im H], [Im H, Re H]]``
     over ``q = [Re q; Im q]``, with ``T_r = [[A, -B], [B, A]]``."""
-    A, B = T.real.tocsr(), T.imag.tocsr()
+    # copies: scipy's .real / .imag share T's data, and eliminate_zeros would compact it in place
+    A, B = T.real.tocsr(copy=True), T.imag.tocsr(copy=True)
     B.eliminate_zeros()
     if B.nnz == 0:
         At = A.T.tocsr()

@@ -107,23 +107,20 @@ def _meshes(args, design, sectors, ks, single: bool):
             refine, meshing = AXIAL_RULE if (k == 0 or single) else LATERAL_RULE
             rules[k] = (refine * args.refine, meshing.scaled(args.refine))
     built = {}
-    out = {}
-    for k in ks:
-        rule = rules[k]
-        if rule not in built:
-            kw = {"refine": rule[0], "grade": args.grade, "mesher": "revolve" if swept else "free", "sectors": sectors}
-            if swept:
-                kw["sector_meshing"] = rule[1]
-            t0 = time.perf_counter()
-            mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, **kw)
-            for name in args.clamp:
-                mesh.facets(name)
-            system = assemble(mesh, order=args.order)
-            print(f"sector mesh for k = {k}{'' if k == 0 else ' ...'}: {_describe(rule)}, {system.ndof} DOFs, "
-                  f"{time.perf_counter() - t0:.1f} s", flush=True)
-            built[rule] = (system, mesh)
-        out[k] = (*built[rule], rule)
-    return out
+    for rule in dict.fromkeys(rules.values()):
+        kw = {"refine": rule[0], "grade": args.grade, "mesher": "revolve" if swept else "free", "sectors": sectors}
+        if swept:
+            kw["sector_meshing"] = rule[1]
+        t0 = time.perf_counter()
+        mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, **kw)
+        for name in args.clamp:
+            mesh.facets(name)
+        system = assemble(mesh, order=args.order)
+        users = ", ".join(str(k) for k in ks if rules[k] == rule)
+        print(f"sector mesh for k = {users}: {_describe(rule)}, {system.ndof} DOFs, {time.perf_counter() - t0:.1f} s",
+              flush=True)
+        built[rule] = (system, mesh)
+    return {k: (*built[rules[k]], rules[k]) for k in ks}
 
 
 def _describe(rule) -> str:
