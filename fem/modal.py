@@ -53,7 +53,10 @@ matrix), ``shares`` (``(n, 3)`` of them: axial / torsional / lateral about the z
 CLI
 ---
 ``python -m fem.modal --design FILE --near HZ --modes N [--json OUT] [--mesh-size M]
-[--order 1|2] [--clamp SURFACE ...] [--select NAME] [--solver auto|pardiso|superlu]``
+[--order 1|2] [--clamp SURFACE ...] [--select NAME] [--solver auto|pardiso|superlu]
+[--sectors auto|off|N] [--harmonics K,..|all]`` (a cyclically symmetric RPUD is solved by
+harmonics on swept sectors by default, :mod:`fem.cyclic_cli`; ``--sectors off``: this module on
+the whole drill)
 (``--design default``: the built-in default design) prints a table (f_r kHz, f_a kHz, k_eff, dominant
 motion) and writes JSON (``modes``: list of ``{f_r_hz, f_a_hz, k_eff, mac, label, shares}``,
 ``ndof``, ``timings``, ``backend``). Bad input: one line, exit 2, no file written.

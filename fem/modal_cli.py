@@ -1,6 +1,7 @@
 """``python -m fem.modal``: the command line of :mod:`fem.modal` (options, checks, printing, files).
 
-The physics lives in :mod:`fem.modal`; this module only parses, validates, calls and writes.
+The physics lives in :mod:`fem.modal` (and :mod:`fem.cyclic` for ``--sectors``, run by
+:mod:`fem.cyclic_cli`); this module only parses, validates, calls and writes.
 """
 
 from __future__ import annotations
