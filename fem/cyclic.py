@@ -34,6 +34,7 @@ from rpud_common import ParameterError, check_choice
 
 from .assembly import PiezoSystem
 from .eigen import block_eigs, smooth_start
+from .modal import _freq
 from .solvers import blas_threads, factorize
 
 __all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "harmonic_shares", "harmonic_labels", "expand"]
@@ -82,6 +83,9 @@ def cyclic_basis(system: PiezoSystem, pairs: SectorPairs, k: int, electrical: st
     dependent[(3 * pairs.axis[:, None] + np.arange(3)).ravel()] = True
     fp = phi[pairs.far]
     dependent[fp[fp >= 0]] = True
+    if k != 0:              # the axis carries no potential of a non-axisymmetric harmonic
+        ap = phi[pairs.axis]
+        dependent[ap[ap >= 0]] = True
     if system.hot_dof is not None:
         dependent[system.hot_dof] = True
     for name in clamp:
@@ -205,10 +209,6 @@ def _solve(Kr, Mr, Tr, system, n_modes, sigma, backend, tol, hot: bool = False):
     return res.lam, res.vectors, None, None
 
 
-def _freq(lam):
-    return np.sign(lam) * np.sqrt(np.abs(lam)) / (2 * np.pi)
-
-
 def _collapse(f, vec, doubled, rel: float = 1e-7):
     """One of each degenerate pair of a doubled (real) problem (partners within ``rel``)."""
     if not doubled:
@@ -285,8 +285,11 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
 
 
 def _pair_open(system, x_r, x_o, f_o, mac_min: float = 0.5):
-    """Open-circuit frequency of each short-circuit mode: the partner of greatest mass-weighted
-    MAC of the displacement (NaN below ``mac_min``)."""
+    """Open-circuit frequency of each short-circuit mode: its partner by the mass-weighted MAC of
+    the displacement, one to one (Hungarian assignment, as :mod:`fem.modal`; NaN below
+    ``mac_min``)."""
+    from scipy.optimize import linear_sum_assignment
+
     u = slice(0, system.n_u)
     Mu = system.M[u, u]
     a, b = x_r[u], x_o[u]
@@ -294,8 +297,11 @@ def _pair_open(system, x_r, x_o, f_o, mac_min: float = 0.5):
     na = np.real(np.einsum("ij,ij->j", a.conj(), Mu @ a))
     nb = np.real(np.einsum("ij,ij->j", b.conj(), Mu @ b))
     mac = cross / np.outer(na, nb)
-    best = mac.argmax(axis=1)
-    return np.where(mac.max(axis=1) >= mac_min, f_o[best], np.nan)
+    rows, cols = linear_sum_assignment(-mac)
+    out = np.full(len(a.T), np.nan)
+    ok = mac[rows, cols] >= mac_min
+    out[rows[ok]] = f_o[cols[ok]]
+    return out
 
 
 def harmonic_shares(system: PiezoSystem, x: np.ndarray) -> np.ndarray:

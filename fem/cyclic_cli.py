@@ -64,8 +64,9 @@ def sectors_for(args, design) -> int | None:
     clash = [o for o, on in (("--match", args.match), ("--converge", args.converge is not None),
                              ("--error", args.error)) if on]
     if value == "auto":
-        if clash or args.mesher == "free" or not _eligible(design):
+        if clash or args.mesher == "free" or args.order != 2 or not _eligible(design):
             return None
+        _check_refine(args)
         return symmetry_order(design) or 6
     try:
         n = int(value)
@@ -74,10 +75,25 @@ def sectors_for(args, design) -> int | None:
     if clash:
         raise ParameterError("--sectors", value, f"cannot be combined with {clash[0]} (use --sectors off)")
     n = check_sectors(design, n)
-    if mesher_of(args, design) == "revolve" and not _eligible(design):
-        raise ParameterError("--sectors", value, "needs a design that can be swept as a sector (stepped or conical "
-                             "horn, coupler and stack face to face); use --mesher free")
+    if mesher_of(args, design) == "revolve":
+        if not _eligible(design):
+            raise ParameterError("--sectors", value, "needs a design that can be swept as a sector (stepped or "
+                                 "conical horn, coupler and stack face to face, bored); use --mesher free")
+        if args.order != 2:
+            raise ParameterError("--order", args.order, "must be 2 for a swept sector (or use --mesher free)")
+        _check_refine(args)
     return n
+
+
+def _check_refine(args) -> None:
+    """``--refine`` such that every sector rule's refine stays in the builder's range."""
+    from geometry.sector import AXIAL_RULE, LATERAL_RULE
+    from geometry.sizing import REFINE_RANGE
+
+    low = REFINE_RANGE[0] / min(AXIAL_RULE[0], LATERAL_RULE[0])
+    if args.refine < low:
+        raise ParameterError("--refine", args.refine, f"must be >= {low:g} with sectors (the k = 0 rule refines "
+                             f"{AXIAL_RULE[0]:g} x further); use --sectors off for finer whole-drill meshes")
 
 
 def parse_harmonics(text: str, sectors: int) -> tuple[int, ...]:
@@ -200,7 +216,8 @@ def run(args, design, near: float, sectors: int) -> int:
     keep = np.cumsum([r["multiplicity"] for r in rows])
     rows = sorted(rows[:int(np.searchsorted(keep, n_modes)) + 1], key=lambda r: r["f_r_hz"])
     checked = (mesher_of(args, design) == "revolve" and args.refine == 1 and args.mesh_size is None
-               and args.order == 2 and not args.clamp)
+               and args.order == 2 and not args.clamp and not (args.render or args.vtu) and not args.grade
+               and _default_geometry(design))
     _attach_errors(rows, near, checked)
     print(format_rows(rows))
     ndofs = {k: results[k].ndof for k in ks}
@@ -213,8 +230,8 @@ def run(args, design, near: float, sectors: int) -> int:
     swept = mesher_of(args, design) == "revolve"
     if swept:
         note = CYCLIC_NOTE.format(n=sectors, plain=CYCLIC_PLAIN)
-        print(note + ("" if args.refine == 1 and args.mesh_size is None and args.order == 2 else
-                      " (this run departs from the checked rule: --refine 1, order 2)"))
+        print(note + ("" if checked else " (this run departs from that check: the default design at --refine 1, "
+                                        "no --mesh-size, --grade, --clamp, --render or --vtu)"))
     else:
         print("mesh: free sector; its working mode is high by ~0.1 % (--grade) to ~0.5 % (ungraded) at the "
               "re-entrant edges (default design); the swept sector (--mesher revolve) is converged")
@@ -240,12 +257,22 @@ def _attach_errors(rows, near: float, checked: bool) -> None:
     """``f_r_hz_error`` / ``f_a_hz_error`` (Hz, the fem.errors convention) of the working mode (the
     longitudinal k = 0 mode nearest the target) from the checked rule's measured error
     (:data:`RULE_ERRORS`); None for the other modes and off that rule (the note states them)."""
-    axial = [r for r in rows if r["harmonic"] == 0 and r["label"] == "longitudinal"]
+    axial = [r for r in rows if r["harmonic"] == 0 and r["label"].startswith("longitudinal")]
     work = min(axial, key=lambda r: abs(r["f_r_hz"] - near)) if axial else None
     for r in rows:
         on = checked and r is work
         r["f_r_hz_error"] = RULE_ERRORS["f_r"] * r["f_r_hz"] if on else None
         r["f_a_hz_error"] = RULE_ERRORS["f_a"] * r["f_a_hz"] if on and r["f_a_hz"] is not None else None
+
+
+def _default_geometry(design) -> bool:
+    """The design meshes as the default one (what the rule's error was measured on): same parts,
+    bore and mesh-size inputs, whatever its name."""
+    from geometry.design_rpud import default_design
+
+    ref = default_design()
+    return all(getattr(design, f, None) == getattr(ref, f) for f in
+               ("coupler", "stack", "flange", "horn", "bore_diameter", "target_frequency", "elements_per_wavelength"))
 
 
 def _pictures(args, meshes, results, rows, sectors, near) -> None:

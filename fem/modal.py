@@ -59,7 +59,10 @@ harmonics on swept sectors by default, :mod:`fem.cyclic_cli`; ``--sectors off``:
 the whole drill)
 (``--design default``: the built-in default design) prints a table (f_r kHz, f_a kHz, k_eff, dominant
 motion) and writes JSON (``modes``: list of ``{f_r_hz, f_a_hz, k_eff, mac, label, shares}``,
-``ndof``, ``timings``, ``backend``). Bad input: one line, exit 2, no file written.
+``ndof``, ``timings``, ``backend``; the sector path writes its own record, see
+:mod:`fem.cyclic_cli`: per mode ``harmonic``, ``multiplicity``, ``shares`` as axial / tangential /
+radial, the working mode's ``f_r_hz_error`` / ``f_a_hz_error``). Bad input: one line, exit 2, no
+file written.
 """
 
 from __future__ import annotations

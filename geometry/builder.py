@@ -38,7 +38,7 @@ from .tagging import parametric_model
 from .revolve import (MESHERS, orient, place_midnodes, quad_triangles, resolve_mesher, sectors_per_quarter,
                       split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP, _VTK_EDGES)
 from .mesh import Electrode, Region, TaggedMesh
-from .sector import SectorMeshing, check_sectors, set_periodic
+from .sector import SectorMeshing, check_sectors, keep_periodic, set_periodic
 from .sector_sweep import mesh_swept_sector
 from .sizing import apply_fields, check_refine, mesh_layers, region_sizes, revolve_sizes, shear_wavelength
 
@@ -134,6 +134,12 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     mesher = resolve_mesher(design, mesher)
     if sectors is not None:
         sectors = check_sectors(design, sectors)
+    if sectors and mesher == "revolve":
+        if order != 2:
+            raise ParameterError("--order", order, "must be 2 for a swept sector (its sweep builds 10-node cells)")
+        if msh_path is not None:
+            raise ParameterError("msh_path", msh_path, "is not available for a swept sector (most of it is swept "
+                                 "outside Gmsh)")
     if sector_meshing is not None:
         if not (sectors and mesher == "revolve"):
             raise ParameterError("sector_meshing", sector_meshing, "applies to swept sectors only (sectors= with "
@@ -295,12 +301,10 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
 
         if sectors and per_quarter:
             t0 = time.perf_counter()
-            tm, swept, folded = mesh_swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter,
-                                                  ALGORITHMS[algorithm], SNAP_M, MIN_SICN_DEFAULT,
-                                                  sector_meshing or SectorMeshing())
-            if order == 2:
-                points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=1.0)
-                tm = tm.replace(points=points)
+            tm, swept = mesh_swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter,
+                                          ALGORITHMS[algorithm], SNAP_M, sector_meshing or SectorMeshing())
+            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=1.0)
+            tm = tm.replace(points=keep_periodic(tm.points, points, sectors))
             report.quality.update(swept_quality(tm, swept))
             report.timings["mesh"] = time.perf_counter() - t0
             return _finish(tm, report, t_start)
@@ -377,6 +381,8 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
             # keeps what curvature it can
             step = 1.0 if swept.any() else STRAIGHTEN_STEP
             points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=step)
+            if sectors:
+                points = keep_periodic(tm.points, points, sectors)
             # the free elements' quality below is Gmsh's: hand it the nodes moved here
             moved = np.unique(tm.cells[~swept])
             moved = moved[np.any(points[moved] != tm.points[moved], axis=1)]

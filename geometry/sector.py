@@ -10,9 +10,9 @@ harmonic is an eigenproblem on one sector with its two cut faces tied by the pha
 
 A sector mesh covers ``0 <= theta <= 2 pi / N``; its cut face at ``theta = 2 pi / N`` is the
 image of the face at ``theta = 0`` under that rotation, node for node (Gmsh's periodic meshing,
-:func:`set_periodic`). Sectors are meshed freely: Gmsh drops a swept volume's extrusion
-constraints when OpenCASCADE glues it to the cut coupler ("Unknown source point -1 for
-extrusion", Gmsh 4.15), so :mod:`geometry.revolve` builds whole turns only.
+:func:`set_periodic`). A free sector is Gmsh's; a swept one is built by
+:mod:`geometry.sector_sweep` (Gmsh drops a swept volume's extrusion constraints when
+OpenCASCADE glues it to the cut coupler, "Unknown source point -1 for extrusion", Gmsh 4.15).
 :func:`sector_pairs` finds those node pairs; :func:`replicate` turns a sector into the whole
 drill (for mode-shape output and for the tests that check the reduction against the full model).
 
@@ -32,7 +32,7 @@ from .design_rpud import RPUDDesign
 from .mesh import TaggedMesh
 
 __all__ = ["symmetry_order", "check_sectors", "rotation", "set_periodic", "SectorPairs", "sector_pairs",
-           "replicate", "MAX_SECTORS", "SectorMeshing", "AXIAL_RULE", "LATERAL_RULE"]
+           "replicate", "keep_periodic", "MAX_SECTORS", "SectorMeshing", "AXIAL_RULE", "LATERAL_RULE"]
 
 MAX_SECTORS = 72
 """Most sectors a mesh may be cut into (5 degrees: one element layer at refine 0.2)."""
@@ -197,6 +197,22 @@ def sector_pairs(points: np.ndarray, sectors: int, tol: float | None = None) -> 
         raise ParameterError("sector mesh", f"cut faces {dist.max():.3g} m apart",
                              f"the far cut face must be the near one rotated by 360/{sectors} degrees")
     return SectorPairs(sectors, near, far[j], axis)
+
+
+def keep_periodic(before: np.ndarray, after: np.ndarray, sectors: int) -> np.ndarray:
+    """``after`` (points moved by :func:`geometry.revolve.straighten`) with the two cut faces node
+    for node copies again, the pairs taken from ``before`` (Gmsh's periodic mesh): a node that
+    straightening moved on one cut carries its partner on the other along (the free elements
+    behind the two cuts differ, so only one side may have been straightened)."""
+    pairs = sector_pairs(before, sectors)
+    R = rotation(2 * math.pi / sectors)
+    out = after.copy()
+    near_moved = np.any(after[pairs.near] != before[pairs.near], axis=1)
+    far_moved = np.any(after[pairs.far] != before[pairs.far], axis=1) & ~near_moved
+    out[pairs.near[far_moved]] = after[pairs.far[far_moved]] @ R         # rotated back by -alpha
+    moved = near_moved | far_moved                  # the others keep Gmsh's (snapped) coordinates
+    out[pairs.far[moved]] = out[pairs.near[moved]] @ R.T
+    return out
 
 
 def replicate(tm: TaggedMesh, sectors: int, pairs: SectorPairs | None = None) -> tuple[TaggedMesh, np.ndarray]:

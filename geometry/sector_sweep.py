@@ -34,7 +34,7 @@ from rpud_common import ParameterError
 
 from .design_rpud import RPUDDesign
 from .mesh import Electrode, Region, TaggedMesh
-from .revolve import _VTK_EDGES, _face, _prism_tets, orient, place_midnodes, section_outlines
+from .revolve import _VTK_EDGES, _face, _prism_tets, orient, place_midnodes, quad_triangles, section_outlines
 from .sector import rotation, set_periodic
 from .solids import make_coupler
 from .tagging import _boundary_surfaces, _planar_at, surface_rules
@@ -50,12 +50,13 @@ def sector_layers(per_quarter: int, sectors: int) -> int:
 
 
 def check_sweepable(d: RPUDDesign) -> None:
-    """Raise unless the coupler's top face is the first ring's bottom face (same annulus)."""
+    """Raise unless the coupler's top face is the first ring's bottom face (the same annulus,
+    bored: the face's grid runs between two arcs)."""
     if not (math.isclose(d.coupler.outer_diameter, d.stack.outer_diameter, abs_tol=1e-9)
-            and math.isclose(d.coupler_bore, d.stack.inner_diameter, abs_tol=1e-9)):
+            and math.isclose(d.coupler_bore, d.stack.inner_diameter, abs_tol=1e-9) and d.coupler_bore > 0):
         raise ParameterError("--sectors", "with --mesher revolve",
                              "needs the coupler and the stack to meet face to face (equal outer and inner "
-                             "diameters); use --mesher free")
+                             "diameters, a bore); use --mesher free")
 
 
 def sector_model(gmsh, d: RPUDDesign, sectors: int):
@@ -130,8 +131,7 @@ def premesh_interface(gmsh, face: int, sectors: int, layers: int, new_tag: int):
     if coords:
         gmsh.model.mesh.addNodes(2, face, grid[1:-1, 1:layers].T.ravel().tolist(), np.concatenate(coords).ravel().tolist())
     quads = np.stack([grid[:-1, :-1], grid[1:, :-1], grid[1:, 1:], grid[:-1, 1:]], axis=-1).reshape(-1, 4)
-    even = (np.argmin(quads, axis=1) % 2 == 0)[:, None]
-    tri = np.where(even, quads[:, [0, 1, 2, 0, 2, 3]], quads[:, [1, 2, 3, 1, 3, 0]]).reshape(-1, 3)
+    tri = np.take_along_axis(quads[:, None, :], quad_triangles(quads), axis=2).reshape(-1, 3)
     gmsh.model.mesh.addElementsByType(face, 2, [], tri.ravel().tolist())
     return grid, new_tag
 
@@ -214,6 +214,16 @@ def sweep_section(points_rz: dict, triangles: np.ndarray, sectors: int, layers: 
     return np.concatenate(new_tags), np.concatenate(new_xyz), tets[keep], source[keep]
 
 
+def _edge_breaks(design: RPUDDesign, axis: str, value: float) -> np.ndarray:
+    """Sorted radii (m) of the section's vertices on the plane ``axis = value``: where its
+    fragmented edges, and so the swept faces, begin and end."""
+    ax = {"x": 0, "z": 1}.get(axis)
+    if ax is None:      # pragma: no cover - the RPUD's rules are z planes
+        raise ParameterError("surface rule", axis, "a swept sector tags z planes only")
+    pts = [pt for o in section_outlines(design) for pt in o[4]]
+    return np.array(sorted({round(r, 12) for r, z in pts if abs(z - value) < 1e-9}))
+
+
 def add_midnodes(points: np.ndarray, cells4: np.ndarray, known: dict) -> tuple[np.ndarray, np.ndarray]:
     """10-node cells from 4-node ``cells4``: each edge's mid node from ``known`` (sorted corner
     pair -> node index) or a new node (appended to ``points``; placed by the caller)."""
@@ -272,8 +282,12 @@ def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.nd
         ax = "xyz".index(axis)
         on = np.all(np.abs(p[:, :, ax] - value) < 1e-9, axis=1)
         if rmin > 0:
-            rc = np.hypot(p[:, :, 0].mean(axis=1), p[:, :, 1].mean(axis=1))
-            on &= rc > rmin - 1e-4
+            # per face, as geometry.tagging: a face is the sweep of one section edge on the plane,
+            # kept when it reaches beyond rmin (its triangles share the interval of their centroid)
+            rc = np.hypot(p[:, :, 0], p[:, :, 1]).mean(axis=1)    # mean corner radius: not the chord's
+            ends = _edge_breaks(design, axis, value)
+            upper = ends[np.minimum(np.searchsorted(ends, rc), len(ends) - 1)]
+            on &= upper >= rmin
         if on.any():
             facet_sets[name] = np.concatenate([facet_sets.get(name, np.zeros((0, 3), dtype=np.int64)), tri[on]])
     missing = sorted({r[0] for r in surface_rules(design)} - set(facet_sets))
@@ -290,14 +304,13 @@ def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.nd
 
 
 def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bool, order: int, sectors: int,
-                      per_quarter: int, algorithm3d: int, snap: float, min_sicn: float, meshing=None):
+                      per_quarter: int, algorithm3d: int, snap: float, meshing=None):
     """Build and mesh the swept sector in the current (empty) Gmsh model (see the module docstring).
 
     ``meshing``: a :class:`geometry.sector.SectorMeshing` (coupler refined further, notch
     grading, layer angle); ``grade`` grades the notch edges at its fraction or the default.
 
-    Returns ``(mesh, swept_mask, folded)``; coordinates rounded to multiples of ``snap`` (m),
-    ``folded``: some free element's min SICN fell below ``min_sicn`` when curved.
+    Returns ``(mesh, swept_mask)``; coordinates rounded to multiples of ``snap`` (m). Order 2 only.
     """
     from .revolve import split_to_tets
     from .sizing import CURVATURE_ELEMENTS, apply_fields
@@ -332,13 +345,9 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
     gmsh.option.setNumber("Mesh.MeshOnlyEmpty", 1)
     gmsh.model.mesh.generate(2)
     gmsh.model.mesh.generate(3)
-    folded = False
-    if order == 2:
-        gmsh.model.mesh.setOrder(2)
-        tags = np.concatenate([np.asarray(t, dtype=np.int64) for v in vols
-                               for t in gmsh.model.mesh.getElements(3, v)[1]])
-        sicn = np.asarray(gmsh.model.mesh.getElementQualities(tags.tolist(), "minSICN"))
-        folded = bool(len(sicn) and sicn.min() < min_sicn)
+    if order != 2:      # pragma: no cover - build() refuses it (the sweep builds 10-node cells)
+        raise ParameterError("order", order, "must be 2 for a swept sector")
+    gmsh.model.mesh.setOrder(2)
     node_tags, xyz, _ = gmsh.model.mesh.getNodes()
     node_tags = np.asarray(node_tags, dtype=np.int64)
     xyz = np.asarray(xyz).reshape(-1, 3)
@@ -388,4 +397,4 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
         mine = np.flatnonzero(np.isin(owner[source], [k for k, r in enumerate(regions) if r == region]))
         swept[region] = index[tets[mine]]
     tm, swept_mask = assemble_sector(d, coords, coupler_cells, swept, meta, coupler_facets)
-    return tm, swept_mask, folded
+    return tm, swept_mask

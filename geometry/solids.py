@@ -175,7 +175,8 @@ def _sector(occ, d: RPUDDesign, pieces, sectors):
     """``pieces`` cut down to the sector 0 <= theta <= 2 pi / sectors (all of them: None)."""
     if not sectors:
         return pieces
-    r = max(d.coupler.outer_diameter, d.stack.outer_diameter, d.flange.outer_diameter, d.horn.back_diameter) / 2
+    r = max(d.coupler.outer_diameter, d.stack.outer_diameter, d.flange.outer_diameter, d.horn.back_diameter,
+            d.horn.tip_diameter) / 2
     z0, z1 = -d.coupler.length - 1e-3, d.stack.length + d.flange.thickness + d.horn.length + 1e-3
     out = []
     for region, part, material, poling, dimtags in pieces:

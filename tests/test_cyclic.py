@@ -63,6 +63,32 @@ def test_replicated_mesh_closes(sector, full):
         assert len(whole.facet_sets[e.name]) == N * len(sector.facet_sets[e.name])
     pairs = sector_pairs(sector.points, N)
     assert len(pairs.near) == len(pairs.far) > 0 and len(pairs.axis) > 0
+    # the coupler meets the first ring face to face: no boundary triangle inside their annulus at z = 0
+    d = default_design()
+    r = np.hypot(p[:, 0], p[:, 1])
+    inside = (np.abs(p[:, 2]) < 1e-12) & (r > d.coupler_bore / 2 + 1e-9) & (r < d.coupler.outer_diameter / 2 - 1e-9)
+    assert not np.all(inside[tri], axis=1).any()
+
+
+def _extent(tm, name):
+    """{z plane: (min r, max r)} (m) of a facet set's nodes."""
+    p = tm.points[np.unique(tm.facet_sets[name])]
+    r = np.hypot(p[:, 0], p[:, 1])
+    out = {}
+    for z in np.unique(np.round(p[:, 2], 9)):
+        on = np.abs(p[:, 2] - z) < 1e-9
+        out[float(z)] = (round(float(r[on].min()), 9), round(float(r[on].max()), 9))
+    return out
+
+
+def test_sector_facet_sets_are_the_whole_drills(sector):
+    """A sector's named surfaces span what the whole drill's do, plane by plane: the flange's
+    exposed ring beside the horn (12 to 22.5 mm) included, which a per-triangle radius rule lost."""
+    swept = len(sector.cells_in(region="ring_1")) > 200     # prisms cut in three: many more ring cells
+    whole, _ = build(_pzt4(default_design()), mesher="revolve" if swept else "free", refine=2.0)
+    for name in ("flange", "horn_tip", "teeth_tops", "electrode_0", "electrode_2", "electrode_4"):
+        assert _extent(sector, name) == _extent(whole, name), name
+    assert _extent(sector, "flange")[0.023] == (0.012, 0.0225)
 
 
 def test_harmonics_equal_the_whole_drill(sector, full):
@@ -213,8 +239,28 @@ def test_command_line_solves_the_default_design_by_harmonics(tmp_path):
 
 @pytest.mark.parametrize("args, word", [(["--sectors", "4"], "--sectors"), (["--sectors", "6", "--match"], "--match"),
                                         (["--harmonics", "4"], "--harmonics"),
-                                        (["--sectors", "off", "--harmonics", "0"], "--harmonics")])
+                                        (["--sectors", "off", "--harmonics", "0"], "--harmonics"),
+                                        (["--refine", "0.22"], "--refine"),
+                                        (["--sectors", "6", "--order", "1"], "--order")])
 def test_command_line_refuses_sector_options_in_one_line(tmp_path, args, word):
     r = _modal(tmp_path, *args, "--json", "m.json")
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and word in r.stderr
     assert list(tmp_path.iterdir()) == []
+
+
+def test_straightening_keeps_the_cut_faces_copies():
+    """A node straightened on one cut carries its partner along (geometry.sector.keep_periodic);
+    untouched pairs keep their coordinates bit for bit."""
+    from geometry.sector import keep_periodic, rotation
+
+    R = rotation(2 * math.pi / N)
+    near = np.array([[0.01, 0.0, 0.0], [0.02, 0.0, 0.01], [0.015, 0.0, 0.02]])
+    before = np.vstack([near, near @ R.T, [[0.01, 0.003, 0.0]]])
+    after = before.copy()
+    after[1] += [1e-4, 0.0, 0.0]                        # near node 1 straightened
+    after[5] += 1e-4 * R[:, 0]                          # the far partner of near node 2 straightened
+    out = keep_periodic(before, after, N)
+    pairs = sector_pairs(before, N)
+    assert np.abs(out[pairs.far] - out[pairs.near] @ R.T).max() < 1e-15
+    assert np.array_equal(out[1], after[1]) and np.allclose(out[2], after[5] @ R, atol=1e-15)
+    assert np.array_equal(out[[0, 3, 6]], before[[0, 3, 6]])
