@@ -160,7 +160,7 @@ def _interface_grid(gmsh, face: int, points_rz: dict, sectors: int, layers: int)
 
 
 def sweep_section(points_rz: dict, triangles: np.ndarray, sectors: int, layers: int, first_tag: int,
-                  fixed: dict | None = None):
+                  fixed: dict | None = None, rank: dict | None = None):
     """Swept prisms of a section mesh, cut into 4-node tetrahedra.
 
     Parameters
@@ -174,6 +174,10 @@ def sweep_section(points_rz: dict, triangles: np.ndarray, sectors: int, layers: 
     fixed : dict, optional
         Section tag -> its tags at layers 0 .. ``layers`` where they exist already (the
         coupler's top face, :func:`premesh_interface`).
+    rank : dict, optional
+        Tag -> the number that orders it in the prisms' cuts instead of the tag itself (the
+        coupler's top face was cut by its tags before Gmsh renumbered them; every other node
+        ranks after those, by its tag).
 
     Returns
     -------
@@ -204,9 +208,13 @@ def sweep_section(points_rz: dict, triangles: np.ndarray, sectors: int, layers: 
     idx = np.vectorize(pos.__getitem__)(triangles)
     tets, source = [], []
     rows = np.repeat(np.arange(len(idx)), 3)
+    if rank:
+        top = max(rank.values()) + 1
+        order = np.vectorize(lambda t: rank.get(int(t), top + int(t)), otypes=[np.int64])
     for j in range(layers):
         prism = np.concatenate([copies[j][idx], copies[j + 1][idx]], axis=1)
-        tets.append(np.take_along_axis(prism[rows], _prism_tets(prism).reshape(-1, 4), axis=1))
+        local = _prism_tets(order(prism) if rank else prism)
+        tets.append(np.take_along_axis(prism[rows], local.reshape(-1, 4), axis=1))
         source.append(rows)
     tets, source = np.concatenate(tets), np.concatenate(source)
     s = np.sort(tets, axis=1)
@@ -243,6 +251,19 @@ def add_midnodes(points: np.ndarray, cells4: np.ndarray, known: dict) -> tuple[n
     if extra:
         points = np.vstack([points, np.asarray(extra)])
     return points, np.concatenate([cells4, mids], axis=1)
+
+
+def _check_interface(design: RPUDDesign, points: np.ndarray, cells: np.ndarray) -> None:
+    """Raise if the coupler and the first ring do not meet face to face (a boundary triangle
+    inside their common annulus at z = 0)."""
+    local = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
+    faces, counts = np.unique(np.sort(cells[:, :4][:, local].reshape(-1, 3), axis=1), axis=0, return_counts=True)
+    p = points[faces[counts == 1]]
+    r = np.hypot(p[:, :, 0], p[:, :, 1])
+    inside = np.all((np.abs(p[:, :, 2]) < 1e-12) & (r > design.coupler_bore / 2 + 1e-9)
+                    & (r < design.coupler.outer_diameter / 2 - 1e-9), axis=1)
+    if inside.any():    # pragma: no cover - the cuts follow one order on both sides
+        raise RuntimeError(f"{int(inside.sum())} faces of the coupler's top do not match the first ring's")
 
 
 def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.ndarray, swept: dict,
@@ -293,6 +314,7 @@ def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.nd
     missing = sorted({r[0] for r in surface_rules(design)} - set(facet_sets))
     if missing:
         raise ParameterError("design", design.name, f"no surface found for {', '.join(missing)}")
+    _check_interface(design, points, cells)
     used = np.unique(cells)
     renum = np.full(len(points), -1, dtype=np.int64)
     renum[used] = np.arange(len(used))
@@ -341,7 +363,7 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
             gmsh.model.mesh.setTransfiniteCurve(abs(c), layers + 1)
     gmsh.model.mesh.generate(1)
     next_tag = int(gmsh.model.mesh.getMaxNodeTag()) + 1
-    premesh_interface(gmsh, top, sectors, layers, next_tag)
+    grid, _ = premesh_interface(gmsh, top, sectors, layers, next_tag)
     gmsh.option.setNumber("Mesh.MeshOnlyEmpty", 1)
     gmsh.model.mesh.generate(2)
     gmsh.model.mesh.generate(3)
@@ -364,9 +386,15 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
     corner_tags = np.unique(np.concatenate([t for _r, t in tri]))
     points_rz = {int(t): xyz[where[int(t)]] for t in corner_tags}
     fixed = _interface_grid(gmsh, top, points_rz, sectors, layers)
+    # the top face was cut by its tags before setOrder renumbered them: the prisms below it are
+    # cut in that order too (rows of the grid: the bottom edge's nodes outward)
+    by_radius = sorted(fixed, key=lambda t: float(np.hypot(*points_rz[t][:2])))
+    if len(by_radius) != len(grid):      # pragma: no cover - the same edge
+        raise RuntimeError("the coupler's top face lost nodes")
+    rank = {int(fixed[t][j]): int(grid[i, j]) for i, t in enumerate(by_radius) for j in range(layers + 1)}
     all_tri = np.concatenate([t for _r, t in tri])
     owner = np.concatenate([np.full(len(t), k) for k, (_r, t) in enumerate(tri)])
-    new_tags, new_xyz, tets, source = sweep_section(points_rz, all_tri, sectors, layers, next_tag, fixed)
+    new_tags, new_xyz, tets, source = sweep_section(points_rz, all_tri, sectors, layers, next_tag, fixed, rank)
     tags_all = np.concatenate([node_tags, new_tags])
     coords = np.round(np.concatenate([xyz, new_xyz]) / snap) * snap
     index = np.full(int(tags_all.max()) + 1, -1, dtype=np.int64)
