@@ -181,10 +181,12 @@ def run(args, design, near: float, sectors: int) -> int:
     # about its share, and for more where it may hold modes nearer than the last one listed
     mult = {k: 2 if 0 < k < sectors / 2 else 1 for k in ks}
     ask = {k: min(n_modes, -(-n_modes // (len(ks) + 1)) + 2) for k in ks}
+    asked = {}
     while True:
         for k in ks:
-            if k not in results or len(results[k].f_hz) < ask[k]:
+            if asked.get(k, 0) < ask[k]:
                 results[k] = cyclic_modes(meshes[k][0], sectors, k, near, ask[k], clamp=args.clamp, backend=backend)
+                asked[k] = ask[k]
         cands = sorted((abs(f - near), k) for k in ks for f in results[k].f_hz)
         total, last = 0, cands[-1][0]
         for d, k in cands:
