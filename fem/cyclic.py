@@ -223,8 +223,9 @@ def _collapse(f, vec, doubled, rel: float = 1e-7):
 def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: float, n_modes: int,
                  clamp=(), *, pairs: SectorPairs | None = None, open_circuit: bool = True,
                  rigid_hz: float | None = None, backend: str | None = None, tol: float = 1e-10) -> CyclicModes:
-    """The ``n_modes`` modes of ``harmonic`` nearest ``near_hz`` (Hz) of the whole drill whose
-    sector ``system`` is (see the module docstring).
+    """The ``n_modes`` modes of ``harmonic`` nearest ``near_hz`` (Hz; nearest in omega^2, as
+    :func:`fem.modal.modal_analysis`) of the whole drill whose sector ``system`` is (see the module
+    docstring).
 
     ``open_circuit`` (``k = 0``): also the anti-resonances, paired with the resonances by the
     mass-weighted MAC of their displacement. Modes below ``rigid_hz`` (default ``max(10 Hz,
@@ -266,7 +267,8 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
     (f, x), opened, ndof = run("open" if joint else "short", hot=joint)
     rigid = np.abs(f) < rigid_hz
     f_r, x_r = f[~rigid], x[:, ~rigid]
-    order = np.sort(np.argsort(np.abs(f_r - near_hz))[:n_modes])
+    # nearest in omega^2, the shift-invert sense of fem.modal (not in f)
+    order = np.sort(np.argsort(np.abs(f_r ** 2 - near_hz ** 2))[:n_modes])
     f_r, x_r = f_r[order], x_r[:, order]
     t1 = time.perf_counter()
     if joint:

@@ -187,7 +187,8 @@ def run(args, design, near: float, sectors: int) -> int:
             if asked.get(k, 0) < ask[k]:
                 results[k] = cyclic_modes(meshes[k][0], sectors, k, near, ask[k], clamp=args.clamp, backend=backend)
                 asked[k] = ask[k]
-        cands = sorted((abs(f - near), k) for k in ks for f in results[k].f_hz)
+        # nearest in omega^2, as the whole drill's shift-invert solve (fem.modal) picks them
+        cands = sorted((abs(f * f - near * near), k) for k in ks for f in results[k].f_hz)
         total, last = 0, cands[-1][0]
         for d, k in cands:
             total += mult[k]
@@ -195,7 +196,7 @@ def run(args, design, near: float, sectors: int) -> int:
                 last = d
                 break
         short = [k for k in ks if ask[k] < n_modes and len(results[k].f_hz) == ask[k]
-                 and max(abs(results[k].f_hz - near)) <= last]
+                 and max(abs(results[k].f_hz ** 2 - near ** 2)) <= last]
         if not short:
             break
         for k in short:
@@ -214,7 +215,7 @@ def run(args, design, near: float, sectors: int) -> int:
                          "shares": {"axial": float(shares[j, 0]), "tangential": float(shares[j, 1]),
                                     "radial": float(shares[j, 2])},
                          "_index": j})
-    rows.sort(key=lambda r: abs(r["f_r_hz"] - near))
+    rows.sort(key=lambda r: abs(r["f_r_hz"] ** 2 - near ** 2))
     keep = np.cumsum([r["multiplicity"] for r in rows])
     rows = sorted(rows[:int(np.searchsorted(keep, n_modes)) + 1], key=lambda r: r["f_r_hz"])
     checked = (mesher_of(args, design) == "revolve" and args.refine == 1 and args.mesh_size is None
