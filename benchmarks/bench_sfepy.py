@@ -116,36 +116,15 @@ def run_ours(tm, open_circuit):
 def run_ours_cyclic(tm, sectors, open_circuit):
     """Our cyclic-symmetry path on the sector ``tm``: the N_MODES modes of the whole drill nearest
     NEAR from its harmonics (a pair twice), as ``python -m fem.modal --sectors`` selects them."""
-    from fem.cyclic import cyclic_modes, harmonics
+    from fem.cyclic import harmonics, multiplicity, nearest_modes
 
     t0 = time.perf_counter()
     system = assemble(tm)
     t1 = time.perf_counter()
-    ks = harmonics(sectors)
-    mult = {k: 2 if 0 < k < sectors / 2 else 1 for k in ks}
-    ask = {k: -(-N_MODES // (len(ks) + 1)) + 2 for k in ks}
-    res, asked = {}, {}
-    while True:
-        for k in ks:
-            if asked.get(k, 0) < ask[k]:
-                res[k] = cyclic_modes(system, sectors, k, NEAR, ask[k], open_circuit=open_circuit)
-                asked[k] = ask[k]
-        cands = sorted((abs(f * f - NEAR * NEAR), float(f), k) for k in ks for f in res[k].f_hz)
-        chosen, total = [], 0
-        for d, f, k in cands:
-            chosen += [f] * mult[k]
-            total += mult[k]
-            if total >= N_MODES:
-                break
-        last = cands[min(len(cands) - 1, len(set(chosen)) - 1)][0]
-        short = [k for k in ks if ask[k] < N_MODES and len(res[k].f_hz) == ask[k]
-                 and max(abs(res[k].f_hz ** 2 - NEAR ** 2)) <= last]
-        if not short:
-            break
-        for k in short:
-            ask[k] = min(N_MODES, 2 * ask[k])
+    res, chosen = nearest_modes({k: system for k in harmonics(sectors)}, sectors, NEAR, N_MODES,
+                                open_circuit=open_circuit)
     t2 = time.perf_counter()
-    f = np.sort(np.array(chosen[:N_MODES]))
+    f = np.sort([float(res[k].f_hz[j]) for k, j in chosen for _ in range(multiplicity(k, sectors))][:N_MODES])
     return dict(ndof=len(system.free_dofs("short")), n_phi=system.n_phi, asm=t1 - t0, eig=t2 - t1,
                 fact=float("nan"), total=t2 - t0, f=f, backend="cyclic, " + backend_name())
 

@@ -34,10 +34,11 @@ from rpud_common import ParameterError, check_choice
 
 from .assembly import PiezoSystem
 from .eigen import block_eigs, smooth_start
-from .modal import _freq
+from .modal import BLOCK_MIN, _freq
 from .solvers import blas_threads, factorize
 
-__all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "harmonic_shares", "harmonic_labels", "expand"]
+__all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "multiplicity", "nearest_modes",
+           "harmonic_shares", "harmonic_labels", "expand"]
 
 log = logging.getLogger(__name__)
 
@@ -45,6 +46,12 @@ log = logging.getLogger(__name__)
 def harmonics(sectors: int) -> tuple[int, ...]:
     """The distinct harmonics ``0 .. floor(N / 2)`` of ``N`` sectors."""
     return tuple(range(sectors // 2 + 1))
+
+
+def multiplicity(harmonic: int, sectors: int) -> int:
+    """How many modes of the whole drill one mode of ``harmonic`` stands for: 2 (a pair) for a
+    complex phase, else 1."""
+    return 2 if 0 < harmonic < sectors / 2 else 1
 
 
 def _axis_directions(k: int, sectors: int) -> list[np.ndarray]:
@@ -192,7 +199,7 @@ def _solve(Kr, Mr, Tr, system, n_modes, sigma, backend, tol, hot: bool = False):
         Kr, Mr, Tr = Kr[:-1, :-1].tocsr(), Mr[:-1, :-1].tocsr(), Tr[:, :-1]
     F = factorize((Kr - sigma * Mr).tocsr(), backend=backend, matching=False)
     n = Kr.shape[0]
-    b = min(max(8, n_modes // 2 + 2), max(n - 2, 1))
+    b = min(max(BLOCK_MIN, n_modes // 2 + 2), max(n - 2, 1))
     x = smooth_start(system.nodes, np.arange(system.ndof), system.ndof, b, n_random=max(2, b // 4))
     if Tr.shape[0] != system.ndof:            # the doubled pencil: both halves
         x = np.vstack([x, np.roll(x, 1, axis=1)])
@@ -284,6 +291,40 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
              ndof, len(f_r), t2 - t0)
     return CyclicModes(harmonic, sectors, f_r, f_open, x_r, ndof, f[rigid],
                        {"short_s": t1 - t0, "open_s": t2 - t1, "total_s": t2 - t0})
+
+
+def nearest_modes(systems, sectors: int, near_hz: float, n_modes: int, **kw):
+    """The whole drill's ``n_modes`` modes nearest ``near_hz`` (in omega^2, as
+    :func:`fem.modal.modal_analysis` picks them) from its harmonics, a pair counting twice.
+
+    ``systems``: harmonic -> the sector system it is solved on; ``kw`` go to
+    :func:`cyclic_modes`. Each harmonic is asked for about its share of the modes, and for more
+    where it may hold modes nearer than the last one chosen. Returns ``(results, chosen)``:
+    harmonic -> :class:`CyclicModes`, and ``(harmonic, index)`` of the chosen modes, nearest first,
+    their multiplicities summing to ``n_modes`` (one more when the last is a pair).
+    """
+    ks = sorted(systems)
+    ask = {k: min(n_modes, -(-n_modes // (len(ks) + 1)) + 2) for k in ks}
+    results, asked = {}, {}
+    while True:
+        for k in ks:
+            if asked.get(k, 0) < ask[k]:
+                results[k] = cyclic_modes(systems[k], sectors, k, near_hz, ask[k], **kw)
+                asked[k] = ask[k]
+        cands = sorted((abs(f * f - near_hz * near_hz), k, j) for k in ks for j, f in enumerate(results[k].f_hz))
+        chosen, total = [], 0
+        for _d, k, j in cands:
+            chosen.append((k, j))
+            total += multiplicity(k, sectors)
+            if total >= n_modes:
+                break
+        last = cands[len(chosen) - 1][0] if cands else 0.0
+        short = [k for k in ks if ask[k] < n_modes and len(results[k].f_hz) == ask[k]
+                 and max(abs(results[k].f_hz ** 2 - near_hz ** 2)) <= last]
+        if not short:
+            return results, chosen
+        for k in short:
+            ask[k] = min(n_modes, 2 * ask[k])
 
 
 def _pair_open(system, x_r, x_o, f_o, mac_min: float = 0.5):

@@ -169,55 +169,29 @@ def run(args, design, near: float, sectors: int) -> int:
     from geometry.options import mesher_of
     from rpud_common import atomic_write_text, json_text
 
-    from .cyclic import cyclic_modes, harmonic_labels, harmonic_shares
+    from .cyclic import harmonic_labels, harmonic_shares, multiplicity, nearest_modes
 
     ks = parse_harmonics(args.harmonics, sectors)
     n_modes = 12 if args.modes is None else args.modes
     backend = None if args.solver in (None, "auto") else args.solver
     t0 = time.perf_counter()
     meshes = _meshes(args, design, sectors, ks, single=bool(args.render or args.vtu))
-    rows, results = [], {}
-    # the drill's n modes nearest the target, a pair counting twice: each harmonic is asked for
-    # about its share, and for more where it may hold modes nearer than the last one listed
-    mult = {k: 2 if 0 < k < sectors / 2 else 1 for k in ks}
-    ask = {k: min(n_modes, -(-n_modes // (len(ks) + 1)) + 2) for k in ks}
-    asked = {}
-    while True:
-        for k in ks:
-            if asked.get(k, 0) < ask[k]:
-                results[k] = cyclic_modes(meshes[k][0], sectors, k, near, ask[k], clamp=args.clamp, backend=backend)
-                asked[k] = ask[k]
-        # nearest in omega^2, as the whole drill's shift-invert solve (fem.modal) picks them
-        cands = sorted((abs(f * f - near * near), k) for k in ks for f in results[k].f_hz)
-        total, last = 0, cands[-1][0]
-        for d, k in cands:
-            total += mult[k]
-            if total >= n_modes:
-                last = d
-                break
-        short = [k for k in ks if ask[k] < n_modes and len(results[k].f_hz) == ask[k]
-                 and max(abs(results[k].f_hz ** 2 - near ** 2)) <= last]
-        if not short:
-            break
-        for k in short:
-            ask[k] = min(n_modes, 2 * ask[k])
-    for k in ks:
-        system, _mesh, rule = meshes[k]
+    results, chosen = nearest_modes({k: meshes[k][0] for k in ks}, sectors, near, n_modes, clamp=args.clamp,
+                                    backend=backend)
+    shares = {k: harmonic_shares(meshes[k][0], results[k].vectors) for k in ks}
+    labels = {k: harmonic_labels(shares[k], k) for k in ks}
+    rows = []
+    for k, j in chosen:
         cm = results[k]
-        shares = harmonic_shares(system, cm.vectors)
-        labels = harmonic_labels(shares, k)
-        for j in range(len(cm.f_hz)):
-            f_r, f_a = float(cm.f_hz[j]), float(cm.f_open_hz[j])
-            driven = k == 0 and system.hot_dof is not None and np.isfinite(f_a)
-            k_eff = float(np.sqrt(max(0.0, 1 - (f_r / f_a) ** 2))) if driven else None
-            rows.append({"harmonic": k, "f_r_hz": f_r, "f_a_hz": f_a if driven else None, "k_eff": k_eff,
-                         "label": labels[j], "multiplicity": 2 if 0 < k < sectors / 2 else 1,
-                         "shares": {"axial": float(shares[j, 0]), "tangential": float(shares[j, 1]),
-                                    "radial": float(shares[j, 2])},
-                         "_index": j})
-    rows.sort(key=lambda r: abs(r["f_r_hz"] ** 2 - near ** 2))
-    keep = np.cumsum([r["multiplicity"] for r in rows])
-    rows = sorted(rows[:int(np.searchsorted(keep, n_modes)) + 1], key=lambda r: r["f_r_hz"])
+        f_r, f_a = float(cm.f_hz[j]), float(cm.f_open_hz[j])
+        driven = k == 0 and meshes[k][0].hot_dof is not None and np.isfinite(f_a)
+        k_eff = float(np.sqrt(max(0.0, 1 - (f_r / f_a) ** 2))) if driven else None
+        rows.append({"harmonic": k, "f_r_hz": f_r, "f_a_hz": f_a if driven else None, "k_eff": k_eff,
+                     "label": labels[k][j], "multiplicity": multiplicity(k, sectors),
+                     "shares": {"axial": float(shares[k][j, 0]), "tangential": float(shares[k][j, 1]),
+                                "radial": float(shares[k][j, 2])},
+                     "_index": j})
+    rows.sort(key=lambda r: r["f_r_hz"])
     checked = (mesher_of(args, design) == "revolve" and args.refine == 1 and args.mesh_size is None
                and args.order == 2 and not args.clamp and not (args.render or args.vtu) and not args.grade
                and _default_geometry(design))
