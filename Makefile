@@ -1,20 +1,35 @@
 # Two commands on a fresh machine: `make run` and `make test`.
+# Both install from requirements.lock (exact versions, hashes): the versions the suite passed with.
+# pyproject.toml keeps version ranges for library users; `make lock` re-resolves the lock from them.
 PYTHON ?= python3
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
+LOCK   := requirements.lock
 STAMP  := $(VENV)/.installed-stamp
+# the resolver that writes the lock, itself pinned so a refresh is reproducible
+UV     := uv==0.13.9
 
-.PHONY: run test bench install clean
+.PHONY: run test bench install lock clean
 
-$(STAMP): pyproject.toml impact/kernel.py impact/kernel_modal.py
+$(STAMP): pyproject.toml $(LOCK) impact/kernel.py impact/kernel_modal.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e '.[test]'
+	$(PY) -m pip install --quiet --require-hashes -r $(LOCK)
+	# the project itself on top of the locked set: no dependency may be resolved again here
+	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
+	$(PY) -m pip check
 	# compile the impact kernel now (numba caches it beside the source): runs start at once
 	$(PY) -c "from impact.kernel import warmup; warmup(); from impact.kernel_modal import warmup as w; w()"
 	touch $(STAMP)
 
 install: $(STAMP)
+
+# every supported Python and platform in one file (markers select per machine); the build
+# backend is locked too, since the editable install above builds without isolation
+lock:
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install --quiet $(UV)
+	printf 'setuptools>=68\nwheel\n' | $(VENV)/bin/uv pip compile pyproject.toml - --extra test \
+		--universal --python-version 3.11 --generate-hashes --quiet -o $(LOCK)
 
 run: $(STAMP)
 	$(PY) -m results
