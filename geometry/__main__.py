@@ -37,10 +37,12 @@ def _parser() -> CliParser:
     from .options import add_design_options
 
     add_design_options(p, include=("design", "select", "materials"))
-    p.add_argument("--write-default", metavar="FILE", help="write the default RPUD design as TOML and exit")
+    p.add_argument("--write-default", metavar="FILE", help="write the default RPUD design as TOML and exit "
+                   "(takes no design, output or meshing option)")
     p.add_argument("--export-step", metavar="DIR", help="write the design's solids as DIR/design.step (mm, solids "
                    "labelled by region) and DIR/design.toml, a kind = \"cad\" design with the rules that name its "
-                   "regions, surfaces, electrodes, size caps and tuned lengths; then exit unless a mesh output is given")
+                   "regions, surfaces, electrodes, size caps and tuned lengths; then exit unless a mesh output is "
+                   "given (the meshing options need one)")
     p.add_argument("--mesh", metavar="OUT.msh", help="write the tagged mesh (Gmsh 2.2 format, physical names)")
     p.add_argument("--vtu", metavar="OUT.vtu", help="write the mesh for ParaView (region/material/poling data)")
     p.add_argument("--json", metavar="OUT.json", help="write the report: parts (mesh volume, mass), groups, "
@@ -62,7 +64,8 @@ def _parser() -> CliParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    args = _parser().parse_args(argv)
+    parser = _parser()
+    args = parser.parse_args(argv)
     # warnings only by default, as every rpud CLI: stderr carries the one line of a failed run
     setup_logging(-1 if args.quiet else args.verbose - 1)
     from .design_rpud import default_design
@@ -73,6 +76,7 @@ def main(argv: list[str] | None = None) -> int:
         if value is not None and Path(value).suffix.lower() != suffix:
             raise ParameterError(f"--{key.replace('_', '-')}", value, f"must end in {suffix}")
     check_options(args)
+    check_combinations(args, parser)
     check_output_paths(inputs=design_inputs(args), folders=("export_step",), mesh=args.mesh, vtu=args.vtu,
                        json=args.json, png=args.png, write_default=args.write_default, export_step=args.export_step)
     if args.export_step and Path(args.export_step).is_dir():
@@ -86,22 +90,29 @@ def main(argv: list[str] | None = None) -> int:
         log.info("wrote %s", args.write_default)
         return 0
     design = design_from_options(args)
+    meshing = _meshes(args)
+    if meshing:
+        # every refusal before the first file: the export below is written for good
+        from .guard import check_budget
+        from .revolve import resolve_mesher
+
+        opts = mesh_options(args, design)
+        resolve_mesher(design, opts.get("mesher", "free"))
+        check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large,
+                     **opts)
     if args.export_step:
         from .cad_export import export_cad
 
         step, toml = export_cad(design, args.export_step)
         sys.stdout.write(f"wrote {step} and {toml}\n")
-        if not (args.mesh or args.vtu or args.json or args.png):
+        if not meshing:
             return 0
 
-    from .guard import check_budget
     from .report import build_report
 
-    check_budget(design, args.mesh_size, args.order, args.epw, solve=False, allow_large=args.allow_large,
-                 **mesh_options(args, design))
     tm, report = build_report(design, mesh_size=args.mesh_size, order=args.order,
                               elements_per_wavelength=args.epw, algorithm=args.algorithm,
-                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout, **mesh_options(args, design))
+                              verbose=args.verbose >= 2, time_limit=args.gmsh_timeout, **opts)
     sys.stdout.write(format_table(report) + "\n")
     if args.mesh:
         tm.write(args.mesh)
@@ -125,6 +136,43 @@ def check_options(args) -> None:
         check_range("--epw", args.epw, 1.0, 200.0)
     if args.gmsh_timeout is not None:
         check_range("--gmsh-timeout", args.gmsh_timeout, 0.1, 86400.0, "s")  # builder.GMSH_TIME_RANGE
+
+
+_MESH_OPTIONS = ("mesh_size", "refine", "grade", "mesher", "epw", "order", "algorithm", "allow_large", "gmsh_timeout")
+"""Options that only act on meshing: without a mesh to build they would be ignored silently."""
+
+_MESH_OUTPUTS = ("mesh", "vtu", "json", "png")
+
+
+def _meshes(args) -> bool:
+    """True when the run meshes: always, unless it only exports STEP (or writes the default)."""
+    if args.write_default:
+        return False
+    return not args.export_step or any(getattr(args, k) is not None for k in _MESH_OUTPUTS)
+
+
+def _given(args, parser, dest: str) -> bool:
+    return getattr(args, dest) != parser.get_default(dest)
+
+
+def check_combinations(args, parser) -> None:
+    """Options that do not apply to the run are refused, not ignored: ``--write-default``
+    writes a file and exits, so it takes no other option; ``--export-step`` alone meshes nothing,
+    so the meshing options need a mesh output beside it."""
+    def flag(dest):
+        return "--" + dest.replace("_", "-")
+
+    if args.write_default:
+        others = ("design", "select", "materials", "export_step") + _MESH_OUTPUTS + _MESH_OPTIONS
+        for dest in others:
+            if _given(args, parser, dest):
+                raise ParameterError(flag(dest), getattr(args, dest), "does not apply with --write-default "
+                                     "(it writes the default design and exits): give one or the other")
+    if not _meshes(args):
+        for dest in _MESH_OPTIONS:
+            if _given(args, parser, dest):
+                raise ParameterError(flag(dest), getattr(args, dest), "acts on meshing only: with --export-step "
+                                     "give a mesh output too (--mesh, --vtu, --json or --png), or leave it out")
 
 
 def format_table(report: dict) -> str:

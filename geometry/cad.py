@@ -2,13 +2,14 @@
 
 :func:`import_step` reads the solids (converted to metres: OCC honours the file's declared
 length unit), glues touching solids into one conformal model (``fragment``; solids that overlap
-are refused) and keeps their labels; :func:`apply_rules` maps the solids to regions and the faces
-to facet sets by the rules and refuses, with one line naming the rule, a rule that matches
-nothing, a volume rule that matches several solids, two rules claiming one solid, and a solid no
-rule claims. :func:`resolve` does both in a Gmsh session of its own and keeps what the design
-needs without Gmsh (z range, region volumes per axial zone, electrode planes), cached per file
-and rule table. The builder (:mod:`geometry.builder`) calls :func:`import_step` and
-:func:`apply_rules` in its own session.
+are refused, and so are solids of no drill's size, :data:`SOLID_SIZE_RANGE`) and keeps their
+labels; :func:`apply_rules` maps the solids to regions and the faces to facet sets by the rules
+and refuses, with one line naming the rule, a rule that matches nothing, a volume rule that
+matches several solids, two rules claiming one solid, and a solid no rule claims.
+:func:`resolve` does both in a Gmsh session of its own and keeps what the design needs without
+Gmsh (z range, region volumes per axial zone, electrode planes), cached per file and rule table.
+The builder (:mod:`geometry.builder`) calls :func:`import_step` and :func:`apply_rules` in its
+own session.
 """
 
 from __future__ import annotations
@@ -28,9 +29,15 @@ from rpud_common import ParameterError
 from rpud_common import cli as common
 
 __all__ = ["Resolved", "resolve", "zone_table", "import_step", "apply_rules", "gmsh_session", "face_point", "volume_point",
-           "native_stdout_quiet"]
+           "native_stdout_quiet", "SOLID_SIZE_RANGE"]
 
 log = logging.getLogger(__name__)
+
+SOLID_SIZE_RANGE = (1e-3, 2.0)
+"""Largest bounding-box side of every solid of a STEP drawing, m: a ring, shim or tooth of a
+drill measures a millimetre or more across (thin layers are thin in one direction only), a
+whole drill at most two metres. Outside, the file's length unit is wrong (a drawing in m read
+as mm) or the part is no drill part, and meshing it would take no or all of the budget."""
 
 _CACHE: dict[tuple, "Resolved"] = {}
 _CACHE_SIZE = 16
@@ -157,6 +164,7 @@ def import_step(gmsh, path: str) -> tuple[list[int], dict[int, str]]:
     if not vols:
         raise ParameterError("step", str(path), "holds no solid (only faces or curves): export solids")
     labels = {t: gmsh.model.getEntityName(3, t) for t in vols}
+    _check_sizes(gmsh, str(path), vols, labels)
     if len(vols) == 1:
         return vols, labels
     # touching solids share faces only after fragmenting; an overlap would leave a piece of two
@@ -174,6 +182,27 @@ def import_step(gmsh, path: str) -> tuple[list[int], dict[int, str]]:
             owner[t] = v
     new_labels = {t: labels[v] for t, v in owner.items()}
     return sorted(owner), new_labels
+
+
+def _extent(gmsh, dim: int, tag: int) -> float:
+    """Largest side of an entity's bounding box (``tag`` -1: the whole model), m."""
+    bb = gmsh.model.getBoundingBox(dim, tag)
+    return float(max(bb[3] - bb[0], bb[4] - bb[1], bb[5] - bb[2]))
+
+
+def _check_sizes(gmsh, path: str, vols: list[int], labels: dict[int, str]) -> None:
+    """Every solid, and the drawing, of a drill's size (:data:`SOLID_SIZE_RANGE`), before meshing."""
+    lo, hi = SOLID_SIZE_RANGE
+    for v in vols:
+        size = _extent(gmsh, 3, v)
+        if not lo <= size <= hi:
+            raise ParameterError("step", path, f"{_describe_solid(gmsh, v, labels.get(v, ''))} measures "
+                                 f"{size * 1e3:.4g} mm across: a drill part measures {lo * 1e3:g} mm to "
+                                 f"{hi * 1e3:g} mm (check the file's length unit)")
+    size = _extent(gmsh, -1, -1)
+    if size > hi:
+        raise ParameterError("step", path, f"the drawing measures {size * 1e3:.4g} mm across: a drill measures "
+                             f"at most {hi * 1e3:g} mm (check the file's length unit)")
 
 
 def _label(label: str) -> str:

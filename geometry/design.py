@@ -23,7 +23,7 @@ from typing import Any
 
 from rpud_common import ParameterError, check_choice, from_mapping, load_toml
 from .design_base import MIN_WALL, POLING_VECTORS, DesignBase
-from .design_cad import CadDesign, LengthRule, SizeRule, SurfaceRule, VolumeRule
+from .design_cad import CadDesign, LengthRule, SizeRule, SurfaceRule, VolumeRule, step_path
 from .design_materials import own_records
 from .design_rpud import CouplerDesign, FlangeDesign, HornDesign, RPUDDesign, StackRings, default_design
 from .design_stack import ElectrodeSpec, Segment, StackDesign
@@ -64,8 +64,7 @@ def design_from_mapping(data: Mapping[str, Any], where: str = "",
                                          "[materials] table and in the --materials file: rename one of them")
             data = {**data, "materials": {**materials, **own}}
         if kind == "cad" and base_dir is not None and isinstance(data.get("step"), str):
-            step = Path(data["step"]).expanduser()
-            data = {**data, "step": str(step if step.is_absolute() else (Path(base_dir) / step).resolve())}
+            data = {**data, "step": step_path(data["step"], base_dir)}
         design = from_mapping(KINDS[kind], data)
     except ParameterError as exc:
         if where:

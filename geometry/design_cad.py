@@ -47,7 +47,7 @@ from .design_materials import check_material_name
 from .materials import Material
 from .validate import check_count, check_frequency, check_length, check_name
 
-__all__ = ["Plane", "Selector", "VolumeRule", "SurfaceRule", "SizeRule", "LengthRule", "CadDesign"]
+__all__ = ["Plane", "Selector", "VolumeRule", "SurfaceRule", "SizeRule", "LengthRule", "CadDesign", "step_path"]
 
 _COORD = 10.0
 """Largest |coordinate| of a selector, m."""
@@ -61,6 +61,36 @@ def _check_coords(name: str, value, n: int) -> tuple[float, ...]:
     for v in value:
         check_range(name, v, -_COORD, _COORD, "m")
     return tuple(float(v) for v in value)
+
+
+def _check_step_text(value) -> None:
+    """A STEP path as text: a non-empty string without NUL or control characters (a NUL ends a
+    path for the operating system, and no user means a tab or newline in a file name)."""
+    if not isinstance(value, str) or not value:
+        raise ParameterError("step", value, "must name a STEP file (.step or .stp)")
+    if any(not ch.isprintable() for ch in value):
+        raise ParameterError("step", value, "must not contain NUL or control characters")
+
+
+def step_path(value: Any, base_dir: str | os.PathLike | None = None) -> Any:
+    """The ``step`` entry of a design file as a path: ``~`` and ``~user`` expanded, a relative
+    path taken from ``base_dir`` (the TOML file's folder). Anything but a usable string is a
+    :class:`ParameterError` naming ``step``; a value that is no string is returned as is for the
+    design's own check to name it."""
+    if not isinstance(value, str):
+        return value
+    _check_step_text(value)
+    try:
+        step = Path(value).expanduser()
+    except (RuntimeError, KeyError):     # ~user of an unknown user, or no home folder at all
+        raise ParameterError("step", value, "names the home folder of an unknown user: give the path "
+                             "without ~ or relative to the design file") from None
+    if step.is_absolute() or base_dir is None:
+        return str(step)
+    try:
+        return str((Path(base_dir) / step).resolve())
+    except (OSError, RuntimeError) as exc:  # a loop of symbolic links
+        raise ParameterError("step", value, f"cannot be resolved ({exc})") from None
 
 
 @dataclass(frozen=True)
@@ -337,14 +367,18 @@ class CadDesign(DesignBase):
         self._check_materials()
 
     def _check_step(self) -> None:
-        if not isinstance(self.step, str) or not self.step:
-            raise ParameterError("step", self.step, "must name a STEP file (.step or .stp)")
+        _check_step_text(self.step)
         if Path(self.step).suffix.lower() not in (".step", ".stp"):
             raise ParameterError("step", self.step, "must end in .step or .stp")
         p = Path(self.step)
-        if not p.is_file():
-            raise ParameterError("step", self.step, "file does not exist" if not p.exists() else "is not a regular file")
-        if not os.access(p, os.R_OK):
+        try:
+            if not p.is_file():
+                raise ParameterError("step", self.step, "file does not exist" if not p.exists()
+                                     else "is not a regular file")
+            readable = os.access(p, os.R_OK)
+        except OSError as exc:      # a name too long, a loop of links: the file system refuses the path
+            raise ParameterError("step", self.step, f"cannot be read ({exc.strerror or exc})") from None
+        if not readable:
             raise ParameterError("step", self.step, "cannot be read")
 
     def _pick_tuned(self) -> tuple[str, ...]:

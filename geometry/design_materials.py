@@ -5,7 +5,8 @@ A design resolves material names in its *library*: the built-in records
 (``geometry/materials.toml``) overlaid with the design's own records (``design.materials``, the
 ``[materials]`` table of its TOML, same layout as ``materials.toml``). Parts only name their
 material; the design checks every name (unknown names list what is available) and the roles the
-names play (a ring must be a piezoceramic, a segment is poled iff its material is).
+names play (a ring must be a piezoceramic, a horn, flange, coupler or shim must not be, a
+segment or CAD region is poled iff its material is).
 """
 
 from __future__ import annotations
@@ -43,13 +44,16 @@ def own_records(value: Any) -> dict[str, Material]:
 
 
 def resolve_uses(uses, library: Mapping[str, Material]) -> None:
-    """Check every material a design uses.
+    """Check every material a design uses, and that it suits the part's role.
 
     Parameters
     ----------
     uses : iterable of (dotted path, name, role)
-        ``role``: ``"piezo"`` (must be a piezoceramic), ``"passive"`` (must not be),
-        ``("poling", path, value)`` (a segment: poled iff piezo) or ``None`` (any).
+        ``role``: ``"piezo"`` (must be a piezoceramic), ``("poling", path, value)`` (a segment
+        or a CAD region: poled iff piezo, so the design says explicitly where a ceramic goes) or
+        ``"passive"``/``None`` (a metal part: horn, flange, coupler, electrode shim). The kinds
+        have no flag for an active horn or coupler, so a piezoceramic there is refused: it is a
+        mistyped name, and the part would be meshed and solved as unpoled ceramic.
     library : mapping name -> Material
     """
     for path, name, role in uses:
@@ -58,13 +62,24 @@ def resolve_uses(uses, library: Mapping[str, Material]) -> None:
                                  + " (or add it to the design's [materials] table, or give --materials FILE)")
         piezo = library[name].is_piezo
         if role == "piezo" and not piezo:
-            raise ParameterError(path, name, "must be a piezoceramic (kind = 'piezo')")
+            raise ParameterError(path, name, "must be a piezoceramic (kind = 'piezo'): "
+                                 f"{_part(path)} is the design's active ceramic")
+        if role in ("passive", None) and piezo:
+            raise ParameterError(path, name, f"is a piezoceramic: the {_part(path)} must be a passive material "
+                                 "(kind = 'isotropic', e.g. ti6al4v, steel_45); the ceramic rings take stack.material")
         if isinstance(role, tuple) and role[0] == "poling":
             _, ppath, poling = role
             if piezo and poling == "none":
                 raise ParameterError(ppath, poling, f"a piezoceramic ({name}) needs a poling direction")
             if not piezo and poling != "none":
                 raise ParameterError(ppath, poling, f"must be 'none' for passive material {name}")
+
+
+def _part(path: str) -> str:
+    """The part a material path belongs to, for messages (``horn.material`` -> ``horn``,
+    ``stack.shim_material`` -> ``stack's electrode shim``)."""
+    head, _, field = path.rpartition(".")
+    return f"{head}'s electrode shim" if field == "shim_material" else head
 
 
 def with_records(design, records: Mapping[str, Material], source: str):
