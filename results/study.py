@@ -21,7 +21,7 @@ points that :mod:`results.explore` runs::
     mesh_size = 0.0               # 0: the design's own rule
 
     [parameters."coupler.slot_angle_deg"]
-    values = [20.0, 30.0, 40.0]   # grid / list levels
+    values = [20.0, 30.0, 40.0]   # grid levels
     [parameters."impact.m_free"]
     range = [0.002, 0.008]        # grid (with n) or lhs
     n = 3
@@ -31,6 +31,10 @@ points that :mod:`results.explore` runs::
 Parameter names: a dotted design path (``horn.length``), ``drive.voltage`` (V) or
 ``drive.q_mech``, or ``impact.<field>`` of :class:`impact.params.ImpactParams` (``m_free`` kg,
 ``e1``, ``gap`` m...). Sampling ``list`` takes ``[[points]]`` tables instead of ranges.
+
+Every key is checked by type and range on loading, before anything runs; a key the sampling
+does not read (a tolerance under grid sampling, ``[parameters]`` tables under list sampling) is
+refused rather than ignored, as is a varied design field that is not a number.
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ import itertools
 import json
 import math
 import os
+import re
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any, Mapping
@@ -215,76 +220,75 @@ class Study:
 
 # ------------------------------------------------------------------------------ loading
 
+MAX_PARAMETERS = 32
+"""Most varied parameters of a study (a hypercube's memory grows with points x parameters)."""
+
+MAX_LEVELS = 1000
+"""Most levels of one grid parameter."""
+
+_NAME_PART = re.compile(r"[A-Za-z_][A-Za-z0-9_]*\Z")
+_STUDY_KEYS = ("name", "design", "select", "stages", "sampling", "samples", "seed", "outputs", "pareto")
+_PARAMETER_KEYS = ("values", "range", "n", "tolerance")
+
 
 def _number(where: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
         raise ParameterError(where, v, "must be a finite number")
-    if v != 0 and not 1e-12 <= abs(v) <= 1e12:
+    try:
+        x = float(v)
+    except OverflowError:       # an integer beyond the float range
+        raise ParameterError(where, v, "must be a finite number") from None
+    if not math.isfinite(x):
+        raise ParameterError(where, v, "must be a finite number")
+    if x != 0 and not 1e-12 <= abs(x) <= 1e12:
         raise ParameterError(where, v, "must be 0 or of magnitude 1e-12 to 1e12 (SI units)")
-    return float(v)
+    return x
 
 
-def _parameter(name: str, table: Any, sampling: str) -> StudyParameter:
-    where = f"parameters.{name}"
-    if not isinstance(table, Mapping):
-        raise ParameterError(where, table, "must be a table with values, range (+ n) or tolerance")
-    unknown = set(table) - {"values", "range", "n", "tolerance"}
-    if unknown:
-        raise ParameterError(f"{where}.{sorted(unknown)[0]}", table[sorted(unknown)[0]],
-                             "unknown key: use values, range, n or tolerance")
-    group, _, rest = name.partition(".")
-    if group == "drive" and rest not in DRIVE_FIELDS:
-        raise ParameterError(where, name, f"drive parameters are {', '.join('drive.' + f for f in DRIVE_FIELDS)}")
-    if group == "impact" and rest not in IMPACT_FIELDS:
-        raise ParameterError(where, name, f"impact parameters are {', '.join('impact.' + f for f in IMPACT_FIELDS)}")
-    values = tuple(_number(f"{where}.values", v) for v in table.get("values", ()))
-    low = high = None
-    if "range" in table:
-        r = table["range"]
-        if not isinstance(r, list) or len(r) != 2:
-            raise ParameterError(f"{where}.range", r, "must be [low, high]")
-        low, high = _number(f"{where}.range", r[0]), _number(f"{where}.range", r[1])
-        if not low < high:
-            raise ParameterError(f"{where}.range", r, "must have low < high")
-    n = table.get("n", 0)
-    tol = table.get("tolerance")
-    if sampling == "grid":
-        if bool(values) == (low is not None):
-            raise ParameterError(where, table, "grid sampling: give either values or range with n")
-        if low is not None:
-            check_integer(f"{where}.n", n, 2, 1000)
-    elif sampling == "lhs" and low is None:
-        raise ParameterError(where, table, "lhs sampling: give range = [low, high]")
-    elif sampling == "tolerance":
-        if tol is None:
-            raise ParameterError(where, table, "tolerance sampling: give tolerance (relative, e.g. 0.02)")
-        check_range(f"{where}.tolerance", tol, 0.0, 0.5, lo_open=True)
-    return StudyParameter(name=name, values=values, low=low, high=high, n=int(n),
-                          tolerance=None if tol is None else float(tol))
+def _text(where: str, v: Any, allowed: str, limit: int = 200) -> str:
+    if not isinstance(v, str) or len(v) > limit or not v.isprintable():
+        raise ParameterError(where, v, allowed)
+    return v
 
 
-def study_from_mapping(data: Mapping[str, Any], base_dir: str | os.PathLike = ".") -> Study:
-    """Validate a parsed study file; errors name the table and key."""
-    for key in data:
-        if key not in ("study", "settings", "parameters", "points"):
-            raise ParameterError(key, "...", "unknown table: use [study], [settings], [parameters.*], [[points]]")
+def _unknown_keys(where: str, table: Mapping, allowed: tuple[str, ...], hint: str = "") -> None:
+    for key in table:
+        if key not in allowed:
+            raise ParameterError(f"{where}.{key}", table[key], f"unknown key: use {', '.join(allowed)}{hint}")
+
+
+def _names(where: str, v: Any, choices: tuple[str, ...]) -> tuple[str, ...]:
+    """A list of distinct names out of ``choices``; a ParameterError names the first bad one."""
+    if not isinstance(v, list):
+        raise ParameterError(where, v, f"must be a list of names out of {', '.join(choices)}")
+    seen: set[str] = set()
+    for item in v:
+        if not isinstance(item, str) or item not in choices:
+            raise ParameterError(where, item, f"unknown name: use {', '.join(choices)}")
+        if item in seen:
+            raise ParameterError(where, item, "is named twice")
+        seen.add(item)
+    return tuple(v)
+
+
+def _study_table(data: Mapping[str, Any]) -> dict[str, Any]:
+    """The checked ``[study]`` table: every key by type and range, with the defaults filled in."""
     s = data.get("study")
     if not isinstance(s, Mapping):
         raise ParameterError("study", s, "a [study] table is required")
-    allowed = {"name", "design", "select", "stages", "sampling", "samples", "seed", "outputs", "pareto"}
-    for key in s:
-        if key not in allowed:
-            raise ParameterError(f"study.{key}", s[key], f"unknown key: use {', '.join(sorted(allowed))}")
+    _unknown_keys("study", s, _STUDY_KEYS)
     name = s.get("name", "study")
     if not isinstance(name, str) or not name or len(name) > 80 or not all(c.isalnum() or c in "-_." for c in name):
         raise ParameterError("study.name", name, "must be 1-80 characters of letters, digits, - _ .")
-    design = s.get("design", "default")
-    if not isinstance(design, str) or not design:
+    design = _text("study.design", s.get("design", "default"), "must be 'default' or the path of a design TOML",
+                   limit=4096)
+    select = _text("study.select", s.get("select", ""), "must be the name of a design in the design file")
+    if not design.strip():
         raise ParameterError("study.design", design, "must be 'default' or the path of a design TOML")
-    select = s.get("select", "")
-    if not isinstance(select, str):
-        raise ParameterError("study.select", select, "must be the name of a design in the design file")
-    stages = tuple(s.get("stages", STAGES))
+    if select and design == "default":
+        raise ParameterError("study.select", select, "picks a design out of a design file; the default design has "
+                                                     "no choice (remove select or name a file in design)")
+    stages = _names("study.stages", s.get("stages", list(STAGES)), STAGES)
     if not stages or stages != STAGES[:len(stages)]:
         raise ParameterError("study.stages", list(stages), f"must be a prefix of {list(STAGES)}")
     sampling = s.get("sampling", "grid")
@@ -293,78 +297,290 @@ def study_from_mapping(data: Mapping[str, Any], base_dir: str | os.PathLike = ".
     check_integer("study.seed", seed, 0, 2 ** 32 - 1)
     samples = s.get("samples", 0)
     if sampling in ("lhs", "tolerance"):
-        check_integer("study.samples", samples, 1, MAX_POINTS)
-    raw_settings = data.get("settings", {})
-    if not isinstance(raw_settings, Mapping):
-        raise ParameterError("settings", raw_settings, "must be a table")
-    known = {f.name: f for f in fields(StudySettings)}
+        check_integer("study.samples", samples, 1, MAX_POINTS - (sampling == "tolerance"))
+    else:
+        check_integer("study.samples", samples, 0, MAX_POINTS)
+    outputs = _names("study.outputs", s.get("outputs", []), tuple(OUTPUTS))
+    pareto = _names("study.pareto", s.get("pareto", []), tuple(OUTPUTS))
+    if pareto and len(pareto) != 2:
+        raise ParameterError("study.pareto", list(pareto), "must name two different outputs (both maximised)")
+    for where, names in (("study.outputs", outputs), ("study.pareto", pareto)):
+        for o in names:
+            if OUTPUTS[o][0] not in stages:
+                raise ParameterError(where, o, f"needs the {OUTPUTS[o][0]!r} stage in study.stages")
+    return dict(name=name, design=design, select=select, stages=stages, sampling=sampling, seed=int(seed),
+                samples=int(samples), outputs=outputs, pareto=pareto)
+
+
+def _settings(raw: Any) -> StudySettings:
+    """The ``[settings]`` table, each key checked by type before its range."""
+    if not isinstance(raw, Mapping):
+        raise ParameterError("settings", raw, "must be a table")
+    known = tuple(f.name for f in fields(StudySettings))
+    _unknown_keys("settings", raw, known)
     kw = {}
-    for key, v in raw_settings.items():
-        if key not in known:
-            raise ParameterError(f"settings.{key}", v, f"unknown key: use {', '.join(known)}")
-        if key in ("match",):
+    for key, v in raw.items():
+        where = f"settings.{key}"
+        if key == "match":
             if not isinstance(v, bool):
-                raise ParameterError(f"settings.{key}", v, "must be true or false")
-        elif key in ("scenario", "tip_surface"):
-            if not isinstance(v, str):
-                raise ParameterError(f"settings.{key}", v, "must be a string")
+                raise ParameterError(where, v, "must be true or false")
+        elif key == "scenario":
+            v = _text(where, v, "must be 'device' or 'article'")
+        elif key == "tip_surface":
+            if not isinstance(v, str) or (v and not _NAME_PART.match(v)) or len(v) > 64:
+                raise ParameterError(where, v, "must be the name of a surface of the mesh ('' picks horn_tip)")
         elif key == "max_members":
-            check_integer("settings.max_members", v, 2, 1_000_000)
+            check_integer(where, v, 2, 1_000_000)
         else:
-            v = _number(f"settings.{key}", v)
+            v = _number(where, v)
         kw[key] = v
-    settings = StudySettings(**kw)
-    raw_params = data.get("parameters", {})
-    if not isinstance(raw_params, Mapping) or (not raw_params and sampling != "list"):
-        raise ParameterError("parameters", raw_params, "name at least one [parameters.\"<name>\"] table")
-    params = tuple(_parameter(k, v, sampling) for k, v in raw_params.items())
-    listed: tuple[dict, ...] = ()
+    return StudySettings(**kw)
+
+
+def _parameter_name(where: str, name: Any) -> str:
+    """A dotted design path, ``drive.<field>`` or ``impact.<field>``."""
+    parts = name.split(".") if isinstance(name, str) and len(name) <= 200 else [""]
+    if not all(_NAME_PART.match(part) for part in parts):
+        raise ParameterError(where, name, "must be a dotted design path such as horn.length, drive.voltage or "
+                                          "impact.m_free (quote it: [parameters.\"horn.length\"])")
+    group, _, rest = name.partition(".")
+    if group == "drive" and rest not in DRIVE_FIELDS:
+        raise ParameterError(where, name, f"drive parameters are {', '.join('drive.' + f for f in DRIVE_FIELDS)}")
+    if group == "impact" and rest not in IMPACT_FIELDS:
+        raise ParameterError(where, name, f"impact parameters are {', '.join('impact.' + f for f in IMPACT_FIELDS)}")
+    return name
+
+
+def _values(where: str, v: Any) -> tuple[float, ...]:
+    if not isinstance(v, list) or not 1 <= len(v) <= MAX_LEVELS:
+        raise ParameterError(where, v, f"must be a list of 1 to {MAX_LEVELS} numbers")
+    values = tuple(_number(where, x) for x in v)
+    if len(set(values)) != len(values):
+        twice = next(x for x in values if values.count(x) > 1)
+        raise ParameterError(where, twice, "is listed twice: every level must differ")
+    return values
+
+
+def _range(where: str, r: Any) -> tuple[float, float]:
+    if not isinstance(r, list) or len(r) != 2:
+        raise ParameterError(where, r, "must be [low, high]")
+    low, high = _number(where, r[0]), _number(where, r[1])
+    if not low < high:
+        raise ParameterError(where, r, "must have low < high")
+    return low, high
+
+
+def _parameter(name: str, table: Any, sampling: str) -> StudyParameter:
+    where = f"parameters.{name}"
+    _parameter_name(where, name)
     if sampling == "list":
-        pts = data.get("points")
-        if not isinstance(pts, list) or not pts:
-            raise ParameterError("points", pts, "list sampling needs [[points]] tables")
-        names = sorted({k for p in pts if isinstance(p, Mapping) for k in p})
-        for i, p in enumerate(pts):
-            if not isinstance(p, Mapping) or sorted(p) != names:
-                raise ParameterError(f"points[{i}]", p, f"every point must set the same parameters {names}")
-        listed = tuple({k: _number(f"points[{i}].{k}", v) for k, v in p.items()} for i, p in enumerate(pts))
-        params = tuple(StudyParameter(name=k) for k in names)
-        for p in params:
-            _parameter(p.name, {}, "list")
+        raise ParameterError(where, table, "list sampling takes every value from the [[points]] tables: remove "
+                                           "the [parameters] tables")
+    if not isinstance(table, Mapping):
+        raise ParameterError(where, table, "must be a table with values, range (+ n) or tolerance")
+    _unknown_keys(where, table, _PARAMETER_KEYS, " (quote a dotted name: [parameters.\"horn.length\"])")
+    values = _values(f"{where}.values", table["values"]) if "values" in table else ()
+    low, high = _range(f"{where}.range", table["range"]) if "range" in table else (None, None)
+    n, tol = table.get("n", 0), table.get("tolerance")
+    if sampling == "grid":
+        if bool(values) == (low is not None):
+            raise ParameterError(where, table, "grid sampling: give either values or range with n")
+        if low is not None:
+            check_integer(f"{where}.n", n, 2, MAX_LEVELS)
+        used = ("values",) if values else ("range", "n")
+    elif sampling == "lhs":
+        if low is None:
+            raise ParameterError(where, table, "lhs sampling: give range = [low, high]")
+        used = ("range",)
+    else:
+        if tol is None:
+            raise ParameterError(where, table, "tolerance sampling: give tolerance (relative, e.g. 0.02)")
+        tol = _number(f"{where}.tolerance", tol)
+        check_range(f"{where}.tolerance", tol, 0.0, 0.5, lo_open=True)
+        used = ("tolerance",)
+    for key in table:
+        if key not in used:
+            raise ParameterError(f"{where}.{key}", table[key], f"is not used by {sampling} sampling (it takes "
+                                                               f"{' and '.join(used)})")
+    return StudyParameter(name=name, values=values, low=low, high=high, n=int(n),
+                          tolerance=None if tol is None else float(tol))
+
+
+def _parameters(raw: Any, sampling: str) -> tuple[StudyParameter, ...]:
+    if not isinstance(raw, Mapping):
+        raise ParameterError("parameters", raw, "must be tables [parameters.\"<name>\"]")
+    if not raw and sampling != "list":
+        raise ParameterError("parameters", raw, "name at least one [parameters.\"<name>\"] table")
+    if len(raw) > MAX_PARAMETERS:
+        raise ParameterError("parameters", f"{len(raw)} tables", f"at most {MAX_PARAMETERS} parameters per study")
+    return tuple(_parameter(k, v, sampling) for k, v in raw.items())
+
+
+def _listed(pts: Any) -> tuple[tuple[StudyParameter, ...], tuple[dict, ...]]:
+    """The ``[[points]]`` of list sampling: the same parameters in each, every point different."""
+    if not isinstance(pts, list) or not pts or not isinstance(pts[0], Mapping) or not pts[0]:
+        raise ParameterError("points", pts, "list sampling needs [[points]] tables, each setting the same parameters")
+    if len(pts) > MAX_POINTS:
+        raise ParameterError("points", f"{len(pts)} tables", f"at most {MAX_POINTS} points per study")
+    names = sorted(pts[0], key=str)
+    if len(names) > MAX_PARAMETERS:
+        raise ParameterError("points[0]", f"{len(names)} parameters", f"at most {MAX_PARAMETERS} per study")
+    for k in names:
+        _parameter_name(f"points[0].{k}", k)
+    listed, seen = [], set()
+    for i, p in enumerate(pts):
+        if not isinstance(p, Mapping) or sorted(p, key=str) != names:
+            raise ParameterError(f"points[{i}]", p, f"every point must set the same parameters {names}")
+        point = {k: _number(f"points[{i}].{k}", p[k]) for k in names}
+        values = tuple(point.values())
+        if values in seen:
+            raise ParameterError(f"points[{i}]", p, "repeats an earlier point: every point must differ")
+        seen.add(values)
+        listed.append(point)
+    return tuple(StudyParameter(name=k) for k in names), tuple(listed)
+
+
+def _base_of(p: StudyParameter, settings: StudySettings) -> float | None:
+    """The base value of a drive or impact parameter (None for a design one: known on loading)."""
+    group, _, rest = p.name.partition(".")
+    if group == "drive":
+        return float(getattr(settings, rest))
+    if group == "impact":
+        from impact.params import ImpactParams
+
+        return float(getattr(ImpactParams(), rest))
+    return None
+
+
+def _extremes(p: StudyParameter, listed: tuple[dict, ...], base: float | None) -> list[float]:
+    """The smallest and largest value a parameter takes in the study."""
+    if p.values:
+        return [min(p.values), max(p.values)]
+    if p.low is not None:
+        return [p.low, p.high]
+    if p.tolerance is not None:
+        return [] if base is None else [base * (1 - p.tolerance), base * (1 + p.tolerance)]
+    return [min(pt[p.name] for pt in listed), max(pt[p.name] for pt in listed)]
+
+
+def _check_physical(p: StudyParameter, values: list[float]) -> None:
+    """Drive and impact levels within the ranges their stage accepts (one point's failure is
+    recorded, but a study whose every point fails is refused before it starts)."""
+    where = f"parameters.{p.name}"
+    group, _, rest = p.name.partition(".")
+    if group == "drive":
+        lo, hi, unit = (1e-3, 1e4, "V") if rest == "voltage" else (1.0, 1e6, "")
+        for v in values:
+            check_range(where, v, lo, hi, unit)
+    elif group == "impact":
+        from impact.params import ImpactParams
+
+        for v in values:
+            try:
+                ImpactParams(A0=0.0).with_(**{rest: v})
+            except ParameterError as exc:
+                raise ParameterError(where, v, exc.allowed) from None
+
+
+def _check_reach(params, stages: tuple[str, ...]) -> None:
     needed = {"design": "mesh", "drive": "harmonic", "impact": "impact"}
     for p in params:
         if needed[p.group] not in stages:
             raise ParameterError(f"parameters.{p.name}", p.name, f"needs the {needed[p.group]!r} stage in study.stages")
-    outputs = tuple(s.get("outputs", ()))
-    for o in outputs + tuple(s.get("pareto", ())):
-        if o not in OUTPUTS:
-            raise ParameterError("study.outputs", o, f"unknown output: use {', '.join(OUTPUTS)}")
-        if OUTPUTS[o][0] not in stages:
-            raise ParameterError("study.outputs", o, f"needs the {OUTPUTS[o][0]!r} stage in study.stages")
-    pareto = tuple(s.get("pareto", ()))
-    if pareto and len(pareto) != 2:
-        raise ParameterError("study.pareto", list(pareto), "must name two outputs (both maximised)")
-    study = Study(name=name, design=design, stages=stages, sampling=sampling, parameters=params,
-                  settings=settings, samples=int(samples), seed=int(seed), outputs=outputs, pareto=pareto,
-                  listed=listed, base_dir=str(base_dir), select=select)
-    n = len(study.points()) if sampling != "tolerance" else samples + 1
+
+
+def _count_points(sampling: str, params, samples: int, listed) -> int:
+    """Points a study expands to, counted without expanding it (a grid's count is a product)."""
+    if sampling == "grid":
+        return math.prod(len(p.values) or max(p.n, 1) for p in params)
+    if sampling == "list":
+        return len(listed)
+    return samples + (sampling == "tolerance")
+
+
+def study_from_mapping(data: Mapping[str, Any], base_dir: str | os.PathLike = ".") -> Study:
+    """Validate a parsed study file; errors name the table and key.
+
+    Every key is checked by type and range here, before anything is computed; the design's
+    own fields are checked by :func:`load_study`, which reads the design.
+    """
+    if not isinstance(data, Mapping):
+        raise ParameterError("study file", data, "must be TOML tables [study], [settings], [parameters.*]")
+    for key in data:
+        if key not in ("study", "settings", "parameters", "points"):
+            raise ParameterError(str(key), data[key], "unknown table: use [study], [settings], [parameters.*], "
+                                                      "[[points]]")
+    head = _study_table(data)
+    sampling = head["sampling"]
+    settings = _settings(data.get("settings", {}))
+    params = _parameters(data.get("parameters", {}), sampling)
+    listed: tuple[dict, ...] = ()
+    if sampling == "list":
+        params, listed = _listed(data.get("points"))
+    elif "points" in data:
+        raise ParameterError("points", data["points"], f"[[points]] tables are read by list sampling only, not "
+                                                       f"{sampling}")
+    _check_reach(params, head["stages"])
+    if not settings.match and "matched" in head["outputs"] + head["pareto"]:
+        raise ParameterError("study.outputs", "matched", "needs settings.match = true (no matching, no flag)")
+    for p in params:
+        base = _base_of(p, settings)
+        if p.tolerance is not None and base == 0:
+            raise ParameterError(f"parameters.{p.name}", p.name, "has the base value 0: a relative tolerance "
+                                                                 "around it is empty")
+        _check_physical(p, _extremes(p, listed, base))
+    n = _count_points(sampling, params, head["samples"], listed)
     if n > MAX_POINTS:
         raise ParameterError("parameters", f"{n} points", f"at most {MAX_POINTS} points per study")
-    return study
+    return Study(parameters=params, settings=settings, listed=listed, base_dir=str(base_dir), **head)
+
+
+def _check_design_parameter(study: Study, p: StudyParameter, base) -> None:
+    """A varied design field exists, is a number (an integer field takes whole numbers only) and,
+    under tolerance sampling, has a nonzero base value."""
+    where = f"parameters.{p.name}"
+    try:
+        value = base.get(p.name)
+    except (KeyError, AttributeError, TypeError, ValueError):  # ParameterError is a ValueError
+        raise ParameterError(where, p.name, "not a field of the design") from None
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ParameterError(where, p.name, f"is a {type(value).__name__} field of the design: only numeric "
+                                            "fields can vary")
+    if not math.isfinite(value):
+        raise ParameterError(where, p.name, f"has the base value {value}: only finite fields can vary")
+    if isinstance(value, (int, np.integer)):
+        if study.sampling in ("lhs", "tolerance"):
+            raise ParameterError(where, p.name, f"is an integer field: vary it by grid values or [[points]], not "
+                                                f"{study.sampling} sampling")
+        levels = p.levels() if study.sampling == "grid" else [pt[p.name] for pt in study.listed]
+        for v in levels:
+            if not float(v).is_integer():
+                raise ParameterError(where, float(v), "is a level of an integer field: give whole numbers")
+    if study.sampling == "tolerance" and value == 0:
+        raise ParameterError(where, p.name, "has the base value 0: a relative tolerance around it is empty")
+
+
+def _is_file(path: Path) -> bool:
+    try:
+        return path.is_file()
+    except OSError:     # a name too long for the file system, a loop of links
+        return False
 
 
 def load_study(path: str | os.PathLike) -> Study:
     """Read and validate a study TOML (see the module docstring)."""
     path = Path(path)
-    data = load_toml(path, "study")
+    try:
+        data = load_toml(path, "study")
+    except ParameterError:
+        raise
+    except ValueError as exc:   # tomllib's own limits, e.g. an integer of more than 4300 digits
+        raise ParameterError("study", str(path), f"is not a usable TOML file ({exc})") from None
     study = study_from_mapping(data, base_dir=path.parent)
-    if study.design != "default" and not study.design_path.is_file():
+    if study.design != "default" and not _is_file(study.design_path):
         raise ParameterError("study.design", study.design, f"no design file at {str(study.design_path)!r}")
     base = study.base_design()
     for p in study.parameters:
         if p.group == "design":
-            try:
-                base.get(p.name)
-            except (KeyError, AttributeError, ParameterError):
-                raise ParameterError(f"parameters.{p.name}", p.name, "not a field of the design") from None
+            _check_design_parameter(study, p, base)
     return study
