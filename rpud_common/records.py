@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import sys
 import tomllib
 import types
 import typing
@@ -83,6 +84,9 @@ def load_toml(path: str | os.PathLike, name: str = "config") -> dict:
         raise ParameterError(name, text_path, f"is not valid TOML ({exc})") from None
     except RecursionError:
         raise ParameterError(name, text_path, f"nests deeper than {MAX_TOML_DEPTH} levels") from None
+    except ValueError:
+        # Python refuses to convert integers of more than sys.get_int_max_str_digits() digits
+        raise ParameterError(name, text_path, f"holds an integer of more than {sys.get_int_max_str_digits()} digits") from None
     if _depth(data) > MAX_TOML_DEPTH:
         raise ParameterError(name, text_path, f"nests deeper than {MAX_TOML_DEPTH} levels")
     return data

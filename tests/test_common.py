@@ -90,3 +90,13 @@ def test_results_written_with_umask_022_are_readable_by_others(tmp_path):
     for p in paths:
         mode = stat.S_IMODE(p.stat().st_mode)
         assert mode == (0o755 if p.is_dir() else 0o644), (p, oct(mode))
+
+
+def test_a_toml_integer_too_long_to_convert_is_a_parameter_error(tmp_path):
+    """Python refuses int() of more than sys.get_int_max_str_digits() digits with a plain ValueError."""
+    import sys
+
+    path = tmp_path / "big.toml"
+    path.write_text(f"x = {'9' * (sys.get_int_max_str_digits() + 1)}\n")
+    with pytest.raises(ParameterError, match="digits"):
+        load_toml(path, "--design")
