@@ -111,7 +111,20 @@ def test_electrode_errors():
         assemble(tm).dofs_on("nowhere")
 
 
+def _agreement_bound(A, b, *xs):
+    """What the solutions' residuals guarantee for their difference: each x is within
+    cond(A) ||A x - b|| / ||b|| (relative) of the exact solution, so two of them within the sum
+    (residuals in extended precision, so that their own round-off does not enter)."""
+    Ad = A.toarray()
+    wide = np.clongdouble if np.iscomplexobj(Ad) else np.longdouble
+    res = [np.linalg.norm((Ad.astype(wide) @ np.asarray(x, wide) - b).astype(Ad.dtype)) for x in xs]
+    return np.linalg.cond(Ad) * sum(res) / np.linalg.norm(b)
+
+
 def test_solver_backends_agree_real_and_complex():
+    """Each backend's residual is checked (1e-8 of b: a backward-stable solve reaches ~1e-12);
+    PARDISO and SuperLU then agree to what those residuals guarantee, cond(A) = 5.9e5 times them
+    (~1e-6; a failed or wrong solve differs by O(1))."""
     s = assemble(rod(0.02, 0.001, 1, 4, "PZT-4", (0, 0, 1), True))
     K, M, free = s.reduce("open")
     A = (K - (2 * np.pi * 30e3) ** 2 * M).tocsr()
@@ -125,9 +138,11 @@ def test_solver_backends_agree_real_and_complex():
     if pardiso_available():
         assert backend_name() == "pardiso"
         x_p = factorize(A)(b)
-        assert np.linalg.norm(x_p - x_lu) < 1e-8 * np.linalg.norm(x_lu)
+        tol = _agreement_bound(A, b, x_p, x_lu)
+        assert tol < 1e-4 and np.linalg.norm(x_p - x_lu) <= tol * np.linalg.norm(x_lu)
         xc_p = factorize(Ac)(b)
-        assert np.linalg.norm(xc_p - xc_lu) < 1e-8 * np.linalg.norm(xc_lu)
+        tol = _agreement_bound(Ac, b, xc_p, xc_lu)
+        assert tol < 1e-4 and np.linalg.norm(xc_p - xc_lu) <= tol * np.linalg.norm(xc_lu)
     with pytest.raises(ParameterError):
         factorize(A, backend="mumps")
 
@@ -152,7 +167,9 @@ def test_upper_triangle_keeps_every_diagonal_entry_and_saddle_points_solve():
     x = factorize(S, backend="superlu")(b)
     assert np.linalg.norm(S @ x - b) < 1e-10 * np.linalg.norm(b)
     if pardiso_available():
-        assert np.linalg.norm(factorize(S)(b) - x) < 1e-9 * np.linalg.norm(x)
+        x_p = factorize(S)(b)
+        tol = _agreement_bound(S, b, x_p, x)                    # cond(S) times their residuals
+        assert tol < 1e-6 and np.linalg.norm(x_p - x) <= tol * np.linalg.norm(x)
 
 
 def test_unique_inverse_matches_numpy_including_the_fallback():

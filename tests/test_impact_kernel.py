@@ -13,6 +13,8 @@ from impact.model import SimulationError, _Osc, simulate, window_stats
 from impact.params import ImpactParams
 from impact.reference import simulate_ivp
 
+from test_impact import ivp_error_bounds
+
 EV_KEYS = ("w_before", "w_after", "v_before", "v_after")
 
 
@@ -38,13 +40,66 @@ def run(p, engine):
         return None, str(exc)
 
 
-def assert_same_events(rk, rp, n=None):
-    n = rp.t.size if n is None else min(n, rp.t.size)
-    assert rk.t.size >= n
-    assert list(rk.contact[:n]) == list(rp.contact[:n])
-    np.testing.assert_allclose(rk.t[:n], rp.t[:n], rtol=0, atol=1e-12)
+EPS = np.finfo(float).eps
+T_CAP, V_CAP = 1e-9, 1e-6
+"""Largest error bound (s, m/s) at which an event is still compared: 1000x below what a wrong
+impact law, restitution or missed contact changes (> 1e-6 s, > 1e-3 m/s)."""
+
+
+def python_error_bounds(p, rp, n):
+    """(bounds, k): per-event error bounds of the Python engine's first ``n`` events ``rp`` (``"t"``
+    in s and EV_KEYS in m/s) and the number k of leading events it resolves within T_CAP / V_CAP.
+
+    The engine is exact to round-off between events (closed forms) and locates each event by
+    Brent's method to ``_XTOL + _RTOL |t|`` (s). An error in one event's time grows at every later
+    impact (the random cases include chaotic ones: a change of 1 ulp in v0 moves the 20th event
+    by up to 1e-6 s). The growth is read off the engine itself, rerun with v0 larger by 1e-10:
+    G_k = |change at event k| / min_{j <= k} |change of t_j|. An event's own time error also
+    enters its velocities directly, at most at the largest acceleration of the problem, B = the
+    horn's A0 w^2 + the flight's |a| + the tool's (k0 gap + c |v'|) / m_tool, times (1 + e) <= 2
+    (where impacts contract, as in chattering, this term dominates). Each event adds its own
+    error and the compiled kernel makes the same kind, so two correct engines differ at event k
+    by at most 2 n (_XTOL + _RTOL t_k) G_k in time, and 2 n (_XTOL + _RTOL t_k) (G_k + 2 B) plus
+    64 eps of itself (the round-off of its closed form) in a velocity. The engines are written
+    to return the same bits, but only these bounds are promised: a compiler or libm that rounds
+    one operation differently must not fail the test."""
+    rq, err = run(p.with_(v0=p.v0 * (1 + 1e-10)), "python")
+    if rq is None:                     # the perturbed run fails: no growth to read, nothing resolved
+        return {key: np.zeros(0) for key in ("t", *EV_KEYS)}, 0
+    m = min(n, rq.t.size)
+    t = rp.t[:m]
+    dt = np.abs(rq.t[:m] - t)
+    first = np.minimum.accumulate(dt)
+    # an event the perturbation does not move gives no growth to divide by: not resolved
+    scale = 2 * n * (model._XTOL + model._RTOL * np.abs(t)) / np.where(first > 0, first, np.nan)
+    bounds = {"t": np.where(first > 0, scale * dt, np.inf)}
+    ok = (np.asarray(rq.contact[:m]) == np.asarray(rp.contact[:m])) & (bounds["t"] <= T_CAP)
+    v_tool = max(np.abs(rp.v_before[:m]).max(initial=0), np.abs(rp.v_after[:m]).max(initial=0))
+    B = (p.A0 * (2 * math.pi * p.freq) ** 2 + abs(p.g - p.spring_force / p.m_free)
+         + (p.k0 * p.gap + p.c * v_tool) / p.m_tool)
     for key in EV_KEYS:
-        np.testing.assert_allclose(getattr(rk, key)[:n], getattr(rp, key)[:n], rtol=1e-9, atol=1e-12)
+        x = getattr(rp, key)[:m]
+        dx = np.abs(getattr(rq, key)[:m] - x)
+        bounds[key] = np.where(first > 0, scale * (dx + 2 * B * first), np.inf) + 64 * EPS * np.abs(x)
+        ok &= bounds[key] <= V_CAP
+    return bounds, int(np.cumprod(ok).sum())
+
+
+def assert_same_events(rk, rp, bounds, k):
+    """The first k events of the kernel (rk) against the Python engine (rp), within ``bounds``;
+    and the sticking phases that end before the last of them."""
+    assert rk.t.size >= k
+    assert list(rk.contact[:k]) == list(rp.contact[:k])
+    assert np.all(np.abs(rk.t[:k] - rp.t[:k]) <= bounds["t"][:k]), (rk.t[:k] - rp.t[:k], bounds["t"][:k])
+    for key in EV_KEYS:
+        diff = np.abs(getattr(rk, key)[:k] - getattr(rp, key)[:k])
+        assert np.all(diff <= bounds[key][:k]), (key, diff, bounds[key][:k])
+    if k:
+        sticks = [s for s in rp.stick if s[1] <= rp.t[k - 1]]
+        assert [s[2] for s in rk.stick[:len(sticks)]] == [s[2] for s in sticks]
+        if sticks:
+            np.testing.assert_allclose(np.array([s[:2] for s in rk.stick[:len(sticks)]]),
+                                       np.array([s[:2] for s in sticks]), rtol=0, atol=bounds["t"][:k].max())
 
 
 def test_constants_agree():
@@ -64,9 +119,12 @@ def test_pack_layout():
 
 
 def test_kernel_equals_python_event_by_event():
-    """First 20 events of 240 random cases: same kinds, times to 1e-12 s, velocities 1e-9."""
+    """First 20 events of 240 random cases: the same kinds, times and velocities within the
+    Python engine's own error bound at each event (python_error_bounds), as far as that bound
+    stays below T_CAP = 1e-9 s and V_CAP = 1e-6 m/s (the chaotic cases resolve fewer events to
+    that: about two thirds of all events are compared)."""
     rng = np.random.default_rng(20240611)
-    compared = 0
+    compared, events, total = 0, 0, 0
     for _ in range(240):
         p = None
         while p is None:
@@ -79,12 +137,13 @@ def test_kernel_equals_python_event_by_event():
         assert ek == ep, p
         if rp is None:
             continue
-        assert_same_events(rk, rp, 20)
-        assert [s[2] for s in rk.stick] == [s[2] for s in rp.stick]
-        np.testing.assert_allclose(np.array([s[:2] for s in rk.stick]).reshape(-1, 2),
-                                   np.array([s[:2] for s in rp.stick]).reshape(-1, 2), rtol=0, atol=1e-12)
+        n = min(20, rp.t.size)
+        bounds, k = python_error_bounds(p, rp, n)
+        assert_same_events(rk, rp, bounds, k)
         compared += 1
-    assert compared >= 200
+        events += k
+        total += n
+    assert compared >= 200 and events >= total / 2, (compared, events, total)
 
 
 def test_run_events_status_and_growth():
@@ -115,7 +174,14 @@ def test_pinch_and_max_events_messages(engine):
 
 
 def test_ensemble_stats_equal_window_stats():
-    base = ImpactParams(t_end=0.02, gap=2.0e-3)   # the gap these cases were chosen with
+    """The parallel ensemble's statistics equal window_stats of the same runs. The reference runs
+    the same compiled event code (kernel._core, engine="kernel"), so its events are the same
+    bits on this machine; a Python-engine run would not do here: over a 16 ms window a change of
+    1 ulp in v0 moves these statistics by up to 84 % (chaos), far beyond its round-off. The
+    columns then differ only in summation order: at most ~N eps of the sum of |terms| for N <= 100
+    terms, i.e. < 1e-13 of it; rtol 1e-9 leaves room for a sum 1e4 times smaller than its terms
+    (KE gain: gains and losses cancel), atol 1e-15 J / s for a column that sums to zero."""
+    base = ImpactParams(t_end=0.02, gap=2.0e-3)   # the gap at which these members exercise every column
     members = [base, base.with_(v0=2.0, m_free=0.004), base.with_(A0=8e-6, horn_law="article", e2=0.05),
                # chattering into a stick on the horn; a plastic tool impact that sticks
                base.with_(spring_force=5.0, v0=2.0, e2=0.3),
@@ -128,7 +194,7 @@ def test_ensemble_stats_equal_window_stats():
     assert out[-1, kernel.S_STATUS] == kernel.STATUS_PINCHED       # and the others ran on
     seen = np.zeros(kernel.N_STATS, bool)
     for i, p in enumerate(members):
-        ref = window_stats(simulate(p, series=False, engine="python"), t_from, t_end)
+        ref = window_stats(simulate(p, series=False, engine="kernel"), t_from, t_end)
         np.testing.assert_allclose(out[i], ref, rtol=1e-9, atol=1e-15)
         seen |= ref != 0
     # the cases exercise every column but the status
@@ -183,27 +249,40 @@ def test_oscillator_closed_form_and_bounds(zeta):
         assert np.abs(y).max() <= o.b0 * (1 + 1e-12)
         assert np.abs(acc).max() <= o.b2 * (1 + 1e-12)
         assert np.abs(y4).max() <= o.b4 * (1 + 1e-12)
-        # the kernel's closed form is the same
+        # the kernel's closed form is the same: equal to the round-off of evaluating it,
+        # exp/cos/sin within 1 ulp (numba's and CPython's libm calls need not agree to the bit)
+        # and four more roundings, 8 eps of |delta| + |P| + |Q|; the bounds are a dozen more
+        # roundings (recursion, sqrt, products, min) of the same coefficients: 1e-12 relative
+        # still covers a cancellation by 1e3 among them
         ok = np.empty(kernel._O_N)
         kernel._osc_make(ok, m, k, c, 1e-5, x0 + 1e-5, xd0)
+        tol_pos = 8 * np.finfo(float).eps * (1e-5 + abs(o.P[0]) + abs(o.Q[0]))
+        tol_vel = 8 * np.finfo(float).eps * (abs(o.P[1]) + abs(o.Q[1]))
         for si in s[::997]:
-            assert kernel._osc_pv(ok, si) == o.pv(si)
-        assert (ok[kernel._O_B0], ok[kernel._O_B2], ok[kernel._O_B4]) == (o.b0, o.b2, o.b4)
+            (yk, vk), (yp, vp) = kernel._osc_pv(ok, si), o.pv(si)
+            assert abs(yk - yp) <= tol_pos and abs(vk - vp) <= tol_vel, (si, yk - yp, vk - vp)
+        np.testing.assert_allclose([ok[kernel._O_B0], ok[kernel._O_B2], ok[kernel._O_B4]], [o.b0, o.b2, o.b4],
+                                   rtol=1e-12, atol=0)
 
 
 @pytest.mark.parametrize("engine", ["kernel", "python"])
 @pytest.mark.parametrize("zeta", [1.0, 1.5, 4.0])
 def test_overdamped_tool_against_solve_ivp(engine, zeta):
-    p0 = ImpactParams(gap=2.0e-3)   # chaos amplifies solve_ivp's error per impact: the gap these were checked with
+    """The first 6 events against solve_ivp, each within the reference's own error bound at that
+    event (tests/test_impact.py, ivp_error_bounds: scipy's event-time tolerance grown by the
+    impacts; at most ~1e-9 s and 2e-4 m/s by the sixth event here)."""
+    p0 = ImpactParams(gap=2.0e-3)
     p = p0.with_(c=zeta * 2 * math.sqrt(p0.k0 * p0.m_tool), t_end=0.02)
     r = simulate(p, series=False, engine=engine)
     n = 6
     assert r.tool_impacts >= 2 and r.t.size >= n
     ref = simulate_ivp(p, max_events=n)
     assert list(r.contact[:n]) == ref["contact"]
-    np.testing.assert_allclose(r.t[:n], ref["t"], rtol=0, atol=1e-9)
+    bounds = ivp_error_bounds(p, ref, n)
+    assert np.all(np.abs(r.t[:n] - ref["t"]) <= bounds["t"]), (r.t[:n] - ref["t"], bounds["t"])
     for key in EV_KEYS:
-        np.testing.assert_allclose(getattr(r, key)[:n], ref[key], rtol=0, atol=1e-6)
+        diff = np.abs(getattr(r, key)[:n] - ref[key])
+        assert np.all(diff <= bounds[key]), (key, diff, bounds[key])
 
 
 # ----------------------------------------------------------------------------- article horn law

@@ -91,12 +91,15 @@ def test_adaptive_rule_reaches_its_target_and_reruns_identically():
 
 def test_calibrated_defaults_give_the_article_rate():
     """Article section 4: "the average collision frequency of the free mass is about 520 Hz" (8 g,
-    first 50 ms). The calibrated defaults' ensemble mean must lie within 520 +- 25 Hz, with the
-    default 3 % rule (benchmarks/calibrate_impact.py documents the sweep)."""
+    first 50 ms). Two uncertainties, each from its source: the article states the rate to the
+    ten ("about 520": +- 10 Hz, one unit of its last digit), and the ensemble mean is an estimate
+    with the 95 % half-width its convergence rule promises (the default 3 %: 15.6 Hz at 520 Hz).
+    The calibrated defaults' mean must lie within their sum, 25.6 Hz, of 520
+    (benchmarks/calibrate_impact.py documents the sweep)."""
     r = ensemble_statistics(ImpactParams(), "article")
     e = r["tool_impact_rate_hz"]
     assert r.converged and e.rel_half_width <= 0.03
-    assert 495.0 <= e.mean <= 545.0
+    assert abs(e.mean - 520.0) <= 10.0 + 0.03 * 520.0, (e.mean, e.half_width)
 
 
 def test_member_cap_is_reported():

@@ -151,6 +151,14 @@ def _dense(hat, s0, fn, n=20000):
 
 
 def test_cycle_peaks_against_dense_phase_sampling():
+    """The reference samples n phases: its maximum lies below the true one by at most
+    max|f''| (pi / n)^2 / 2 (the peak is within half a step of a sample). von Mises and |E| are
+    sqrt(q) with q >= 0 a trigonometric polynomial of degree 2 in the phase, whose harmonics'
+    amplitudes are at most twice its mean (as q >= 0), so at the peak |f''| / f = |q''| / 2q
+    <= (1 + 4) 2 / 2 = 5: at n = 20000 the reference is low by at most 6.2e-8 relative
+    (asserted 1e-7). A principal value's curvature is |s''| + 2 |s'|^2 / gap <= ~30 |hat| unless
+    two principal values nearly cross at the peak: at n = 4000 the reference is low by at most
+    3.1e-7 x 30 |hat| (asserted 1e-5 |hat|)."""
     from fem.stress import (efield_cycle_peak, principal_cycle_extremes, principal_values, vm_cycle_peak,
                             von_mises)
 
