@@ -15,7 +15,10 @@ import numpy as np
 
 from rpud_common import ParameterError
 
-__all__ = ["sectors_for", "parse_harmonics", "run", "format_rows", "CYCLIC_NOTE"]
+__all__ = ["sectors_for", "parse_harmonics", "run", "format_rows", "CYCLIC_NOTE", "HARMONICS"]
+
+HARMONICS = "0,1"
+"""Default ``--harmonics``: the longitudinal, torsional and driven modes (0) and the bending pairs (1)."""
 
 CYCLIC_NOTE = ("mesh: swept sector (1/{n}), a mesh per harmonic family as listed. Measured at --refine 1 on the "
                "default design against the best estimates of the converged values (README): f_r +0.034 %, f_a "
@@ -96,10 +99,12 @@ def _check_refine(args) -> None:
                              f"{AXIAL_RULE[0]:g} x further); use --sectors off for finer whole-drill meshes")
 
 
-def parse_harmonics(text: str, sectors: int) -> tuple[int, ...]:
-    """``"0,1"`` or ``"all"`` (0 .. N/2) as sorted harmonics, or a ParameterError."""
+def parse_harmonics(text: str | None, sectors: int) -> tuple[int, ...]:
+    """``"0,1"`` or ``"all"`` (0 .. N/2) as sorted harmonics, or a ParameterError (None:
+    :data:`HARMONICS`)."""
     from .cyclic import harmonics
 
+    text = HARMONICS if text is None else text
     if text == "all":
         return harmonics(sectors)
     try:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 
 from rpud_common import ParameterError, check_range, save_figure
+from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_inputs, mesh_text, quantity
 
 from .harmonic import LossModel, basis_reach, harmonic_sweep, modal_basis, working_point
 
@@ -27,7 +28,8 @@ def build_parser():
                    help="working frequency, Hz (default: the working mode's resonance near the design's "
                         "target frequency, i.e. the matched frequency of a matched design)")
     p.add_argument("--band", metavar="LO,HI", help="admittance band, Hz (default: f_r - 3 %% .. f_a + 3 %%)")
-    p.add_argument("--points", type=int, default=200, metavar="N", help="frequencies in the band (default 200)")
+    p.add_argument("--points", type=int, default=None, metavar="N",
+                   help=f"frequencies in the band (default {POINTS})")
     p.add_argument("--q-mech", type=float, metavar="Q",
                    help="mechanical quality factor of every part (default: each material's datasheet value)")
     p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
@@ -58,11 +60,18 @@ def build_parser():
     p.add_argument("--allow-large", action="store_true",
                    help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
     p.add_argument("-v", "--verbose", action="count", default=0)
+    p.add_argument("-q", "--quiet", action="store_true", help="no inputs line")
     return p
 
 
 MAX_POINTS = 20_000
 """Most frequencies of one admittance sweep."""
+
+POINTS = 200
+"""Default number of frequencies of the admittance sweep."""
+
+MIN_RING_UP = 1e-6
+"""Shortest ring-up integrated, s (a fiftieth of a period at 20 kHz; 0 asks for six time constants)."""
 
 MAX_RING_UP = 1.0
 """Longest ring-up integrated, s (20 000 drive periods at 20 kHz)."""
@@ -77,7 +86,8 @@ def _check_options(args) -> None:
     check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
     if args.freq is not None:
         check_range("--freq", args.freq, *FREQUENCY_BAND, "Hz")
-    check_integer("--points", args.points, 3, MAX_POINTS)
+    if args.points is not None:
+        check_integer("--points", args.points, 3, MAX_POINTS)
     check_integer("--modes", args.modes, 1, 200)
     if args.mode is not None:
         check_integer("--mode", args.mode, 1, args.modes)
@@ -87,10 +97,10 @@ def _check_options(args) -> None:
         check_range("--tan-delta", args.tan_delta, 0.0, 1.0)
     check_design_options(args)
     if args.ring_up is not None:
-        check_range("--ring-up", args.ring_up, 0.0, MAX_RING_UP, "s (0: six time constants)")
+        check_zero_or_range("--ring-up", args.ring_up, MIN_RING_UP, MAX_RING_UP, "s", "six time constants")
     if args.converge is not None:
         check_range("--converge", args.converge, 1e-7, 0.1)
-        for opt in ("error", "plots", "ring_up", "freq", "band", "mode"):
+        for opt in ("error", "plots", "ring_up", "freq", "band", "mode", "points", "stress"):
             if getattr(args, opt) not in (None, False):
                 raise ParameterError("--converge", args.converge, f"cannot be combined with --{opt.replace('_', '-')}")
     if args.error:
@@ -133,24 +143,51 @@ def _parse_band(text: str) -> tuple[float, float]:
     return lo, hi
 
 
+def _inputs(args, design, band) -> dict:
+    """The run's inputs for the inputs line."""
+    from geometry.options import mesher_of
+
+    items = {"design": design.name, "voltage": quantity(args.voltage, "V"),
+             "f": "the driven mode's resonance" if args.freq is None else quantity(args.freq, "Hz")}
+    if args.converge is None:
+        items["band"] = ("f_r - 3 % .. f_a + 3 %" if band is None else
+                         f"{quantity(band[0], 'Hz')} .. {quantity(band[1], 'Hz')}") + f", {args.points} points"
+    items.update({"Q_mech": "datasheet" if args.q_mech is None else f"{args.q_mech:g}",
+                  "tan delta": "datasheet" if args.tan_delta is None else f"{args.tan_delta:g}",
+                  "modes": args.modes, "driven mode": "largest k_eff" if args.mode is None else args.mode,
+                  "surfaces": ", ".join(args.surface) if args.surface else "horn_tip, teeth_tops",
+                  "mesher": mesh_text(mesher_of(args, design), args.refine, args.grade, args.mesh_size)})
+    if args.ring_up is not None:
+        items["ring-up"] = "six time constants" if args.ring_up == 0 else quantity(args.ring_up, "s")
+    if args.stress:
+        items["stress"] = f"{args.stress}, preload {quantity(args.preload, 'N')}, {args.stress_points} band points"
+    if args.converge is not None:
+        items["convergence study"] = f"tolerance {args.converge:g}"
+    elif args.error:
+        items["discretisation error"] = "estimated"
+    return items
+
+
 def main(argv=None) -> int:
     import geometry
-    from rpud_common import atomic_write_text, json_text, setup_logging
+    from rpud_common import setup_logging
     from geometry.guard import check_budget
-    from geometry.options import design_from_options, mesh_options, mesher_of
+    from geometry.options import design_from_options, mesh_options
 
-    from .assembly import assemble
-    from .modal import modal_analysis
-
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     setup_logging(args.verbose - 1)
+    check_given(parser, args)
     _check_options(args)
-    band = _parse_band(args.band) if args.band else None
+    band = _parse_band(args.band) if args.band is not None else None
     if band and args.freq is not None and not band[0] <= args.freq <= band[1]:
         raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
+    args.points = POINTS if args.points is None else args.points
     loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
     design = design_from_options(args)
     check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args, design))
+    check_usual(parser.prog, "--voltage", args.voltage, "voltage")
+    echo_inputs(_inputs(args, design, band), args.quiet)
     mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, **mesh_options(args, design))
     surfaces = tuple(args.surface) if args.surface else tuple(
         s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
@@ -161,6 +198,16 @@ def main(argv=None) -> int:
     near = float(args.freq or getattr(design, "target_frequency", 20e3))
     if args.converge is not None:
         return _converge(args, design, near, loss, surfaces)
+    return _run(args, design, mesh, surfaces, near, loss, band)
+
+
+def _run(args, design, mesh, surfaces, near: float, loss, band) -> int:
+    """Solve, print and write the harmonic response of ``mesh``."""
+    from rpud_common import atomic_write_text, json_text
+
+    from .assembly import assemble
+    from .modal import modal_analysis
+
     system = assemble(mesh)
     modal = modal_analysis(system, near, args.modes)
     if args.mode is not None and args.mode > modal.n_modes:
@@ -185,6 +232,25 @@ def main(argv=None) -> int:
         tau = 2.0 / (basis.eta[w] * 2 * np.pi * f_w)
         ring = ring_up(system, f_w, args.voltage, args.ring_up or 6 * tau, loss=loss, basis=basis,
                        surfaces=surfaces[:1])
+    _print_response(args, modal, w, f_w, wp, res, band, ring, surfaces)
+    est = _error(args, design, modal, w, wp, system, near, loss, surfaces) if args.error else None
+    stress = None
+    if args.stress:
+        from .stress_cli import run_stress
+
+        stress = run_stress(args, system, basis, wp, band)
+    text = None
+    if args.json:
+        text = json_text(_record(args, design, modal, w, f_w, wp, res, ring, system, est, stress), nonfinite="null")
+    if args.plots:
+        _plots(args, modal, w, f_w, res, ring, wp)
+    if text is not None:
+        atomic_write_text(args.json, text)
+    return 0
+
+
+def _print_response(args, modal, w, f_w, wp, res, band, ring, surfaces) -> None:
+    f_a = float(modal.f_a_hz[w])
     drive = f"drive {f_w:.1f} Hz; " if args.freq is not None else ""
     print(f"{drive}working mode {w + 1} ({modal.labels[w]}): f_r {modal.f_r_hz[w]:.1f} Hz, f_a {f_a:.1f} Hz, "
           f"k_eff {modal.k_eff[w]:.3f}")
@@ -196,49 +262,52 @@ def main(argv=None) -> int:
           f"{args.points} points, modal superposition of {res.basis_modes} modes + residual)")
     if ring is not None:
         print(f"ring-up: steady {ring.steady_amplitude(surfaces[0]) * 1e6:.3f} um after {ring.t[-1] * 1e3:.2f} ms")
-    est = None
-    if args.error:
-        from .errors import estimate
-        from .errors_cli import error_lines
 
-        values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
-                  "tip_per_volt_m": wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
-        est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
-                       near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode,
-                       mesher=mesher_of(args, design))
-        print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
-    stress = None
-    if args.stress:
-        from .stress_cli import run_stress
 
-        stress = run_stress(args, system, basis, wp, band)
-    text = None
-    if args.json:
-        from .errors import annotate
-        from .errors_cli import MODE_KEYS, POINT_KEYS
+def _error(args, design, modal, w, wp, system, near, loss, surfaces):
+    """``--error``: the two-level estimate of the driven mode's values, printed."""
+    from geometry.options import mesher_of
 
-        data = {"design": str(args.design or "default"), "working_mode": annotate({
-            "index": w, "f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
-            "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w,
-            "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
-            "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
-            "mesher": mesher_of(args, design),
-            "discretisation_error": est.to_dict() if est is not None else None, "stress": stress}
-        text = json_text(data, nonfinite="null")
-    if args.plots:
-        from pathlib import Path
+    from .errors import estimate
+    from .errors_cli import error_lines
 
-        from . import plots
+    values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": float(modal.f_a_hz[w]), "k_eff": float(modal.k_eff[w]),
+              "tip_per_volt_m": wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
+    est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
+                   near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode,
+                   mesher=mesher_of(args, design))
+    print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
+    return est
 
-        out = Path(args.plots)
-        save_figure(plots.admittance(res, float(modal.f_r_hz[w]), f_a), out / "admittance.png")
-        if "horn_tip" in res.surfaces:
-            save_figure(plots.tip_response(res, f_w), out / "tip_response.png")
-        if ring is not None:
-            save_figure(plots.ring_up(ring, wp.tip_amplitude_m), out / "ring_up.png")
-    if text is not None:
-        atomic_write_text(args.json, text)
-    return 0
+
+def _record(args, design, modal, w, f_w, wp, res, ring, system, est, stress) -> dict:
+    """The ``--json`` record."""
+    from geometry.options import mesher_of
+
+    from .errors import annotate
+    from .errors_cli import MODE_KEYS, POINT_KEYS
+
+    return {"design": str(args.design or "default"), "working_mode": annotate({
+        "index": w, "f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": float(modal.f_a_hz[w]), "k_eff": float(modal.k_eff[w]),
+        "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w,
+        "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
+        "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
+        "mesher": mesher_of(args, design),
+        "discretisation_error": est.to_dict() if est is not None else None, "stress": stress}
+
+
+def _plots(args, modal, w, f_w, res, ring, wp) -> None:
+    """``--plots``: admittance, tip response and ring-up PNGs."""
+    from pathlib import Path
+
+    from . import plots
+
+    out = Path(args.plots)
+    save_figure(plots.admittance(res, float(modal.f_r_hz[w]), float(modal.f_a_hz[w])), out / "admittance.png")
+    if "horn_tip" in res.surfaces:
+        save_figure(plots.tip_response(res, f_w), out / "tip_response.png")
+    if ring is not None:
+        save_figure(plots.ring_up(ring, wp.tip_amplitude_m), out / "ring_up.png")
 
 
 def _converge(args, design, near: float, loss, surfaces) -> int:

@@ -15,6 +15,7 @@ import numpy as np
 
 from geometry.options import mesher_of
 from rpud_common import ParameterError
+from rpud_common.cli import check_given, echo_inputs, mesh_text, quantity
 
 from .modal import ModalResult, modal_analysis
 
@@ -72,7 +73,7 @@ def build_parser(prog="python -m fem.modal"):
                         "(fem.cyclic; exact for the symmetric drill, ~6x smaller solves). auto (default): the "
                         "coupler's symmetry order (6) for a plain modal run of a design that can be swept as a "
                         "sector, with a finer mesh per harmonic family; off: the whole drill")
-    g.add_argument("--harmonics", default="0,1", metavar="K[,K..]|all",
+    g.add_argument("--harmonics", default=None, metavar="K[,K..]|all",
                    help="with sectors: the harmonics solved (0: longitudinal, torsional and the electrically "
                         "driven modes; 1: bending pairs; 2..N/2: lobed modes of the coupler; default 0,1)")
     g.add_argument("--solver", choices=("auto", "pardiso", "superlu"), default=None,
@@ -86,8 +87,8 @@ def build_parser(prog="python -m fem.modal"):
     g.add_argument("--tune", metavar="A[,B]",
                    help="design lengths to tune: a horn/flange length, then a coupler/stack length "
                         "(default horn.length,coupler.length)")
-    g.add_argument("--bracket", metavar="LO,HI", default="0.5,2.0",
-                   help="search interval of each tuned length as factors of its start (default 0.5,2.0)")
+    g.add_argument("--bracket", metavar="LO,HI", default=None,
+                   help=f"search interval of each tuned length as factors of its start (default {BRACKET})")
     g.add_argument("--tol", type=float, default=None, metavar="REL",
                    help=f"relative frequency tolerance of the match, in [{MATCH_TOL_RANGE[0]:g}, {MATCH_TOL_RANGE[1]:g}] "
                         "(default 0.005 = 0.5 %%)")
@@ -102,8 +103,12 @@ def build_parser(prog="python -m fem.modal"):
     g.add_argument("--allow-large", action="store_true",
                    help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
     p.add_argument("-v", "--verbose", action="count", default=0)
+    p.add_argument("-q", "--quiet", action="store_true", help="no inputs line")
     return p
 
+
+BRACKET = "0.5,2.0"
+"""Default search interval of ``--match`` (factors of each tuned length's start)."""
 
 MAX_MODES = 200
 """Most modes one CLI run computes (shift-invert Lanczos cost grows with their square)."""
@@ -144,11 +149,9 @@ def _check_options(args) -> dict:
             raise ParameterError("--" + opt.replace("_", "-"), val, f"must end in {suffix}")
     check_design_options(args)
     if not args.match:
-        for opt in ("target", "tune", "out_design", "tol"):
+        for opt in ("target", "tune", "out_design", "tol", "bracket"):
             if getattr(args, opt) is not None:
                 raise ParameterError("--" + opt.replace("_", "-"), getattr(args, opt), "applies to --match only")
-        if args.bracket != "0.5,2.0":
-            raise ParameterError("--bracket", args.bracket, "applies to --match only")
     else:
         # matching is free-free with its own nodal-plane cut and shift: refuse what it cannot honour
         if args.clamp:
@@ -192,74 +195,137 @@ def _outputs(args, mesh, res, working: int) -> None:
         print(f"modes: {write_modes_vtu(mesh, res.shapes, args.vtu, frequencies=res.f_r_hz)}")
 
 
+def _sectors(args, design) -> int | None:
+    """The sectors of ``--sectors`` (None: the whole drill); ``--harmonics`` only with sectors,
+    its default applied after the check."""
+    from .cyclic_cli import HARMONICS, parse_harmonics, sectors_for
+
+    sectors = sectors_for(args, design)            # cyclic symmetry: refused before any meshing
+    if sectors is None and args.harmonics is not None:
+        raise ParameterError("--harmonics", args.harmonics, "applies with sectors only (--sectors)")
+    args.harmonics = HARMONICS if args.harmonics is None else args.harmonics
+    if sectors is not None:
+        parse_harmonics(args.harmonics, sectors)
+    return sectors
+
+
+def _inputs(args, design, sectors, settings) -> dict:
+    """The run's inputs for the inputs line (``settings``: the match's, if matching)."""
+    items = {"design": design.name}
+    if settings is not None:
+        items.update({"match": f"{', '.join(settings.tune)} to {quantity(settings.target_hz, 'Hz')} within "
+                               f"{settings.tolerance:g}, bracket {args.bracket or BRACKET}",
+                      "modes per iteration": settings.n_modes})
+    else:
+        near = args.near if args.near is not None else getattr(design, "target_frequency", 20e3)
+        items.update({"near": "the lowest modes" if near == 0 else quantity(near, "Hz"),
+                      "modes": 12 if args.modes is None else args.modes})
+    mesh = mesh_text(mesher_of(args, design), args.refine, args.grade, args.mesh_size, order=args.order)
+    items.update({"mesher": mesh, "clamp": ", ".join(args.clamp) if args.clamp else "free",
+                  "sectors": f"{sectors} (harmonics {args.harmonics})" if sectors else "off (the whole model)"})
+    if args.converge is not None:
+        items["convergence study"] = f"tolerance {args.converge:g}"
+    elif args.error:
+        items["discretisation error"] = "estimated"
+    if args.solver not in (None, "auto"):
+        items["solver"] = args.solver
+    return items
+
+
+def _match_settings(args, design, bracket, outputs):
+    """The match's settings and the tuned design's path (None: not written), checked before any work."""
+    from rpud_common import check_output_paths
+    from geometry.options import design_inputs, mesh_options
+
+    from .matching import MatchSettings, default_tune
+
+    extra = {"n_modes": args.modes} if args.modes is not None else {}
+    settings = MatchSettings(
+        target_hz=float(args.target or getattr(design, "target_frequency", 20e3)),
+        tolerance=0.005 if args.tol is None else args.tol,
+        tune=tuple(args.tune.split(",")) if args.tune else default_tune(design),
+        bracket=bracket, mesh_size=args.mesh_size, order=args.order,
+        **mesh_options(args), **extra)
+    out_design = args.out_design
+    if out_design is None and outputs["tuned"]:
+        out_design = str(Path(args.json).parent / f"{design.name}-tuned.toml")
+        check_output_paths(inputs={**design_inputs(args), "--json": args.json}, out_design=out_design)
+    return settings, out_design
+
+
 def main(argv=None) -> int:
-    import geometry
-    from rpud_common import atomic_write_text, check_output_paths, json_text, setup_logging
+    from rpud_common import setup_logging
     from geometry.guard import check_budget
-    from geometry.options import design_from_options, design_inputs, mesh_options
+    from geometry.options import design_from_options, mesh_options
 
-    from .assembly import assemble
-
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     setup_logging(args.verbose - 1)
     if args.verbose < 2:
         logging.getLogger("skfem").setLevel(logging.WARNING)
+    check_given(parser, args)
     outputs = _check_options(args)
-    bracket = _factors(args.bracket, "--bracket") if args.match else None
+    bracket = _factors(args.bracket or BRACKET, "--bracket") if args.match else None
     design = design_from_options(args)
-    from .cyclic_cli import parse_harmonics, sectors_for
-
-    sectors = sectors_for(args, design)            # cyclic symmetry: refused before any meshing
-    if sectors is not None:
-        parse_harmonics(args.harmonics, sectors)
-    elif args.harmonics != "0,1":
-        raise ParameterError("--harmonics", args.harmonics, "applies with sectors only (--sectors)")
+    sectors = _sectors(args, design)
     check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large, **mesh_options(args, design))
     if args.match:
-        from .matching import MatchSettings, default_tune, match
+        settings, out_design = _match_settings(args, design, bracket, outputs)
+        echo_inputs(_inputs(args, design, None, settings), args.quiet)
+        return _run_match(args, settings, out_design, design)
+    echo_inputs(_inputs(args, design, sectors, None), args.quiet)
+    return _run_modal(args, design, sectors)
 
-        extra = {"n_modes": args.modes} if args.modes is not None else {}
-        settings = MatchSettings(
-            target_hz=float(args.target or getattr(design, "target_frequency", 20e3)), tolerance=0.005 if args.tol is None else args.tol,
-            tune=tuple(args.tune.split(",")) if args.tune else default_tune(design),
-            bracket=bracket, mesh_size=args.mesh_size, order=args.order, **mesh_options(args), **extra)
-        out_design = args.out_design
-        if out_design is None and outputs["tuned"]:
-            out_design = str(Path(args.json).parent / f"{design.name}-tuned.toml")
-            check_output_paths(inputs={**design_inputs(args), "--json": args.json}, out_design=out_design)
-        print(f"matching {', '.join(settings.tune)} to {settings.target_hz:.1f} Hz", flush=True)
 
-        def show(rec):
-            print(f"  [{rec['stage']:5s}] {rec['parameter']} = "
-                  f"{rec['value_m'] * 1e3:9.4f} mm -> {rec['f_hz']:10.2f} Hz  ({rec['seconds']:5.1f} s)",
-                  flush=True)
+def _run_match(args, settings, out_design, design) -> int:
+    """``--match``: tune, print, write; exit status 1 if the match did not converge."""
+    from rpud_common import atomic_write_text, json_text
 
-        with _solver(args.solver):
-            res_m = match(design, settings, progress=show)
-        res = res_m.modal
-        print(format_table(res))
-        print(f"matched {res_m.matched_hz:.2f} Hz (target {res_m.target_hz:.1f} Hz, "
-              f"{'converged' if res_m.converged else 'NOT converged'}) in {len(res_m.iterations)} iterations, "
-              f"{res_m.timings['total_s']:.1f} s; tuned: "
-              + ", ".join(f"{k} = {v * 1e3:.4f} mm (start {res_m.start[k] * 1e3:.4f})" for k, v in res_m.tuned.items()))
-        if res_m.teeth:
-            print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
-                  f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
-        est = _match_error(args, res_m) if args.error else None
-        if est is None:
-            print(_mesh_note(args, res_m.design))
-        # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
-        record = {**_match_record(res_m, est), "mesher": settings.mesher}
-        text = json_text(record, nonfinite="null") if args.json else None
-        if out_design:
-            res_m.design.save(out_design)
-            print(f"tuned design: {out_design}")
-        else:
-            print("tuned design not written (give --out-design FILE or --json)")
-        _outputs(args, res_m.mesh, res, res_m.working_index)
-        if text is not None:
-            atomic_write_text(args.json, text)
-        return 0 if res_m.converged else 1
+    from .matching import match
+
+    print(f"matching {', '.join(settings.tune)} to {settings.target_hz:.1f} Hz", flush=True)
+
+    def show(rec):
+        print(f"  [{rec['stage']:5s}] {rec['parameter']} = "
+              f"{rec['value_m'] * 1e3:9.4f} mm -> {rec['f_hz']:10.2f} Hz  ({rec['seconds']:5.1f} s)",
+              flush=True)
+
+    with _solver(args.solver):
+        res_m = match(design, settings, progress=show)
+    res = res_m.modal
+    print(format_table(res))
+    print(f"matched {res_m.matched_hz:.2f} Hz (target {res_m.target_hz:.1f} Hz, "
+          f"{'converged' if res_m.converged else 'NOT converged'}) in {len(res_m.iterations)} iterations, "
+          f"{res_m.timings['total_s']:.1f} s; tuned: "
+          + ", ".join(f"{k} = {v * 1e3:.4f} mm (start {res_m.start[k] * 1e3:.4f})" for k, v in res_m.tuned.items()))
+    if res_m.teeth:
+        print(f"teeth: axial {res_m.teeth['axial']:.3g}, tangential {res_m.teeth['tangential']:.3g} "
+              f"(ellipse ratio {res_m.teeth['ellipse_ratio']:.3f}); flange/tip axial {res_m.node_ratio:.3f}")
+    est = _match_error(args, res_m) if args.error else None
+    if est is None:
+        print(_mesh_note(args, res_m.design))
+    # NaN marks "not available" here (a stack design has no flange/tip ratio, unpaired modes no f_a)
+    record = {**_match_record(res_m, est), "mesher": settings.mesher}
+    text = json_text(record, nonfinite="null") if args.json else None
+    if out_design:
+        res_m.design.save(out_design)
+        print(f"tuned design: {out_design}")
+    else:
+        print("tuned design not written (give --out-design FILE or --json)")
+    _outputs(args, res_m.mesh, res, res_m.working_index)
+    if text is not None:
+        atomic_write_text(args.json, text)
+    return 0 if res_m.converged else 1
+
+
+def _run_modal(args, design, sectors) -> int:
+    """The modal table near ``--near`` (whole drill, sectors or a convergence study)."""
+    import geometry
+    from rpud_common import atomic_write_text, json_text
+    from geometry.options import mesh_options
+
+    from .assembly import assemble
+
     near = float(args.near if args.near is not None else getattr(design, "target_frequency", 20e3))
     if args.converge is not None:
         return _converge(args, design, near)
@@ -283,21 +349,7 @@ def main(argv=None) -> int:
     print(format_table(res, errors))
     if not args.error:
         print(_mesh_note(args, design))
-    data = None
-    if args.json:
-        data = res.to_dict()
-        data["design"] = str(args.design)
-        if err_json is not None:
-            data["discretisation_error"] = err_json
-            # the convention of fem.errors: X_error beside the working mode's X
-            mode = data["modes"][err_json["mode"] - 1]
-            for key, err in (("f_r_hz", "f_r_err_hz"), ("f_a_hz", "f_a_err_hz"), ("k_eff", "k_eff_err")):
-                mode[f"{key}_error"] = err_json[err]
-        data["mesh_size"] = args.mesh_size
-        data["refine"] = args.refine
-        data["grade"] = args.grade
-        data["mesher"] = mesher_of(args, design)
-        data = json_text(data, nonfinite="null")
+    data = json_text(_modal_record(args, design, res, err_json), nonfinite="null") if args.json else None
     if args.render or args.vtu:
         from .matching import working_mode
 
@@ -305,6 +357,23 @@ def main(argv=None) -> int:
     if data is not None:
         atomic_write_text(args.json, data)
     return 0
+
+
+def _modal_record(args, design, res, err_json) -> dict:
+    """The ``--json`` record of a modal run (``err_json``: the ``--error`` block or None)."""
+    data = res.to_dict()
+    data["design"] = str(args.design)
+    if err_json is not None:
+        data["discretisation_error"] = err_json
+        # the convention of fem.errors: X_error beside the working mode's X
+        mode = data["modes"][err_json["mode"] - 1]
+        for key, err in (("f_r_hz", "f_r_err_hz"), ("f_a_hz", "f_a_err_hz"), ("k_eff", "k_eff_err")):
+            mode[f"{key}_error"] = err_json[err]
+    data["mesh_size"] = args.mesh_size
+    data["refine"] = args.refine
+    data["grade"] = args.grade
+    data["mesher"] = mesher_of(args, design)
+    return data
 
 
 def _mesh_note(args, design) -> str:

@@ -16,6 +16,9 @@ __all__ = ["add_stress_options", "check_stress_options", "run_stress"]
 MAX_PRELOAD = 1e6
 """Largest bolt preload accepted, N (a 100 t press: far beyond any transducer bolt)."""
 
+STRESS_POINTS = 21
+"""Default number of frequencies of the stress peaks along the band."""
+
 
 def add_stress_options(p) -> None:
     p.add_argument("--stress", metavar="DIR",
@@ -23,24 +26,31 @@ def add_stress_options(p) -> None:
                         "metal region, largest tensile / compressive principal stress and peak |E| per ceramic "
                         "region, locations, limits from the material records) and write DIR/stress.png, "
                         "DIR/stress.vtu, DIR/stress.json and the peaks along the band (DIR/stress_sweep.png)")
-    p.add_argument("--preload", type=float, default=0.0, metavar="N",
+    p.add_argument("--preload", type=float, default=None, metavar="N",
                    help="bolt preload on the stack, N (>= 0; default 0): its static stress is added to the "
                         "dynamic one before the peaks are taken (needs --stress)")
-    p.add_argument("--stress-points", type=int, default=21, metavar="N",
-                   help="frequencies of the stress peaks along the band, plus the working frequency (default 21; "
-                        "0: working point only)")
+    p.add_argument("--stress-points", type=int, default=None, metavar="N",
+                   help=f"frequencies of the stress peaks along the band, plus the working frequency (default "
+                        f"{STRESS_POINTS}; 0: working point only; needs --stress)")
 
 
 def check_stress_options(args) -> None:
-    """Before any meshing: finite, non-negative preload, a usable folder."""
+    """Before any meshing: finite, non-negative preload, options given only with ``--stress``;
+    then the defaults of the options not given (``args.preload`` 0, ``args.stress_points``
+    :data:`STRESS_POINTS`)."""
     pre = args.preload
-    if not (isinstance(pre, (int, float)) and math.isfinite(pre)) or pre < 0:
-        raise ParameterError("--preload", pre, "must be a finite force >= 0 N")
-    check_range("--preload", pre, 0.0, MAX_PRELOAD, "N")
-    check_integer("--stress-points", args.stress_points, 0, 400)
-    if args.stress is None and (pre > 0 or args.stress_points != 21):
-        raise ParameterError("--preload" if pre > 0 else "--stress-points", pre if pre > 0 else args.stress_points,
-                             "needs --stress DIR")
+    if pre is not None:
+        if not (isinstance(pre, (int, float)) and math.isfinite(pre)) or pre < 0:
+            raise ParameterError("--preload", pre, "must be a finite force >= 0 N")
+        check_range("--preload", pre, 0.0, MAX_PRELOAD, "N")
+    if args.stress_points is not None:
+        check_integer("--stress-points", args.stress_points, 0, 400)
+    if args.stress is None:
+        for opt, value in (("--preload", pre), ("--stress-points", args.stress_points)):
+            if value is not None:
+                raise ParameterError(opt, value, "needs --stress DIR")
+    args.preload = 0.0 if pre is None else pre
+    args.stress_points = STRESS_POINTS if args.stress_points is None else args.stress_points
 
 
 def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:

@@ -13,9 +13,10 @@ import sys
 from pathlib import Path
 
 from rpud_common import (
-    CliParser, ParameterError, atomic_folder, atomic_write_text, check_integer, check_output_paths, from_mapping,
-    load_toml, save_figure, setup_logging, toml_section, write_json,
+    CliParser, ParameterError, atomic_folder, atomic_write_text, check_integer, check_output_paths, check_range,
+    from_mapping, load_toml, save_figure, setup_logging, toml_section, write_json,
 )
+from rpud_common.cli import check_given, check_usual, echo_inputs, needs, quantity
 
 from .params import ImpactParams
 
@@ -34,6 +35,8 @@ def _real(text: str) -> float:
     if x != 0.0 and abs(x) < _TINY:
         raise argparse.ArgumentTypeError(f"{text!r} is below {_TINY:.3g} in magnitude: give 0 or a normal number")
     return x
+
+
 # (option, field, help) -- defaults shown from the dataclass
 _OPTS = [
     ("--m-free", "m_free", "free mass, kg"),
@@ -72,14 +75,35 @@ def _add_params(ap, skip=()):
                    help="start of the statistics window, s: the transient before it is discarded (default: the scenario's)")
     s.add_argument("--t-end", dest="t_end", type=_real, default=None, metavar="S",
                    help="end of the statistics window = simulated time per member, s (default: the scenario's)")
-    s.add_argument("--rel-tol", type=_real, default=0.03, metavar="R",
-                   help="add members until every 95%% CI half-width is within R of its mean (default 0.03)")
+    s.add_argument("--rel-tol", type=_real, default=None, metavar="R",
+                   help=f"add members until every 95%% CI half-width is within R of its mean, in "
+                        f"[{REL_TOL_RANGE[0]:g}, {REL_TOL_RANGE[1]:g}] (default {REL_TOL})")
     s.add_argument("--members", type=int, default=None, metavar="N",
-                   help="run exactly N members instead of the adaptive rule")
-    s.add_argument("--max-members", type=int, default=4096, metavar="N", help="cap of the adaptive rule (default 4096)")
+                   help="run exactly N members instead of the adaptive rule (then no --rel-tol or --max-members)")
+    s.add_argument("--max-members", type=int, default=None, metavar="N",
+                   help=f"cap of the adaptive rule (default {MAX_MEMBERS_DEFAULT})")
     s.add_argument("--seed", type=int, default=20260, metavar="N", help="seed of the member launch speeds (default 20260)")
     s.add_argument("--threads", type=int, default=None, metavar="N", help="kernel threads (default: every core)")
-    s.add_argument("--no-progress", action="store_true", help="no progress lines")
+    _add_output_flags(s)
+
+
+def _add_output_flags(group) -> None:
+    group.add_argument("--no-progress", action="store_true", help="no progress lines")
+    group.add_argument("-q", "--quiet", action="store_true",
+                       help="no inputs line and no progress lines (results and warnings still print)")
+
+
+REL_TOL = 0.03
+"""Default relative 95 % CI half-width of the adaptive rule."""
+
+REL_TOL_RANGE = (1e-4, 1.0)
+"""Accepted ``--rel-tol``: below 1e-4 no ensemble within the member cap gets there."""
+
+MAX_MEMBERS_DEFAULT = 4096
+"""Default cap of the adaptive rule's members."""
+
+T_END_MIN = 1e-4
+"""Shortest simulated time per member, s (two periods at 20 kHz: anything shorter is a typo)."""
 
 
 def _load_config(path) -> dict:
@@ -111,6 +135,8 @@ def _scenario(ns, params: ImpactParams):
     for name, val in (("t_end", t_end), ("t_from", t_from)):
         if not math.isfinite(val):
             raise ParameterError(name, val, "must be a finite time in s")
+    if 0 < t_end < T_END_MIN:
+        raise ParameterError("t_end", t_end, f"must be >= {T_END_MIN:g} s (two drive periods at 20 kHz)")
     if not t_from < t_end:
         raise ParameterError("t_from", t_from, f"must be < t_end = {t_end:g} s")
     spring = sc.spring_force if ns.spring_force is None else ns.spring_force
@@ -121,13 +147,72 @@ def _scenario(ns, params: ImpactParams):
 
 
 def _settings(ns):
+    """The ensemble settings; ``--members`` (a fixed count) excludes the adaptive rule's options."""
     from .stats import MAX_MEMBERS, StatsSettings
 
+    if ns.rel_tol is not None:
+        check_range("--rel-tol", ns.rel_tol, *REL_TOL_RANGE)
+    rel_tol = REL_TOL if ns.rel_tol is None else ns.rel_tol
     if ns.members is not None:
         check_integer("members", ns.members, 1, MAX_MEMBERS)
-        return StatsSettings(rel_tol=ns.rel_tol, n_start=ns.members, n_max=ns.members, seed=ns.seed)
-    check_integer("max_members", ns.max_members, 1, MAX_MEMBERS)
-    return StatsSettings(rel_tol=ns.rel_tol, n_start=min(64, ns.max_members), n_max=ns.max_members, seed=ns.seed)
+        needs("--rel-tol", ns.rel_tol, "the adaptive rule", "--members N runs exactly N members")
+        needs("--max-members", ns.max_members, "the adaptive rule", "--members N runs exactly N members")
+        return StatsSettings(rel_tol=rel_tol, n_start=ns.members, n_max=ns.members, seed=ns.seed)
+    n_max = MAX_MEMBERS_DEFAULT if ns.max_members is None else ns.max_members
+    check_integer("max_members", n_max, 1, MAX_MEMBERS)
+    return StatsSettings(rel_tol=rel_tol, n_start=min(64, n_max), n_max=n_max, seed=ns.seed)
+
+
+def _check_horn_mass(ns, p: ImpactParams) -> None:
+    """``--m-horn`` enters the article's horn law only: refused under the kinematic law."""
+    if getattr(ns, "m_horn", None) is not None and p.horn_law != "article":
+        raise ParameterError("--m-horn", ns.m_horn, "applies only with --horn-law article (the kinematic horn "
+                                                    "is an infinite-mass driver)")
+
+
+def _quiet(ns) -> bool:
+    return bool(getattr(ns, "quiet", False))
+
+
+def _warn_unusual(prog: str, ns, p: ImpactParams, skip=()) -> None:
+    """One stderr line per model value outside the drill's usual range (a likely unit slip; the
+    gap is not among them: its slip, mm typed for m, is out of its physical range and refused)."""
+    for opt, name, key in (("--m-free", "m_free", "m_free"), ("--A0", "A0", "A0"), ("--freq", "freq", "freq"),
+                           ("--m-tool", "m_tool", "m_tool")):
+        if name not in skip:
+            check_usual(prog, opt if getattr(ns, name, None) is not None else f"{name} (--config)",
+                        getattr(p, name), key)
+
+
+def param_items(p: ImpactParams, skip=()) -> dict:
+    """The model's inputs for the inputs line (label -> value with its unit)."""
+    items = {"free mass": quantity(p.m_free, "kg"), "A0": quantity(p.A0, "m"), "f": quantity(p.freq, "Hz"),
+             "e1": f"{p.e1:g}", "e2": f"{p.e2:g}", "tool mass": quantity(p.m_tool, "kg"),
+             "k0": quantity(p.k0, "N/m"), "c": f"{p.c:.4g} N s/m", "gap": quantity(p.gap, "m"),
+             "g": f"{p.g:.4g} m/s^2", "v0": f"{p.v0:.4g} m/s", "horn law": p.horn_law}
+    if p.horn_law == "article":
+        items["horn mass"] = quantity(p.m_horn, "kg")
+    return {k: v for k, v in items.items() if k not in skip}
+
+
+def scenario_items(sc, settings) -> dict:
+    """The scenario and ensemble rule for the inputs line."""
+    members = (f"{settings.n_max}" if settings.n_start == settings.n_max else
+               f"adaptive (95 % CI within {settings.rel_tol:.3g} of the mean, at most {settings.n_max})")
+    return {"scenario": f"{sc.name} (window {sc.t_from * 1e3:g}-{sc.t_end * 1e3:g} ms, spring {sc.spring_force:g} N)",
+            "members": members, "seed": settings.seed}
+
+
+def masses_text(masses) -> str:
+    """Free masses for the inputs line (the first 12)."""
+    return ", ".join(quantity(m, "kg") for m in masses[:12]) + (", ..." if len(masses) > 12 else "")
+
+
+def warn_first(prog: str, option: str, values, key: str) -> None:
+    """The slip warning of the first unusual value of a list (one line, not one per value)."""
+    for value in values:
+        if check_usual(prog, option, value, key):
+            return
 
 
 def _threads(n):
@@ -142,7 +227,7 @@ def _threads(n):
 
 
 def _progress(ns):
-    if ns.no_progress:
+    if ns.no_progress or _quiet(ns):
         return None
     # stdout: stderr carries nothing but the one-line error of a failed run
     return lambda msg: print(msg, flush=True)
@@ -172,11 +257,15 @@ def _run(argv):
     ap.add_argument("--json", metavar="PATH", help="write params, statistics and one sample trajectory's events as JSON")
     ap.add_argument("--plots", metavar="DIR", help="write one sample trajectory's displacement history and spectrum PNGs here")
     ns = ap.parse_args(argv)
+    check_given(ap, ns)
     p = _params(ns)
+    _check_horn_mass(ns, p)
     sc = _scenario(ns, p)
     settings = _settings(ns)
     check_output_paths(inputs={"--config": ns.config}, folders=("plots",), json=ns.json, plots=ns.plots)
     _threads(ns.threads)
+    _warn_unusual(ap.prog, ns, p)
+    echo_inputs({**param_items(p), **scenario_items(sc, settings)}, _quiet(ns))
     from .model import SimulationError, simulate
     from .stats import ensemble_statistics
 
@@ -228,14 +317,20 @@ def _sweep(argv):
     ap.add_argument("--json", metavar="PATH", help="write table, fit, scenario and params as JSON")
     ap.add_argument("--plots", metavar="DIR", help="write the KE-vs-mass PNG (error bars: 95 %% CI) here")
     ns = ap.parse_args(argv)
+    check_given(ap, ns)
     masses = _floats(ns.m_list, "m_free")
     p = _params(ns)
     for m in masses:
         p.with_(m_free=m)                          # bounds on every mass before any work
+    _check_horn_mass(ns, p)
     sc = _scenario(ns, p)
     settings = _settings(ns)
     check_output_paths(inputs={"--config": ns.config}, folders=("plots",), csv=ns.csv, json=ns.json, plots=ns.plots)
     _threads(ns.threads)
+    _warn_unusual(ap.prog, ns, p, skip=("m_free",))
+    warn_first(ap.prog, "--m-free", masses, "m_free")
+    echo_inputs({"free masses": masses_text(masses), **param_items(p, skip=("free mass",)),
+                 **scenario_items(sc, settings)}, _quiet(ns))
     from .sweeps import sweep
 
     sw = sweep(p, masses, scenario=sc, settings=settings, progress=_progress(ns))
@@ -273,11 +368,15 @@ def _article(argv):
     ap.add_argument("--config", metavar="TOML", help="TOML file of model parameters")
     ap.add_argument("--seed", type=int, default=20260, metavar="N", help="seed of the member launch speeds")
     ap.add_argument("--threads", type=int, default=None, metavar="N", help="kernel threads (default: every core)")
-    ap.add_argument("--no-progress", action="store_true", help="no progress lines")
+    _add_output_flags(ap)
     ns = ap.parse_args(argv)
+    check_given(ap, ns)
     p = from_mapping(ImpactParams, _load_config(ns.config)) if ns.config is not None else ImpactParams()
     check_output_paths(inputs={"--config": ns.config}, folders=("out",), out=ns.out)
     _threads(ns.threads)
+    _warn_unusual(ap.prog, ns, p)
+    echo_inputs({**param_items(p), "parameters from": ns.config or "Table 1 and the calibration", "seed": ns.seed},
+                _quiet(ns))
     from .article import reproduce
     from .stats import StatsSettings
 
@@ -302,14 +401,42 @@ def _wants_fem_horn(argv) -> bool:
     return False
 
 
+_DRILLING_ONLY = ("--wob", "--k-load", "--k-unload", "--f-threshold", "--rod-length", "--rod-diameter", "--cells",
+                  "--drill-time", "--no-load-ke")
+"""Options of the drilling command (``--load rock``) that this one does not take."""
+
+_FEM_ONLY = ("--voltage", "--series-resistance", "--q-mech", "--modes", "--match", "--contact", "--history",
+             "--history-csv", "--sample-dt", "--design", "--materials", "--select", "--mesh-size", "--refine",
+             "--grade")
+"""Options of the FE-transducer command (``--horn fem``) that the kinematic horn does not take."""
+
+
+def _refuse_foreign(argv, names, requirement: str) -> None:
+    """Refuse the first option of ``names`` in ``argv``, naming the option it needs."""
+    for i, arg in enumerate(argv):
+        name, eq, value = arg.partition("=")
+        if name not in names:
+            continue
+        if not eq:
+            following = argv[i + 1] if i + 1 < len(argv) else "--"
+            value = True if following.startswith("--") else following
+        needs(name, value, requirement)
+
+
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
-    if any(a == "--load" or a.startswith("--load=") for a in argv):
+    loaded = any(a == "--load" or a.startswith("--load=") for a in argv)
+    fem = bool(argv) and argv[0] not in ("sweep", "article") and _wants_fem_horn(argv)
+    if not loaded:
+        _refuse_foreign(argv, _DRILLING_ONLY, "--load rock")
+    if not (loaded or fem):
+        _refuse_foreign(argv, _FEM_ONLY, "--horn fem")
+    if loaded:
         # drilling under load (issue 16); named, not imported: drilling_cli uses this module's helpers
         import importlib
 
         return importlib.import_module("impact.drilling_cli").main(argv)
-    if argv and argv[0] not in ("sweep", "article") and _wants_fem_horn(argv):
+    if fem:
         # the FE transducer: built outside impact (which never imports fem); the module is named,
         # not imported, as rpud_common.launch names every entry point
         import importlib

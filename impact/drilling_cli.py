@@ -10,10 +10,11 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from rpud_common import (CliParser, ParameterError, atomic_write_text, check_output_paths, save_figure,
+from rpud_common import (CliParser, ParameterError, check_output_paths, check_range, save_figure,
                          setup_logging, write_json)
+from rpud_common.cli import check_given, check_usual, echo_inputs, quantity
 
-from .cli import _real, _threads
+from .cli import REL_TOL_RANGE, _add_output_flags, _real, _threads, masses_text, warn_first
 from .drilling import DrillParams, DrillSettings, DrillSweep, drilling_sweep
 from .params import ImpactParams
 from .rock import RockLaw
@@ -36,7 +37,8 @@ def build_parser() -> CliParser:
                                "the tool a rigid collar on an elastic rod, a bilinear bit-rock law with a crushing "
                                "threshold. Means with 95 %% CIs over seeded members; depth = rate x drilling time.")
     ap.add_argument("--load", choices=["rock"], required=True, help="load scenario (rock: bit on rock)")
-    ap.add_argument("--wob", type=_real, default=7.0, metavar="N", help="weight on bit, N (default 7, the article's)")
+    ap.add_argument("--wob", type=_real, default=None, metavar="N",
+                    help=f"weight on bit, N (default {WOB:g}, the article's)")
     ap.add_argument("--m-free", default="0,0.001,0.002,0.003,0.004,0.005,0.006,0.007,0.008", metavar="M1,M2,..",
                     help="free masses, kg; 0 = none (default 0-8 g in 1 g steps)")
     ap.add_argument("--a0", "--A0", dest="a0", type=_real, default=15e-6, metavar="M",
@@ -61,14 +63,18 @@ def build_parser() -> CliParser:
     ap.add_argument("--no-load-ke", action="store_true", help="skip the no-load tool KE column")
     ap.add_argument("--json", metavar="PATH", help="write the table and parameters as JSON")
     ap.add_argument("--plots", metavar="DIR", help="write depth_vs_free_mass.png here")
-    ap.add_argument("--no-progress", action="store_true")
+    _add_output_flags(ap)
     return ap
+
+
+WOB = 7.0
+"""Default weight on bit, N (the article's)."""
 
 
 def params_from(ns) -> DrillParams:
     ip = ImpactParams(A0=ns.a0, freq=ns.freq, spring_force=5.0)
     return DrillParams(impact=ip, rod=ToolRod(diameter=ns.rod_diameter, length=ns.rod_length, cells=ns.cells),
-                       rock=RockLaw(ns.k_load, ns.k_unload, ns.f_threshold), wob=ns.wob,
+                       rock=RockLaw(ns.k_load, ns.k_unload, ns.f_threshold), wob=WOB if ns.wob is None else ns.wob,
                        t_from=ns.t_from, t_end=ns.t_end, drill_time=ns.drill_time)
 
 
@@ -89,15 +95,43 @@ def print_table(rows, no_load=None) -> None:
               + ("" if r.converged else "  (NOT converged)"))
 
 
+def _inputs(p: DrillParams, masses, settings) -> dict:
+    """The run's inputs for the inputs line."""
+    return {"load": "rock", "WOB": quantity(p.wob, "N"), "free masses": masses_text(masses),
+            "A0": quantity(p.impact.A0, "m"), "f": quantity(p.impact.freq, "Hz"),
+            "rock k_load": quantity(p.rock.k_load, "N/m"),
+            "k_unload": quantity(p.rock.k_unload, "N/m"), "threshold": quantity(p.rock.f_threshold, "N"),
+            "rod": f"{quantity(p.rod.length, 'm')} x {quantity(p.rod.diameter, 'm')} diameter, {p.rod.cells} cells",
+            "window": f"{p.t_from * 1e3:g}-{p.t_end * 1e3:g} ms", "drilling time": f"{p.drill_time:g} s",
+            "members": f"95 % CI within {settings.rel_tol:.3g}, at most {settings.n_max} per mass",
+            "seed": settings.seed}
+
+
+def _warn_unusual(prog: str, p: DrillParams, masses) -> None:
+    """One stderr line per value outside the drill's usual range (a likely unit slip)."""
+    check_usual(prog, "--wob", p.wob, "wob")
+    check_usual(prog, "--a0", p.impact.A0, "A0")
+    check_usual(prog, "--freq", p.impact.freq, "freq")
+    warn_first(prog, "--m-free", [m for m in masses if m > 0], "m_free")
+
+
 def main(argv) -> int:
     setup_logging(-1)
-    ns = build_parser().parse_args(argv)
+    ap = build_parser()
+    ns = ap.parse_args(argv)
+    check_given(ap, ns)
     masses = _masses(ns.m_free)
+    check_range("--rel-tol", ns.rel_tol, *REL_TOL_RANGE)
     p = params_from(ns)
+    for m in masses:
+        if m > 0 and p.housing_mass(m) <= 0:      # drilling_sweep's own check, before the inputs line
+            raise ParameterError("m_free", m, f"must leave a positive housing mass (m_drill {p.m_drill:g} kg)")
     settings = DrillSettings(rel_tol=ns.rel_tol, n_start=min(16, ns.max_members), n_max=ns.max_members, seed=ns.seed)
     check_output_paths(folders=("plots",), json=ns.json, plots=ns.plots)
     _threads(ns.threads)
-    say = None if ns.no_progress else (lambda m: print(m, flush=True))
+    _warn_unusual(ap.prog, p, masses)
+    echo_inputs(_inputs(p, masses, settings), ns.quiet)
+    say = None if ns.no_progress or ns.quiet else (lambda m: print(m, flush=True))
     rows = drilling_sweep(p, masses, settings, progress=say)
     no_load = None
     pos = [m for m in masses if m > 0]

@@ -348,6 +348,9 @@ def _parabola_reach(p0, p1, acc):
 
 @njit(cache=True)
 def _parabola_leave(p0, p1, acc):
+    # model._parabola_leave, with its straight flight (acc = 0) case
+    if acc == 0.0 and p1 > 0.0:
+        return max(0.0, -p0 / p1) * (1.0 + 1e-9) + 1e-12
     if acc <= 0.0:
         return math.inf
     disc = p1 * p1 - 2.0 * acc * p0

@@ -14,6 +14,10 @@ from pathlib import Path
 
 from rpud_common import (CliParser, ParameterError, atomic_folder, check_integer, check_output_paths,
                              check_range, setup_logging)
+from rpud_common.cli import check_given, check_usual, echo_inputs, mesh_text, needs, quantity
+
+WOB = 7.0
+"""Default weight on bit of the drilling stage, N (the article's)."""
 
 
 def build_parser() -> CliParser:
@@ -49,30 +53,83 @@ def build_parser() -> CliParser:
                    help="modes of the reduced transducer in the coupled model (default: tip-participation rule)")
     p.add_argument("--load", choices=["rock"], default=None,
                    help="also predict drilling under load: bit on sandstone, depth vs free mass (impact.drilling)")
-    p.add_argument("--wob", type=float, default=7.0, metavar="N", help="weight on bit with --load, N (default 7)")
+    p.add_argument("--wob", type=float, default=None, metavar="N",
+                   help=f"weight on bit with --load, N (default {WOB:g})")
     p.add_argument("--no-render", action="store_true", help="skip the mode-shape PNGs and the VTU")
     p.add_argument("--allow-large", action="store_true",
                    help="solve even above the resource budget (geometry.guard.MAX_DOFS estimated DOFs)")
-    p.add_argument("-q", "--quiet", action="store_true", help="no stage progress")
+    p.add_argument("-q", "--quiet", action="store_true", help="no inputs line and no stage progress")
     return p
 
 
 def check_options(args) -> None:
-    """Every numeric option finite and inside its stated range (before anything runs)."""
+    """Every option usable, numbers finite and inside their stated ranges, options that depend on
+    another only with it (before anything runs)."""
+    if args.load is None:
+        needs("--wob", args.wob, "--load rock", "the weight on bit of the drilling stage")
+    if args.no_coupled_model and args.coupled_modes is not None:
+        raise ParameterError("--coupled-modes", args.coupled_modes, "cannot be used with --no-coupled-model (it "
+                                                                    "sets the modes of the coupled model it skips)")
     check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
     if args.q_mech != 0:
         check_range("--q-mech", args.q_mech, 1.0, 1e6, "(0 = datasheet values)")
     from geometry.options import check_design_options
 
     check_design_options(args)
-    check_range("--rel-tol", args.rel_tol, 0.0, 1.0, lo_open=True)
+    from impact.cli import REL_TOL_RANGE
+
+    check_range("--rel-tol", args.rel_tol, *REL_TOL_RANGE)
     from impact.stats import MAX_MEMBERS
 
     check_integer("--max-members", args.max_members, 1, MAX_MEMBERS)
     check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
     if args.coupled_modes is not None:
         check_integer("--coupled-modes", args.coupled_modes, 1, 12)
-    check_range("--wob", args.wob, 0.0, 1e4, "N")
+    if args.wob is not None:
+        check_range("--wob", args.wob, 0.0, 1e4, "N")
+
+
+def _inputs(design, settings, out) -> dict:
+    """The run's inputs for the inputs line."""
+    from geometry.revolve import resolve_mesher
+
+    on = {True: "on", False: "off"}
+    items = {"design": design.name, "voltage": quantity(settings.voltage, "V"),
+             "Q_mech": "datasheet" if settings.q_mech is None else f"{settings.q_mech:g}",
+             "mesher": mesh_text(resolve_mesher(design, settings.mesher), settings.refine, settings.grade,
+                                 settings.mesh_size),
+             "matching": on[settings.match], "impact load on the tip": on[settings.couple_impacts],
+             "coupled model": (f"{settings.coupled_modes} modes" if settings.coupled_model and settings.coupled_modes
+                               else on[settings.coupled_model]),
+             "statistics": f"95 % CI within {settings.impact_rel_tol:g}, at most {settings.impact_max_members} "
+                           f"members, seed {settings.seed}"}
+    if settings.load:
+        items["load"] = f"{settings.load}, WOB {quantity(settings.wob, 'N')}"
+    items["out"] = str(out)
+    return items
+
+
+def _settings(args):
+    """The pipeline settings of the (checked) options, defaults applied."""
+    from geometry.options import mesh_options
+
+    from .pipeline import PipelineSettings
+
+    return PipelineSettings(voltage=args.voltage, q_mech=None if args.q_mech == 0 else args.q_mech,
+                            mesh_size=args.mesh_size, **mesh_options(args), match=not args.no_match,
+                            couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
+                            impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
+                            coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes,
+                            load=args.load, wob=WOB if args.wob is None else args.wob)
+
+
+def _out_folder(args, design) -> Path:
+    """``--out``, or the default folder (ours to create; a user's --out must have an existing parent)."""
+    if args.out is not None:
+        return Path(args.out)
+    out = Path("results") / ("default" if args.design is None else design.name)
+    out.parent.mkdir(exist_ok=True)
+    return out
 
 
 def main(argv=None) -> int:
@@ -84,29 +141,25 @@ def main(argv=None) -> int:
     from geometry.guard import check_budget
     from geometry.options import design_from_options, design_inputs, mesh_options
 
-    from .pipeline import PipelineSettings, run_pipeline
+    from .pipeline import run_pipeline
 
-    args = build_parser().parse_args(argv)
+    parser = build_parser()
+    args = parser.parse_args(argv)
     setup_logging(-1)
+    check_given(parser, args)
     check_options(args)
-    settings = PipelineSettings(voltage=args.voltage, q_mech=None if args.q_mech == 0 else args.q_mech,
-                                mesh_size=args.mesh_size, **mesh_options(args), match=not args.no_match,
-                                couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
-                                impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
-                                coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes,
-                                load=args.load, wob=args.wob)
+    settings = _settings(args)
     design = design_from_options(args)
-    if args.out is not None:
-        out = Path(args.out)
-    else:
-        # the default location is ours to create; a user's --out must have an existing parent
-        out = Path("results") / ("default" if args.design is None else design.name)
-        out.parent.mkdir(exist_ok=True)
+    out = _out_folder(args, design)
     check_output_paths(inputs=design_inputs(args), folders=("out",), out=out)
     if args.design is not None and out.exists() and Path(args.design).resolve().is_relative_to(out.resolve()):
         raise ParameterError("--out", str(out), "holds the input --design; it would be replaced by the results")
     check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args))
+    check_usual(parser.prog, "--voltage", settings.voltage, "voltage")
+    if settings.load:
+        check_usual(parser.prog, "--wob", settings.wob, "wob")
     # progress on stdout: stderr carries only the one-line error of a failed run (and tqdm bars)
+    echo_inputs(_inputs(design, settings, out), args.quiet)
     say = (lambda msg: None) if args.quiet else (lambda msg: print(msg, flush=True))
     # built beside the target and swapped in whole: an interrupted or failed run leaves the
     # previous results untouched and no temporary folder behind

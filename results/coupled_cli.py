@@ -22,6 +22,10 @@ from pathlib import Path
 
 from rpud_common import (CliParser, ParameterError, atomic_write_text, check_integer, check_output_paths, check_range,
                          setup_logging, write_json)
+from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_inputs, mesh_text, quantity
+
+HISTORY = 0.05
+"""Default length of the ring-up history, s."""
 
 
 def _parser() -> CliParser:
@@ -51,8 +55,9 @@ def _parser() -> CliParser:
                     help="horn contact: newton = instantaneous impact with restitution e2 (default); hunt-crossley = "
                          "Hertz contact (horn material vs a steel sphere of the free mass) with Hunt-Crossley damping "
                          "matching e2, integrated through each contact (statistics only: no history)")
-    ap.add_argument("--history", type=_real, default=0.05, metavar="S",
-                    help="length of the ring-up history from rest with the free mass in place, s (default 0.05)")
+    ap.add_argument("--history", type=_real, default=None, metavar="S",
+                    help=f"length of the ring-up history from rest with the free mass in place, s (default "
+                         f"{HISTORY:g}; not with --contact hunt-crossley)")
     _add_params(ap, skip=("A0", "freq", "m_horn"))
     ap.add_argument("--json", metavar="PATH", help="write the reduced transducer, history summary, energy balance "
                                                    "and statistics as JSON")
@@ -65,41 +70,79 @@ def _parser() -> CliParser:
     return ap
 
 
-def main(argv=None) -> int:
-    argv = list(sys.argv[1:] if argv is None else argv)
-    setup_logging(-1)
-    ns = _parser().parse_args(argv)
-    from impact.cli import _params, _print_stats, _progress, _scenario, _settings, _threads
+def _check(ns):
+    """Every option checked before any work: ``(params, scenario, settings)`` of the impacts."""
+    from geometry.options import check_design_options
+
+    from impact.cli import _check_horn_mass, _params, _scenario, _settings
 
     check_range("--voltage", ns.voltage, 1e-3, 1e4, "V")
-    check_range("--series-resistance", ns.series_resistance, 0.0, 1e6, "ohm")
+    check_zero_or_range("--series-resistance", ns.series_resistance, 1e-3, 1e6, "ohm", "voltage drive")
     if ns.q_mech != 0:
         check_range("--q-mech", ns.q_mech, 1.0, 1e6, "(0 = datasheet values)")
     if ns.freq is not None:
         check_range("--freq", ns.freq, 1.0, 1e6, "Hz")
     if ns.modes is not None:
         check_integer("--modes", ns.modes, 1, 12)
-    from geometry.options import check_design_options, design_from_options, design_inputs, mesh_options
-
     check_design_options(ns)
-    check_range("--history", ns.history, 1e-4, 1.0, "s")
+    if ns.history is not None:
+        check_range("--history", ns.history, 1e-4, 1.0, "s")
     if ns.horn_law not in (None, "kinematic"):
         raise ParameterError("--horn-law", ns.horn_law, "must be kinematic with --horn fem (the modes carry the mass)")
     p = _params(ns)
+    _check_horn_mass(ns, p)
     sc = _scenario(ns, p)
     settings = _settings(ns)
     if ns.sample_dt is not None:
         check_range("--sample-dt", ns.sample_dt, 1e-8, 1e-4, "s")
         p = p.with_(sample_dt=ns.sample_dt)
-    p.with_(t_end=ns.history)                  # at most 2e7 history samples (ImpactParams checks it)
+    p.with_(t_end=ns.history or HISTORY)       # at most 2e7 history samples (ImpactParams checks it)
     if ns.contact == "hunt-crossley":
-        if ns.series_resistance > 0:
-            raise ParameterError("--series-resistance", ns.series_resistance, "must be 0 with --contact hunt-crossley "
-                                 "(its contact phases integrate the voltage-driven modes)")
-        for opt, val in (("--plots", ns.plots), ("--history-csv", ns.history_csv)):
-            if val is not None:
-                raise ParameterError(opt, val, "not available with --contact hunt-crossley (its contact phases are "
-                                     "integrated numerically, not closed-form segments): statistics only")
+        _check_compliant(ns)
+    return p, sc, settings
+
+
+def _check_compliant(ns) -> None:
+    """``--contact hunt-crossley`` integrates its contact phases numerically: statistics only."""
+    if ns.series_resistance > 0:
+        raise ParameterError("--series-resistance", ns.series_resistance, "must be 0 with --contact hunt-crossley "
+                             "(its contact phases integrate the voltage-driven modes)")
+    for opt, val in (("--plots", ns.plots), ("--history-csv", ns.history_csv), ("--history", ns.history),
+                     ("--sample-dt", ns.sample_dt)):
+        if val is not None:
+            raise ParameterError(opt, val, "not available with --contact hunt-crossley (its contact phases are "
+                                 "integrated numerically, not closed-form segments): statistics only")
+
+
+def _inputs(ns, design, p, sc, settings) -> dict:
+    """The run's inputs for the inputs line."""
+    from impact.cli import param_items, scenario_items
+
+    items = {"design": design.name, "voltage": quantity(ns.voltage, "V")}
+    if ns.series_resistance > 0:
+        items["behind"] = quantity(ns.series_resistance, "ohm")
+    items.update({"f": "the working resonance" if ns.freq is None else quantity(ns.freq, "Hz"),
+                  "Q_mech": "datasheet" if ns.q_mech == 0 else f"{ns.q_mech:g}",
+                  "modes": "tip-participation rule" if ns.modes is None else ns.modes,
+                  "matching": "on" if ns.match else "off",
+                  "mesher": mesh_text("free", ns.refine, ns.grade, ns.mesh_size), "contact": ns.contact})
+    if ns.contact == "newton":
+        items["history"] = quantity(ns.history or HISTORY, "s")
+    return {**items, **param_items(p, skip=("A0", "f", "horn law")), **scenario_items(sc, settings)}
+
+
+def main(argv=None) -> int:
+    argv = list(sys.argv[1:] if argv is None else argv)
+    setup_logging(-1)
+    ap = _parser()
+    ns = ap.parse_args(argv)
+    check_given(ap, ns)
+    from impact.cli import _print_stats, _progress, _quiet, _threads, _warn_unusual
+
+    from geometry.options import design_from_options, design_inputs, mesh_options
+
+    p, sc, settings = _check(ns)
+    history = ns.history or HISTORY
     check_output_paths(inputs={"--config": ns.config, **design_inputs(ns)}, folders=("plots",), json=ns.json,
                        plots=ns.plots, history_csv=ns.history_csv)
     _threads(ns.threads)
@@ -107,27 +150,20 @@ def main(argv=None) -> int:
 
     from impact.coupled import COUPLED_QUANTITIES, coupled_batch
 
-    from .coupled import build_transducer, contact_from_design, coupled_history, history_csv, horn_from_reduced
+    from .coupled import build_transducer, contact_from_design, coupled_history, horn_from_reduced
 
     design = design_from_options(ns)
     check_budget(design, ns.mesh_size, **mesh_options(ns))
+    _warn_unusual(ap.prog, ns, p, skip=("A0", "freq"))
+    check_usual(ap.prog, "--voltage", ns.voltage, "voltage")
+    echo_inputs(_inputs(ns, design, p, sc, settings), _quiet(ns))
     say = _progress(ns) or (lambda msg: None)
     say("[1/3] FE transducer")
     fe = build_transducer(design, voltage=ns.voltage, q_mech=None if ns.q_mech == 0 else ns.q_mech,
                           freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say,
                           **mesh_options(ns))
     p = p.with_(freq=fe.freq_hz)
-    unloaded = {"tip_amplitude_m": fe.tip_amplitude_m, "power_w": fe.power_w}
-    if ns.series_resistance > 0:
-        from impact.drive import series_model
-
-        horn_r = horn_from_reduced(fe.reduced, ns.voltage, series_resistance=ns.series_resistance)
-        u = series_model(horn_r, fe.freq_hz).unloaded(horn_r)
-        unloaded = {"tip_amplitude_m": u["tip_amplitude_m"], "power_w": u["source_power_w"],
-                    "electrode_voltage_v": u["electrode_voltage_v"], "source_current_rms_a": u["source_current_rms_a"]}
-        say(f"      behind {ns.series_resistance:g} ohm, unloaded: tip {u['tip_amplitude_m'] * 1e6:.3f} um, electrodes "
-            f"{u['electrode_voltage_v']:.1f} V amplitude, source {u['source_power_w']:.2f} W, "
-            f"{u['source_current_rms_a']:.3f} A rms (voltage drive: tip {fe.tip_amplitude_m * 1e6:.3f} um)")
+    unloaded = _unloaded(ns, fe, say)
     contact = None
     hist = None
     if ns.contact == "hunt-crossley":
@@ -135,8 +171,8 @@ def main(argv=None) -> int:
         say(f"[2/3] compliant contact: Hertz k = {contact.stiffness:.4g} N/m^1.5, Hunt-Crossley chi = "
             f"{contact.chi:.4f} (e2 = {p.e2:g}); no history (contact phases are integrated numerically)")
     else:
-        say(f"[2/3] ring-up from rest with the {p.m_free * 1e3:g} g free mass in place, {ns.history * 1e3:g} ms")
-        hist = coupled_history(fe, p.with_(spring_force=sc.spring_force), ns.voltage, ns.history,
+        say(f"[2/3] ring-up from rest with the {p.m_free * 1e3:g} g free mass in place, {history * 1e3:g} ms")
+        hist = coupled_history(fe, p.with_(spring_force=sc.spring_force), ns.voltage, history,
                                series_resistance=ns.series_resistance, unloaded=unloaded)
         for line in hist["lines"]:
             print(line)
@@ -151,6 +187,34 @@ def main(argv=None) -> int:
         print(f"  {text:<66} {st.estimates[name].scaled(scale)} {u}")
     print(f"  unloaded ({'series-resistance drive' if ns.series_resistance > 0 else 'harmonic working point'}): tip "
           f"{unloaded['tip_amplitude_m'] * 1e6:.3f} um, power {unloaded['power_w']:.2f} W")
+    _write_outputs(ns, fe, p, hist, st, unloaded, contact)
+    if not math.isfinite(st.estimates["tool_impact_rate_hz"].mean):
+        return 1
+    return 0
+
+
+def _unloaded(ns, fe, say) -> dict:
+    """The unloaded working point: the harmonic one, or behind ``--series-resistance``."""
+    unloaded = {"tip_amplitude_m": fe.tip_amplitude_m, "power_w": fe.power_w}
+    if ns.series_resistance > 0:
+        from impact.drive import series_model
+
+        from .coupled import horn_from_reduced
+
+        horn_r = horn_from_reduced(fe.reduced, ns.voltage, series_resistance=ns.series_resistance)
+        u = series_model(horn_r, fe.freq_hz).unloaded(horn_r)
+        unloaded = {"tip_amplitude_m": u["tip_amplitude_m"], "power_w": u["source_power_w"],
+                    "electrode_voltage_v": u["electrode_voltage_v"], "source_current_rms_a": u["source_current_rms_a"]}
+        say(f"      behind {ns.series_resistance:g} ohm, unloaded: tip {u['tip_amplitude_m'] * 1e6:.3f} um, electrodes "
+            f"{u['electrode_voltage_v']:.1f} V amplitude, source {u['source_power_w']:.2f} W, "
+            f"{u['source_current_rms_a']:.3f} A rms (voltage drive: tip {fe.tip_amplitude_m * 1e6:.3f} um)")
+    return unloaded
+
+
+def _write_outputs(ns, fe, p, hist, st, unloaded, contact) -> None:
+    """--json, --history-csv and --plots."""
+    from .coupled import history_csv
+
     if ns.json:
         doc = {"reduced_transducer": fe.reduced.to_dict(), "fe": fe.info, "drive": {"voltage_v": ns.voltage,
                "freq_hz": fe.freq_hz, "series_resistance_ohm": ns.series_resistance, "f_r_hz": fe.f_r_hz, "f_a_hz": fe.f_a_hz,
@@ -173,6 +237,3 @@ def main(argv=None) -> int:
         save_figure(plot_history(hist["result"].impact,
                                  title=f"coupled model, {fe.reduced.n_modes} modes, {ns.voltage:g} V: one sample "
                                        f"(chaotic)"), d / "displacement.png")
-    if not math.isfinite(st.estimates["tool_impact_rate_hz"].mean):
-        return 1
-    return 0

@@ -7,6 +7,7 @@ import argparse
 import atexit
 import contextlib
 import logging
+import math
 import os
 import signal
 import sys
@@ -21,7 +22,9 @@ from .launch import (
     signals_held,
 )
 
-__all__ = ["CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running"]
+__all__ = ["CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running",
+           "check_given", "needs", "check_zero_or_range", "quantity", "inputs_lines", "echo_inputs", "warn",
+           "mesh_text", "DRILL_RANGES", "check_usual"]
 
 
 class CliParser(argparse.ArgumentParser):
@@ -232,6 +235,190 @@ def _fail(prog: str, text: str, code: int) -> int:
         with contextlib.suppress(Exception):
             sys.stderr.flush()
     return code
+
+
+# --------------------------------------------------------------------------- options given
+
+
+def _option_name(action: argparse.Action) -> str:
+    longs = [o for o in action.option_strings if o.startswith("--")]
+    return (longs or action.option_strings or [action.dest])[0]
+
+
+def check_given(parser: argparse.ArgumentParser, ns: argparse.Namespace) -> None:
+    """Refuse what argparse lets through: empty text and subnormal numbers.
+
+    An empty (or blank) string is never a design, a surface, a band or a list: it is a slip
+    like ``--band=`` that would otherwise read as "not given". A subnormal float (``1e-320``)
+    is no time, force or tolerance either: it only arises from a typo.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The parser that produced ``ns`` (its actions name the options).
+    ns : argparse.Namespace
+        The parsed options.
+
+    Raises
+    ------
+    ParameterError
+        Naming the option, the value and what is allowed.
+    """
+    for action in parser._actions:      # noqa: SLF001 - argparse keeps no public list of its actions
+        if not action.option_strings or not hasattr(ns, action.dest):
+            continue
+        value = getattr(ns, action.dest)
+        if value is None or value is action.default:
+            continue
+        name = _option_name(action)
+        for item in value if isinstance(value, list) else [value]:
+            if isinstance(item, str) and not item.strip():
+                raise ParameterError(name, item, "must not be empty")
+            if isinstance(item, float) and item != 0.0 and abs(item) < sys.float_info.min:
+                raise ParameterError(name, item, f"is below {sys.float_info.min:.3g} in magnitude (a typo?): "
+                                                 "give 0 or a normal number")
+
+
+def needs(option: str, value: Any, requirement: str, why: str = "") -> None:
+    """Refuse ``option`` given (``value`` not None/False) without the option it depends on.
+
+    Call it where the requirement does not hold; e.g. ``needs("--wob", ns.wob, "--load rock")``
+    raises "--wob = 5.0: applies only with --load rock" when ``--wob`` was given.
+
+    Parameters
+    ----------
+    option : str
+        The option given, as typed (``"--wob"``).
+    value : object
+        Its value (None, False or [] when it was not given: nothing to refuse).
+    requirement : str
+        What it needs, naming that option (``"--load rock"``).
+    why : str
+        Optional reason, shown in parentheses.
+    """
+    if value is None or value is False or value == []:
+        return
+    raise ParameterError(option, value, f"applies only with {requirement}" + (f" ({why})" if why else ""))
+
+
+def check_zero_or_range(name: str, value: float, lo: float, hi: float, unit: str = "", zero: str = "") -> None:
+    """Accept 0 (meaning ``zero``) or a finite number in ``[lo, hi]``; else a ParameterError.
+
+    For options where 0 switches something off or picks an automatic value (``--ring-up 0``: six
+    time constants) while a tiny positive value is a typo, not a request.
+    """
+    if isinstance(value, (int, float)) and not isinstance(value, bool) and value == 0:
+        return
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and lo <= value <= hi
+    if not ok:
+        unit_text = f" {unit}" if unit else ""
+        raise ParameterError(name, value, f"must be 0{f' ({zero})' if zero else ''} or in [{lo:g}, {hi:g}]{unit_text}")
+
+
+# --------------------------------------------------------------------------- the inputs a run used
+
+_PREFIXES = ((1e9, "G"), (1e6, "M"), (1e3, "k"), (1.0, ""), (1e-3, "m"), (1e-6, "u"), (1e-9, "n"), (1e-12, "p"))
+
+
+def quantity(value: float, unit: str = "", digits: int = 4) -> str:
+    """``value`` with ``unit``, under the SI prefix that keeps the mantissa in [1, 1000).
+
+    Masses are given in kg and shown in g, mg or kg (``quantity(0.008, "kg")`` is ``"8 g"``);
+    ``unit`` "" (a ratio) or one starting with a non-letter is shown without a prefix.
+
+    Parameters
+    ----------
+    value : float
+        In the SI unit ``unit``.
+    unit : str
+        The unit of ``value`` ("kg", "m", "Hz", "V", "N/m", ...).
+    digits : int
+        Significant digits (trailing zeros dropped).
+    """
+    if not isinstance(value, (int, float)) or isinstance(value, bool) or not math.isfinite(value):
+        return f"{value} {unit}".rstrip()
+    if value == 0:
+        return f"0 {unit}".rstrip()
+    base, x = (unit[1:], value * 1e3) if unit.startswith("kg") else (unit, value)
+    if not base or not base[0].isalpha():
+        return f"{value:.{digits}g} {unit}".rstrip()
+    # a mantissa that rounds up to 1000 at these digits takes the next prefix (1 kV, not 1000 V)
+    top = 1 - 0.5 * 10.0 ** (1 - digits)
+    factor, prefix = next(((f, p) for f, p in _PREFIXES if abs(x) >= f * top), _PREFIXES[-1])
+    return f"{x / factor:.{digits}g} {prefix}{base}"
+
+
+def inputs_lines(items: Mapping[str, Any], width: int = 110) -> list[str]:
+    """The ``inputs: ...`` lines of ``items`` (label -> shown value), wrapped at ``width``.
+
+    Every command echoes its inputs through this, so the lines look the same everywhere: the
+    first starts with ``inputs:``, continuation lines are indented under it.
+    """
+    parts = [f"{label} {value}" if value not in ("", None) else label for label, value in items.items()]
+    lines, line = [], "inputs:"
+    for part in parts:
+        piece = (" " if line.endswith(":") else ", ") + part
+        if len(line) + len(piece) > width and not line.endswith(":"):
+            lines.append(line + ",")
+            line = "       " + part
+        else:
+            line += piece
+    lines.append(line)
+    return lines
+
+
+def mesh_text(mesher: str, refine: float, grade: bool = False, mesh_size: float | None = None,
+              order: int | None = None) -> str:
+    """The mesh settings as the inputs line shows them (``"free, refine 1, graded, size 4 mm"``)."""
+    return (f"{mesher}" + (f", order {order}" if order is not None else "") + f", refine {refine:g}"
+            + (", graded" if grade else "") + (f", size {quantity(mesh_size, 'm')}" if mesh_size is not None else ""))
+
+
+def echo_inputs(items: Mapping[str, Any], quiet: bool = False) -> None:
+    """Print the run's inputs (:func:`inputs_lines`) on stdout, before any progress, unless ``quiet``."""
+    if not quiet:
+        print("\n".join(inputs_lines(items)), flush=True)
+
+
+def warn(prog: str, text: str) -> None:
+    """One ``prog: warning: text`` line on stderr (the run goes on)."""
+    sys.stderr.write(_one_line(f"{prog}: warning: {text}") + "\n")
+    with contextlib.suppress(Exception):
+        sys.stderr.flush()
+
+
+DRILL_RANGES: dict[str, tuple[float, float, str, str]] = {
+    "voltage": (10.0, 1000.0, "V", "the drill's drives run at 10-1000 V amplitude (the article's: 225 V)"),
+    "m_free": (1e-3, 20e-3, "kg", "the drill's free masses are 1-20 g"),
+    "A0": (1e-6, 100e-6, "m", "the drill's horn-tip amplitudes are 1-100 um"),
+    "freq": (10e3, 50e3, "Hz", "the drill vibrates at 10-50 kHz"),
+    "m_tool": (5e-3, 2.0, "kg", "the drill's tools weigh 5 g - 2 kg"),
+    "wob": (1.0, 200.0, "N", "the drill is pressed with 1-200 N"),
+}
+"""The drill's usual operating ranges (low, high, SI unit, in words) for :func:`check_usual`:
+values outside them are physically possible (they run) but usually a unit slip."""
+
+
+def check_usual(prog: str, option: str, value: float | None, key: str) -> bool:
+    """Warn (one stderr line) when ``value`` lies outside the drill's usual range ``DRILL_RANGES[key]``.
+
+    The warning names the likely slip: the unit factor (1e-3, 1e3, 1e-6, 1e6) that brings the
+    value into the range, e.g. "--m-free 8 kg: the drill's free masses are 1-20 g; did you mean
+    0.008 (8 g)?". Returns True if it warned.
+    """
+    if value is None or not isinstance(value, (int, float)) or not math.isfinite(value):
+        return False
+    lo, hi, unit, words = DRILL_RANGES[key]
+    if lo <= value <= hi:
+        return False
+    guess = ""
+    if value != 0:
+        for factor in (1e-3, 1e3, 1e-6, 1e6):
+            if lo <= value * factor <= hi:
+                guess = f"; did you mean {value * factor:.6g} ({quantity(value * factor, unit)})?"
+                break
+    warn(prog, f"{option} {value:.6g} {unit}: {words}{guess or '; check the value and its unit'}")
+    return True
 
 
 def setup_logging(verbose: int = 0) -> None:

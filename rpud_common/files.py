@@ -154,6 +154,58 @@ def _same(a: Path, b: Path) -> bool:
         return os.path.normcase(os.path.abspath(a)) == os.path.normcase(os.path.abspath(b))
 
 
+def _writable(folder: Path) -> str | None:
+    """Why no file can be created in ``folder`` (None if one can), found by creating one.
+
+    ``os.access`` answers by the permission bits, which do not stop root, while /proc and
+    /sys refuse new files to everyone and a read-only mount refuses them whatever the bits:
+    only an attempt tells. The probe file is removed at once.
+    """
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".rpud-probe-", dir=folder)
+    except OSError as exc:
+        return exc.strerror or type(exc).__name__
+    os.close(fd)
+    with contextlib.suppress(OSError):
+        os.unlink(probe)
+    return None
+
+
+def _check_path(opt: str, value: Any, folder: bool) -> Path:
+    """One output path: a usable name, an existing writable parent, the right kind of entry."""
+    if not isinstance(value, (str, os.PathLike)) or not os.fspath(value).strip() or "\0" in os.fspath(value):
+        raise ParameterError(opt, value, "must be a path")
+    text = os.fspath(value)
+    if len(os.fsencode(text)) > PATH_MAX:
+        raise ParameterError(opt, text, f"path longer than {PATH_MAX} bytes")
+    path = Path(text)
+    for part in path.parts:
+        if len(os.fsencode(part)) > NAME_MAX:
+            raise ParameterError(opt, text, f"has a name of {len(os.fsencode(part))} bytes; at most "
+                                            f"{NAME_MAX} are allowed")
+    if path.name in ("", ".", ".."):
+        raise ParameterError(opt, text, "must end in a file or folder name")
+    parent = path.parent
+    if not parent.exists():
+        raise ParameterError(opt, text, f"parent folder {str(parent)!r} does not exist")
+    if not parent.is_dir():
+        raise ParameterError(opt, text, f"parent {str(parent)!r} is not a folder")
+    why = _writable(parent) if os.access(parent, os.W_OK | os.X_OK) else "permission denied"
+    if why:
+        raise ParameterError(opt, text, f"parent folder {str(parent)!r} is not writable ({why})")
+    if folder:
+        if path.exists() and not path.is_dir():
+            raise ParameterError(opt, text, "is an existing file; an output folder is expected")
+        why = _writable(path) if path.is_dir() else None
+        if why:
+            raise ParameterError(opt, text, f"is a folder that is not writable ({why})")
+    elif path.is_dir():
+        raise ParameterError(opt, text, "is a folder; give a file path")
+    elif path.exists() and not path.is_file():
+        raise ParameterError(opt, text, "exists and is not a regular file (a device, pipe or socket); give a file path")
+    return path
+
+
 def check_output_paths(*, inputs: Mapping[str, Any] | None = None, folders: typing.Iterable[str] = (),
                        **outputs: Any) -> dict[str, Path]:
     """Refuse unusable output paths before any computation starts.
@@ -177,9 +229,11 @@ def check_output_paths(*, inputs: Mapping[str, Any] | None = None, folders: typi
     ------
     ParameterError
         Empty name or NUL byte; a name component longer than :data:`NAME_MAX` bytes or a path
-        longer than :data:`PATH_MAX`; a parent folder that is missing, not a folder or not
-        writable; a file output that is an existing folder or a folder output that is an
-        existing file; two outputs on one path; an output on an input file.
+        longer than :data:`PATH_MAX`; a parent folder that is missing, not a folder or where no
+        file can be created (tried: permission bits do not stop root, /proc and read-only
+        mounts do); a file output that is an existing folder or not a regular file; a folder
+        output that is an existing file or a folder where no file can be created; two outputs
+        on one path; an output on an input file.
     """
     folders = set(folders)
     checked: dict[str, Path] = {}
@@ -187,30 +241,8 @@ def check_output_paths(*, inputs: Mapping[str, Any] | None = None, folders: typi
         if value is None:
             continue
         opt = key if key.startswith("-") else "--" + key.replace("_", "-")
-        if not isinstance(value, (str, os.PathLike)) or not os.fspath(value).strip() or "\0" in os.fspath(value):
-            raise ParameterError(opt, value, "must be a path")
+        path = _check_path(opt, value, key in folders)
         text = os.fspath(value)
-        if len(os.fsencode(text)) > PATH_MAX:
-            raise ParameterError(opt, text, f"path longer than {PATH_MAX} bytes")
-        path = Path(text)
-        for part in path.parts:
-            if len(os.fsencode(part)) > NAME_MAX:
-                raise ParameterError(opt, text, f"has a name of {len(os.fsencode(part))} bytes; at most "
-                                                f"{NAME_MAX} are allowed")
-        if path.name in ("", ".", ".."):
-            raise ParameterError(opt, text, "must end in a file or folder name")
-        parent = path.parent
-        if not parent.exists():
-            raise ParameterError(opt, text, f"parent folder {str(parent)!r} does not exist")
-        if not parent.is_dir():
-            raise ParameterError(opt, text, f"parent {str(parent)!r} is not a folder")
-        if not os.access(parent, os.W_OK | os.X_OK):
-            raise ParameterError(opt, text, f"parent folder {str(parent)!r} is not writable")
-        if key in folders:
-            if path.exists() and not path.is_dir():
-                raise ParameterError(opt, text, "is an existing file; an output folder is expected")
-        elif path.is_dir():
-            raise ParameterError(opt, text, "is a folder; give a file path")
         for other, other_path in checked.items():
             if _same(path, other_path):
                 raise ParameterError(opt, text, f"is also the output of {other}")

@@ -31,7 +31,7 @@ def test_harmonic_error_prints_and_writes_every_error(rod, capsys):
     from fem.harmonic_cli import main
 
     out = rod / "h.json"
-    assert main(["--design", str(rod / "rod.toml"), *ROD, "--points", "5", "--error", "--json", str(out)]) == 0
+    assert main(["--design", str(rod / "rod.toml"), *ROD, "--points", "5", "--error", "--json", str(out), "-q"]) == 0
     text = capsys.readouterr().out
     assert "estimated discretisation error:" in text and "order 2 assumed" in text
     d = json.loads(out.read_text())

@@ -275,7 +275,7 @@ def test_harmonic_cli_drives_the_coupled_mode_and_says_what_it_drives(tmp_path, 
     k33_rod().save(design)
     out = tmp_path / "h.json"
     argv = ["--design", str(design), "--surface", "electrode_top", "--points", "11", "--mesh-size", "0.004", "--modes", "4",
-            "--json", str(out)]
+            "--json", str(out), "-q"]                  # -q: the result lines first, no inputs line
     assert main(argv) == 0
     first = json.loads(out.read_text())["working_mode"]
     assert first["k_eff"] > 0.5 and "drive" not in capsys.readouterr().out.splitlines()[0]
