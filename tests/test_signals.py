@@ -144,8 +144,10 @@ def test_geometry_cli_while_gmsh_meshes(tmp_path, sig, code, word):
     stopped although Gmsh runs on, so the CLI exited normally and the C library's exit handlers
     ran under Gmsh, corrupting the heap.)
     """
-    rc, err = _run_and_signal(["geometry", "--json", "out.json", "--mesh", "out.msh", "-q"], sig, tmp_path,
-                              delay=2.5)
+    # a finer mesh than the default (about 6 s on a quiet core instead of 2): the signal at 2.5 s
+    # then arrives while Gmsh meshes, not after the command has finished
+    rc, err = _run_and_signal(["geometry", "--json", "out.json", "--mesh", "out.msh", "-q", "--refine", "0.5"], sig,
+                              tmp_path, delay=2.5)
     _assert_clean_end(rc, err, code, word)
     assert list(tmp_path.iterdir()) == []
 
