@@ -147,14 +147,15 @@ def rules_toml(data: dict) -> str:
 
 def _rename_products(step: Path, names: list[str]) -> None:
     """Label the k-th solid of an OCC-written STEP file with ``names[k]`` (OCC writes
-    ``PRODUCT('<translator> 1.k', ...)`` for the k-th solid of the compound)."""
+    ``PRODUCT('<translator> n.k', ...)`` for the k-th solid of the compound, n counting the files
+    this process has written)."""
     text = step.read_text(encoding="utf-8")
 
     def repl(m):
         k = int(m.group(2)) - 1
         return f"'{names[k]}'" if 0 <= k < len(names) else m.group(0)
 
-    text = re.sub(r"'(Open CASCADE STEP translator [0-9.]+ 1)\.(\d+)'", repl, text)
+    text = re.sub(r"'(Open CASCADE STEP translator [0-9.]+ \d+)\.(\d+)'", repl, text)
     step.write_text(text, encoding="utf-8")
 
 

@@ -27,6 +27,15 @@ ROUND_TRIP_TOL = 5e-4        # the issue's 0.05 % on f_r and f_a
 
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
+    # another STEP file written first: OpenCASCADE numbers the files a process writes, and the
+    # export must label its solids whatever that number is
+    from geometry.cad import gmsh_session, native_stdout_quiet
+
+    with gmsh_session() as gmsh:
+        gmsh.model.occ.addBox(0, 0, 0, 0.01, 0.01, 0.01)
+        gmsh.model.occ.synchronize()
+        with native_stdout_quiet():
+            gmsh.write(str(tmp_path_factory.mktemp("cad") / "first.step"))
     folder = tmp_path_factory.mktemp("cad") / "export"
     step, toml = export_cad(geometry.default_design(), folder)
     return folder, step, toml
