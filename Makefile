@@ -9,7 +9,7 @@ STAMP  := $(VENV)/.installed-stamp
 # the resolver that writes the lock, itself pinned so a refresh is reproducible
 UV     := uv==0.13.9
 
-.PHONY: run test bench install lock clean
+.PHONY: run test test-fast docs bench install lock clean
 
 $(STAMP): pyproject.toml $(LOCK) impact/kernel.py impact/kernel_modal.py
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -28,7 +28,7 @@ install: $(STAMP)
 lock:
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet $(UV)
-	printf 'setuptools>=68\nwheel\n' | $(VENV)/bin/uv pip compile pyproject.toml - --extra test \
+	printf 'setuptools>=68\nwheel\n' | $(VENV)/bin/uv pip compile pyproject.toml - --extra test --extra docs \
 		--universal --python-version 3.11 --generate-hashes --quiet -o $(LOCK)
 
 run: $(STAMP)
@@ -41,8 +41,18 @@ test: $(STAMP)
 	OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
 		$(PY) -m pytest -q -n 2 --dist loadfile
 
+# the daily tier: every test not marked slow, under a minute on 2 cores
+test-fast: $(STAMP)
+	OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
+		$(PY) -m pytest -q -n 2 --dist loadfile -m "not slow"
+
+# the documentation site: warnings are errors, the gallery's examples run during the build
+docs: $(STAMP)
+	MPLBACKEND=Agg PYVISTA_OFF_SCREEN=true OMP_NUM_THREADS=1 \
+		$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done
 
 clean:
-	rm -rf $(VENV) build *.egg-info .pytest_cache
+	rm -rf $(VENV) build *.egg-info .pytest_cache docs/_build docs/gallery

@@ -50,7 +50,8 @@ def _pins() -> list[tuple[str, Version, Marker | None, int]]:
 def _requirements() -> list[Requirement]:
     meta = tomllib.loads((ROOT / "pyproject.toml").read_text())
     reqs = [Requirement(r) for r in meta["project"]["dependencies"]]
-    reqs += [Requirement(r) for r in meta["project"]["optional-dependencies"]["test"]]
+    for extra in ("test", "docs"):
+        reqs += [Requirement(r) for r in meta["project"]["optional-dependencies"][extra]]
     reqs += [Requirement(r) for r in meta["build-system"]["requires"]]
     return reqs
 

@@ -1,0 +1,69 @@
+"""Where a result came from: rpud's version, the git commit, the command line and the date.
+
+Written into every JSON result and report so that a number can be traced to the code and the
+command that produced it. Standard library only.
+"""
+
+from __future__ import annotations
+
+import datetime
+import functools
+import importlib.metadata
+import shlex
+import subprocess
+import sys
+from pathlib import Path
+
+__all__ = ["__version__", "version", "git_commit", "provenance"]
+
+_ROOT = Path(__file__).resolve().parent.parent
+
+
+def version() -> str:
+    """rpud's version as installed (pyproject's ``version``); ``"unknown"`` when run uninstalled."""
+    try:
+        return importlib.metadata.version("rpud")
+    except importlib.metadata.PackageNotFoundError:
+        return "unknown"
+
+
+__version__ = version()
+
+
+@functools.lru_cache(maxsize=1)
+def git_commit() -> str | None:
+    """The commit of the source tree rpud runs from (``+dirty`` with uncommitted changes), or None
+    outside a git checkout or without git."""
+    if not (_ROOT / ".git").exists():
+        return None
+    try:
+        head = subprocess.run(["git", "-C", str(_ROOT), "rev-parse", "HEAD"], capture_output=True, text=True,
+                              timeout=5, check=True).stdout.strip()
+        dirty = subprocess.run(["git", "-C", str(_ROOT), "status", "--porcelain", "--untracked-files=no"],
+                               capture_output=True, text=True, timeout=5, check=True).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        return None
+    return head + ("+dirty" if dirty else "") if head else None
+
+
+def provenance(argv: list[str] | None = None) -> dict:
+    """The record a result carries: ``{"rpud_version", "git_commit", "command", "date_utc", "python"}``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        The command line (default ``sys.argv``), quoted as a shell would need it.
+
+    Examples
+    --------
+    >>> sorted(provenance(["python", "-m", "results"]))
+    ['command', 'date_utc', 'git_commit', 'python', 'rpud_version']
+    """
+    argv = list(sys.argv if argv is None else argv)
+    return {
+        "rpud_version": version(),
+        "git_commit": git_commit(),
+        "command": shlex.join(argv),
+        "date_utc": datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat(),
+        "python": sys.version.split()[0],
+    }
