@@ -21,7 +21,7 @@ _WHERE = {
     "result": ("Result",),
     "cli": ("CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running"),
     "launch": ("Terminated",),
-    "provenance": ("__version__", "provenance"),
+    "provenance": ("__version__", "provenance_record"),
 }
 # loaded on first use: an entry point imports rpud_common.launch (standard library only) before
 # anything else, and that must not pull numpy in through this package

@@ -14,7 +14,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-__all__ = ["__version__", "version", "git_commit", "provenance"]
+__all__ = ["__version__", "version", "git_commit", "provenance_record"]
 
 _ROOT = Path(__file__).resolve().parent.parent
 
@@ -46,7 +46,7 @@ def git_commit() -> str | None:
     return head + ("+dirty" if dirty else "") if head else None
 
 
-def provenance(argv: list[str] | None = None) -> dict:
+def provenance_record(argv: list[str] | None = None) -> dict:
     """The record a result carries: ``{"rpud_version", "git_commit", "command", "date_utc", "python"}``.
 
     Parameters
@@ -56,7 +56,7 @@ def provenance(argv: list[str] | None = None) -> dict:
 
     Examples
     --------
-    >>> sorted(provenance(["python", "-m", "results"]))
+    >>> sorted(provenance_record(["python", "-m", "results"]))
     ['command', 'date_utc', 'git_commit', 'python', 'rpud_version']
     """
     argv = list(sys.argv if argv is None else argv)
