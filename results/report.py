@@ -1,14 +1,30 @@
-"""The Markdown report of an end-to-end run: headline numbers, tables, links to every figure."""
+"""The report of an end-to-end run: headline numbers, tables, every figure, and where it came from.
+
+Two files carry the same content: ``report.md`` (Markdown, links to the PNG files beside it) and
+``report.html`` (one self-contained page: the figures embedded as ``data:`` URIs, no external
+resource, so it opens anywhere and can be mailed as one file). The HTML is converted from the
+same Markdown lines by :func:`markdown_to_html`, a converter for the small Markdown subset the
+report uses, so the two cannot disagree and the pipeline needs no Markdown library.
+"""
 
 from __future__ import annotations
 
+import base64
+import html
 import math
+import re
 from pathlib import Path
-
 
 from rpud_common import atomic_write_text
 
 from .errors import error_text as _pm
+
+__all__ = ["write_report", "write_report_html", "report_lines", "markdown_to_html", "escape_table_pipes",
+           "table_cells", "headline_text", "ke_rows"]
+
+#: a ``|x|`` inside a table cell (a magnitude such as ``|E|``): a pipe with a space before it and
+#: a token after it; table separators are ``| `` or `` |`` (space inside) and never match
+_CELL_PIPES = re.compile(r"(?<= )\|([^\s|\\]+)\|(?= )")
 
 
 def _f(v, scale=1.0, fmt=".3g", unit=""):
@@ -43,10 +59,101 @@ def ke_rows(sweeps: dict, with_zero: bool, coupled: dict | None = None) -> list[
     return rows
 
 
-def write_report(s: dict, path) -> Path:
-    """Write ``report.md`` from the run summary (see :func:`results.pipeline.run_pipeline`)."""
+def escape_table_pipes(text: str) -> str:
+    """Escape the pipes of ``|x|`` magnitudes in the Markdown table rows of ``text`` (``\\|E\\|``).
+
+    A bare ``|E|`` in a cell splits it into extra columns, and the row no longer matches its
+    header; GitHub, MyST and :func:`markdown_to_html` read ``\\|`` as a literal pipe. Lines that
+    are not table rows are returned unchanged. Idempotent.
+    """
+    return "\n".join(_CELL_PIPES.sub(r"\\|\1\\|", ln) if ln.lstrip().startswith("|") else ln
+                     for ln in text.split("\n"))
+
+
+def table_cells(row: str) -> list[str]:
+    """The cells of one Markdown table row (split on unescaped pipes, ``\\|`` kept as ``|``)."""
+    body = row.strip()
+    body = body[1:] if body.startswith("|") else body
+    body = body[:-1] if body.endswith("|") and not body.endswith("\\|") else body
+    return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", body)]
+
+
+def headline_text(s: dict) -> str | None:
+    """One sentence with the headline result: the headline scenario's tool kinetic energy, impact
+    rate and power at the reference free mass, and the horn-tip amplitude A0 it used (95 % CIs and
+    discretisation errors as in the tables). None when the summary has no such row."""
+    key = s.get("impacts", {}).get("headline", "device_fe")
+    a0 = s["A0"]
+    m_ref = a0["reference_m_free_kg"]
+    row = next((r for r in s.get("kinetic_energy_table", []) if key in r and math.isclose(r["m_free_kg"], m_ref)),
+               None)
+    if row is None:
+        return None
+    e = row[key]
+    scenario = {"device_fe": "device scenario"}.get(key, key)
+    return (f"Headline ({scenario}, {m_ref * 1e3:g} g free mass): tool kinetic energy "
+            f"{_ci(e['mean_tool_ke_after_j'], 1e3)} mJ per impact at {_ci(e['tool_impact_rate_hz'])} Hz, "
+            f"{_ci(e['tool_power_w'])} W to the tool; horn-tip amplitude A0 "
+            f"{_pm(a0['used_m'], a0.get('used_m_error'), 'um', 1e6)}.")
+
+
+def _provenance_lines(s: dict) -> list[str]:
+    """The provenance table: the summary's record when it has one, else this process's."""
+    prov = s.get("provenance")
+    if not prov:
+        from rpud_common import provenance_record
+
+        prov = provenance_record()
+    names = (("rpud_version", "rpud version"), ("git_commit", "git commit"), ("command", "command line"),
+             ("date_utc", "date (UTC)"), ("python", "Python"))
+    rows = [f"| {label} | `{prov[k]}` |" if prov.get(k) is not None else f"| {label} | unknown |"
+            for k, label in names if k in prov]
+    return ["## Provenance", "", "| item | value |", "|---|---|", *rows, ""]
+
+
+def write_report(s: dict, path, *, html_path=None, asset_dir=None) -> Path:
+    """Write ``report.md`` and, beside it, the self-contained ``report.html`` from the run summary.
+
+    Parameters
+    ----------
+    s : dict
+        The run summary (see :func:`results.pipeline.run_pipeline`).
+    path : path-like
+        The Markdown file.
+    html_path : path-like, optional
+        The HTML file; default ``report.html`` in the folder of ``path``.
+    asset_dir : path-like, optional
+        The folder the summary's figure paths are relative to (default: the folder of ``path``).
+
+    Returns
+    -------
+    Path
+        The Markdown file.
+    """
+    path = Path(path)
+    lines = report_lines(s)
+    out = atomic_write_text(path, "\n".join(lines))
+    write_report_html(s, path.with_name("report.html") if html_path is None else html_path,
+                      asset_dir=path.parent if asset_dir is None else asset_dir, lines=lines)
+    return out
+
+
+def write_report_html(s: dict, path, *, asset_dir, lines: list[str] | None = None) -> Path:
+    """Write the self-contained HTML report: the Markdown report's content, tables as HTML tables,
+    every figure embedded from ``asset_dir`` as a base64 ``data:image/png`` URI."""
+    lines = report_lines(s) if lines is None else lines
+    title = lines[0].lstrip("# ").strip() if lines else "RPUD report"
+    return atomic_write_text(path, markdown_to_html(lines, asset_dir, title=title))
+
+
+def report_lines(s: dict) -> list[str]:
+    """The Markdown lines of the report (see :func:`write_report`)."""
     d, wm, h, a0 = s["design"], s["working_mode"], s["harmonic"], s["A0"]
     lines = [f"# RPUD end-to-end run: {d.get('name', 'design')}", ""]
+    head = headline_text(s)
+    if head:
+        name, _, rest = head.partition(": ")
+        lines += [f"**{name}:** {rest}", ""]
     m = s["matching"]
     if m:
         tuned = ", ".join(f"`{k}` {v * 1e3:.3f} mm (start {m['start'][k] * 1e3:.3f})" for k, v in m["tuned"].items())
@@ -151,7 +258,8 @@ def write_report(s: dict, path) -> Path:
     t = s["timings"]
     lines += ["## Timings (s)", "", "| " + " | ".join(t) + " |", "|" + "---|" * len(t),
               "| " + " | ".join(f"{v:.1f}" for v in t.values()) + " |", ""]
-    return atomic_write_text(path, "\n".join(lines))
+    lines += _provenance_lines(s)
+    return escape_table_pipes("\n".join(lines)).split("\n")
 
 
 def _error_note(s: dict) -> str:
@@ -161,3 +269,116 @@ def _error_note(s: dict) -> str:
         return f"FE values without a discretisation-error estimate ({s.get('discretisation_error_note', 'none made')})."
     return (f"± : estimated discretisation error of the FE values ({e['method']}). The amplitudes carry the relative "
             "error of the tip amplitude per volt; the impact statistics below have their own 95 % CIs.")
+
+
+_IMG = re.compile(r"^!\[([^\]]*)\]\(([^)\s]+)\)$")
+_CSS = """
+body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, sans-serif; max-width: 72rem; margin: 2rem auto;
+       padding: 0 1rem; line-height: 1.45; color: #1b1b1b; background: #ffffff; }
+h1 { font-size: 1.6rem; border-bottom: 2px solid #1f5f99; padding-bottom: .3rem; }
+h2 { font-size: 1.25rem; margin-top: 2rem; color: #1f5f99; }
+.headline { background: #eef5fb; border-left: 5px solid #1f5f99; padding: .6rem 1rem; font-size: 1.05rem; }
+table { border-collapse: collapse; margin: .8rem 0; font-size: .85rem; }
+th, td { border: 1px solid #c8c8c8; padding: .25rem .5rem; text-align: left; vertical-align: top; }
+th { background: #f0f0f0; }
+tr:nth-child(even) td { background: #fafafa; }
+code { background: #f3f3f3; padding: 0 .2rem; border-radius: 3px; font-size: .9em; }
+figure { margin: 1rem 0; }
+figure img { max-width: 100%; height: auto; border: 1px solid #e0e0e0; }
+figcaption { font-size: .8rem; color: #555; }
+"""
+
+
+def _inline(text: str) -> str:
+    """HTML of one line of report Markdown: ``**bold**``, ```code```, ``\\|`` as a pipe; the rest escaped."""
+    parts = re.split(r"(`[^`]*`)", text)
+    out = []
+    for p in parts:
+        if len(p) >= 2 and p.startswith("`") and p.endswith("`"):
+            out.append(f"<code>{html.escape(p[1:-1])}</code>")
+        else:
+            t = html.escape(p.replace("\\|", "|"), quote=False)
+            out.append(re.sub(r"\*\*(.+?)\*\*", r"<strong>\1</strong>", t))
+    return "".join(out)
+
+
+def _data_uri(src: str, asset_dir) -> str:
+    """The image file ``asset_dir/src`` as a ``data:`` URI (PNG, SVG, JPEG by suffix)."""
+    f = Path(asset_dir) / src
+    mime = {".png": "image/png", ".svg": "image/svg+xml", ".jpg": "image/jpeg",
+            ".jpeg": "image/jpeg"}.get(f.suffix.lower(), "application/octet-stream")
+    return f"data:{mime};base64,{base64.b64encode(f.read_bytes()).decode('ascii')}"
+
+
+def markdown_to_html(lines: list[str], asset_dir, *, title: str = "RPUD report") -> str:
+    """A self-contained HTML page from the report's Markdown lines.
+
+    The subset the report writes: ``#``/``##`` headings, pipe tables (header, separator, rows),
+    ``- `` bullets with indented continuation lines, images alone on a line (embedded from
+    ``asset_dir`` as base64 data URIs), paragraphs with ``**bold**`` and ```code```. The first
+    bold-led paragraph after the title (the headline) is set apart in a box.
+
+    Raises
+    ------
+    FileNotFoundError
+        A figure named in the report is missing from ``asset_dir``: a report must not show a
+        broken image.
+    """
+    body: list[str] = []
+    i, n = 0, len(lines)
+    headline_done = False
+    while i < n:
+        ln = lines[i]
+        s = ln.strip()
+        if not s:
+            i += 1
+        elif s.startswith("## "):
+            body.append(f"<h2>{_inline(s[3:])}</h2>")
+            i += 1
+        elif s.startswith("# "):
+            body.append(f"<h1>{_inline(s[2:])}</h1>")
+            i += 1
+        elif s.startswith("|"):
+            rows = []
+            while i < n and lines[i].strip().startswith("|"):
+                rows.append(table_cells(lines[i]))
+                i += 1
+            has_head = len(rows) > 1 and all(re.fullmatch(r":?-{3,}:?", c) for c in rows[1])
+            head, data = (rows[0], rows[2:]) if has_head else (None, rows)
+            t = ["<table>"]
+            if head is not None:
+                t.append("<thead><tr>" + "".join(f"<th>{_inline(c)}</th>" for c in head) + "</tr></thead>")
+            t.append("<tbody>" + "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in r) + "</tr>"
+                                         for r in data) + "</tbody></table>")
+            body.append("".join(t))
+        elif _IMG.match(s):
+            while i < n and _IMG.match(lines[i].strip()):
+                alt, src = _IMG.match(lines[i].strip()).groups()
+                body.append(f'<figure><img src="{_data_uri(src, asset_dir)}" alt="{html.escape(alt)}">'
+                            f"<figcaption>{html.escape(alt)} ({html.escape(src)})</figcaption></figure>")
+                i += 1
+        elif s.startswith("- "):
+            items = []
+            while i < n and (lines[i].strip().startswith("- ") or (lines[i].startswith("  ") and lines[i].strip())):
+                if lines[i].strip().startswith("- "):
+                    items.append(lines[i].strip()[2:])
+                else:
+                    items[-1] += " " + lines[i].strip()
+                i += 1
+            body.append("<ul>" + "".join(f"<li>{_inline(t)}</li>" for t in items) + "</ul>")
+        else:
+            para = []
+            while i < n and lines[i].strip() and not lines[i].strip().startswith(("#", "|", "- ")) \
+                    and not _IMG.match(lines[i].strip()):
+                para.append(lines[i].strip())
+                i += 1
+            text = " ".join(para)
+            if not headline_done and text.startswith("**Headline"):
+                body.append(f'<p class="headline" id="headline">{_inline(text)}</p>')
+                headline_done = True
+            else:
+                body.append(f"<p>{_inline(text)}</p>")
+    return ("<!DOCTYPE html>\n<html lang=\"en\">\n<head>\n<meta charset=\"utf-8\">\n"
+            "<meta name=\"viewport\" content=\"width=device-width, initial-scale=1\">\n"
+            f"<title>{html.escape(title)}</title>\n<style>{_CSS}</style>\n</head>\n<body>\n"
+            + "\n".join(body) + "\n</body>\n</html>\n")
