@@ -241,7 +241,7 @@ def make_row(study: Study, index: int, point: dict, records: list, store: str | 
 
 def _write_record(store: Path, row: dict) -> None:
     if store.is_dir():
-        write_json(store / f"{row['id']}.json", row, nonfinite="null")
+        write_json(store / f"{row['id']}.json", row, nonfinite="null", provenance=False)
 
 
 # ------------------------------------------------------------------------------- resume store
@@ -907,7 +907,7 @@ def _write_folder(result: StudyResult, out: Path, figures: bool) -> None:
             study_figures(result, tmp / "figures")
         # only this study's rows: a foreign record left in the store is not part of the result
         for row in result.rows:
-            write_json(tmp / "points" / f"{row['id']}.json", row, nonfinite="null")
+            write_json(tmp / "points" / f"{row['id']}.json", row, nonfinite="null", provenance=False)
 
 
 def _write_table(result: StudyResult, folder: Path) -> None:

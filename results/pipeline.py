@@ -46,8 +46,8 @@ from typing import Callable
 import numpy as np
 
 from impact.stats import MAX_MEMBERS
-from rpud_common import (ParameterError, check_choice, check_integer, check_positive, check_range, save_figure,
-                         write_json)
+from rpud_common import (ParameterError, check_choice, check_integer, check_positive, check_range, provenance_record,
+                         save_figure, write_json)
 from rpud_common.result import Result
 
 from .coupled import round_sig  # noqa: F401  (the hand-off rounding; results.explore imports it from here)
@@ -519,6 +519,8 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
         "timings": timings,
     }
     annotate_summary(summary, est)
+    # in the summary itself, not only in the file: the report and PipelineResult.summary show it too
+    summary["provenance"] = provenance_record()
     write_json(out / "summary.json", summary)
     write_report(summary, out / "report.md")
     say(f"done in {timings['total_s']:.1f} s")

@@ -31,7 +31,8 @@ class CliParser(argparse.ArgumentParser):
     """An ``ArgumentParser`` whose usage errors are one line on stderr and exit code 2.
 
     Started as a console script (``rpud-impact``), usage and errors name that command rather
-    than its ``python -m`` twin given as ``prog``.
+    than its ``python -m`` twin given as ``prog``. Every command takes ``--version`` (prints
+    ``<prog> <rpud version>``, exit 0), so a result can be matched to the code that made it.
     """
 
     def __init__(self, *args, **kwargs):
@@ -39,6 +40,10 @@ class CliParser(argparse.ArgumentParser):
         if script.startswith("rpud-") and "prog" in kwargs:
             kwargs["prog"] = script
         super().__init__(*args, **kwargs)
+        from .provenance import version
+
+        self.add_argument("--version", action="version", version=f"%(prog)s {version()}",
+                          help="print rpud's version and exit")
 
     def error(self, message: str) -> typing.NoReturn:  # noqa: D401 - argparse API
         sys.stderr.write(_one_line(f"{self.prog}: error: {message}") + "\n")

@@ -20,6 +20,7 @@ from typing import Any
 
 from .errors import ParameterError
 from .launch import raise_pending, signals_held
+from .provenance import provenance_record
 from .records import to_jsonable
 
 __all__ = ["atomic_output", "atomic_write_text", "json_text", "write_json", "NAME_MAX", "PATH_MAX",
@@ -106,7 +107,7 @@ def _null_nonfinite(obj: Any) -> Any:
     return obj
 
 
-def json_text(data: Any, nonfinite: str = "error", name: str = "json") -> str:
+def json_text(data: Any, nonfinite: str = "error", name: str = "json", provenance: bool = True) -> str:
     """``data`` as indented JSON text (numpy values allowed).
 
     Parameters
@@ -117,8 +118,16 @@ def json_text(data: Any, nonfinite: str = "error", name: str = "json") -> str:
         documents "not available").
     name : str
         Parameter (option) name used in the error.
+    provenance : bool
+        A result (a JSON object) gets a last key ``"provenance"``
+        (:func:`rpud_common.provenance.provenance_record`: version, commit, command line,
+        date), so that every number in a file can be traced to the code and the command that
+        made it; one the data already carries is kept. False for records that are not results
+        on their own (a study's resume rows, read back field by field).
     """
     obj = to_jsonable(data)
+    if provenance and isinstance(obj, dict) and "provenance" not in obj:
+        obj = {**obj, "provenance": provenance_record()}
     if nonfinite == "null":
         obj = _null_nonfinite(obj)
     else:
@@ -129,13 +138,15 @@ def json_text(data: Any, nonfinite: str = "error", name: str = "json") -> str:
     return json.dumps(obj, indent=2, allow_nan=False) + "\n"
 
 
-def write_json(path: str | os.PathLike, data: Any, nonfinite: str = "error", name: str = "json") -> Path:
+def write_json(path: str | os.PathLike, data: Any, nonfinite: str = "error", name: str = "json",
+               provenance: bool = True) -> Path:
     """Write ``data`` as indented JSON, atomically; the text is complete before any file exists.
 
     A NaN/inf is a :class:`ParameterError` raised before anything is created (see
-    :func:`json_text` for ``nonfinite`` and ``name``).
+    :func:`json_text` for ``nonfinite``, ``name`` and ``provenance``: a JSON object gets a
+    ``"provenance"`` record).
     """
-    return atomic_write_text(path, json_text(data, nonfinite, name))
+    return atomic_write_text(path, json_text(data, nonfinite, name, provenance))
 
 
 # --------------------------------------------------------------------------- output paths

@@ -52,14 +52,16 @@ def provenance_record(argv: list[str] | None = None) -> dict:
     Parameters
     ----------
     argv : list of str, optional
-        The command line (default ``sys.argv``), quoted as a shell would need it.
+        The command line (default: this process's, ``sys.argv`` with a ``python -m`` module's
+        path given back as ``python -m <module>`` and a console script by its name), quoted as
+        a shell would need it.
 
     Examples
     --------
     >>> sorted(provenance_record(["python", "-m", "results"]))
     ['command', 'date_utc', 'git_commit', 'python', 'rpud_version']
     """
-    argv = list(sys.argv if argv is None else argv)
+    argv = _command_line() if argv is None else list(argv)
     return {
         "rpud_version": version(),
         "git_commit": git_commit(),
@@ -67,3 +69,20 @@ def provenance_record(argv: list[str] | None = None) -> dict:
         "date_utc": datetime.datetime.now(datetime.timezone.utc).replace(microsecond=0).isoformat(),
         "python": sys.version.split()[0],
     }
+
+
+def _command_line() -> list[str]:
+    """This process's command line as typed: ``sys.argv[0]`` of ``python -m impact`` is the path
+    of ``impact/__main__.py``, which neither names the command nor reruns it."""
+    argv = list(sys.argv)
+    if not argv:
+        return argv
+    spec = getattr(sys.modules.get("__main__"), "__spec__", None)
+    name = getattr(spec, "name", None)
+    if name:
+        module = name[: -len(".__main__")] if name.endswith(".__main__") else name
+        return ["python", "-m", module, *argv[1:]]
+    script = Path(argv[0]).name
+    if script.startswith("rpud-"):
+        return [script, *argv[1:]]
+    return argv

@@ -15,6 +15,7 @@ import pytest
 import fem
 import impact
 from rpud_common.figures import subplots
+from rpud_common.provenance import version
 from test_fem_harmonic import TIP, _stack
 
 FAST = impact.StatsSettings(rel_tol=0.2, n_start=8, n_max=16)
@@ -37,7 +38,10 @@ def _strict(d):
 def _saved(result, folder):
     path = result.save(folder)
     assert path.suffix == ".json" and path.stat().st_mode & 0o777 == 0o666 & ~_umask()
-    return json.loads(path.read_text()), folder / f"{path.stem}.npz"
+    record = json.loads(path.read_text())
+    # the saved file says which code wrote it; the rest is to_dict() unchanged
+    assert record.pop("provenance")["rpud_version"] == version()
+    return record, folder / f"{path.stem}.npz"
 
 
 def _umask():
