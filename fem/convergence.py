@@ -67,10 +67,10 @@ family is pre-asymptotic: see the README's convergence table."""
 
 ESTIMATOR_ORDER_UNGRADED = 1.0
 """Order in h assumed on an ungraded mesh (the default): the re-entrant edges limit the
-eigenvalue error to h^1.1 (2 x 0.5445, a 270-degree corner; issue 19's axisymmetric study
-observed 1.1 with P2 and P3 alike), so order 2 would understate the error about twofold. Chosen
-below that rate so the estimate errs on the large side; not validated by a 3-D study here (the
-default design's ungraded levels are pre-asymptotic below ~160k DOFs, issue 19's table)."""
+eigenvalue error to h^1.1 (2 x 0.5445, a 270-degree corner; the axisymmetric (r, z) study,
+tests/axisym_reference.py, observed 1.1 with P2 and P3 alike), so order 2 would understate the
+error about twofold. Chosen below that rate so the estimate errs on the large side; not validated
+by a 3-D study here (the default design's ungraded levels are pre-asymptotic below ~160k DOFs)."""
 
 
 def estimator_order(grade: bool, corners: bool = True) -> float:

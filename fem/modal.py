@@ -11,7 +11,7 @@ backend=None, tol=1e-10, open_circuit=True, eigen="block", factor=None) -> Modal
   to be perturbed) (or ``factor``, an existing one at the same shift):
   ``eigen="block"`` (default) is the block Lanczos of :mod:`fem.eigen` (block right-hand sides,
   Rayleigh-quotient eigenvalues); ``eigen="arpack"`` is scipy ``eigsh`` (``mode="normal"``,
-  one right-hand side per call), the earlier path, kept as the reference.
+  one right-hand side per call), kept as an independent reference.
   The potential DOFs have zero mass: ``(K - sigma M)^-1 M`` maps every vector onto
   ``u``-driven fields whose potential is the static (condensed) electric response, so the
   infinite eigenvalues of the massless DOFs never appear and no explicit Schur complement is
@@ -29,7 +29,7 @@ backend=None, tol=1e-10, open_circuit=True, eigen="block", factor=None) -> Modal
   ``"seeded"``: the open-circuit modes are found by a few block solves started from the
   short-circuit modes and ``z`` (each target followed by MAC); if a mode is left unpaired the
   from-scratch path runs. ``"scratch"``: ARPACK on the bordered operator from a random start
-  (the earlier path; equal to 1e-9 relative, tested). ``False``: no anti-resonances.
+  (an independent reference; equal to 1e-9 relative, tested). ``False``: no anti-resonances.
 * Modes are paired by the mass-weighted MAC of their displacement parts (``fem.modeshape.mac``
   on the system's mass; Hungarian assignment),
   not by index (a pair needs MAC >= ``mac_min``, default 0.5, else ``f_a`` is NaN; the
@@ -234,7 +234,7 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     """Short- and open-circuit modes nearest ``near_hz`` (see the module docstring).
 
     ``eigen="block"`` (default): :func:`fem.eigen.block_eigs`, block right-hand sides, Rayleigh
-    quotient eigenvalues; ``"arpack"``: scipy ``eigsh`` one vector at a time (the earlier path).
+    quotient eigenvalues; ``"arpack"``: scipy ``eigsh`` one vector at a time (the reference).
     ``open_circuit``: ``True`` (``"joint"`` with the block solver, ``"scratch"`` with ARPACK),
     ``"joint"`` (block solver only: the open circuit from the short circuit's own Lanczos basis,
     whose start block holds the response to the hot electrode), ``"seeded"`` (a second block

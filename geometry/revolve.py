@@ -3,7 +3,7 @@
 Where two coaxial parts of different diameter meet, the section has a 270-degree re-entrant
 corner and the strain is singular along the whole circular edge. Isotropic tetrahedra graded
 toward such an edge pay the edge size along its whole circumference, although the field is
-smooth along it (issue 19: ~260k DOFs for 0.05 % on the working mode). Here the stack, the
+smooth along it (~260k DOFs for 0.05 % on the working mode). Here the stack, the
 flange and the horn are instead built as one fragmented (r, z) section of plane faces, meshed
 in 2-D with the graded size field of :mod:`geometry.sizing` (elements of a few µm at the
 corners), and swept around the axis in four quarter turns of ``n`` element layers each: long

@@ -1,5 +1,5 @@
-"""One of ``N`` identical sectors of a drill with cyclic symmetry (issue 19's route to converged
-modes at the default cost).
+"""One of ``N`` identical sectors of a drill with cyclic symmetry (converged modes at the
+default cost).
 
 The default RPUD is unchanged by a turn of 60 degrees about its axis: its coupler has 6 slots
 and 6 teeth, every other part is a body of revolution. Its modes then split into circumferential

@@ -432,7 +432,7 @@ def main(argv=None) -> int:
     if not (loaded or fem):
         _refuse_foreign(argv, _FEM_ONLY, "--horn fem")
     if loaded:
-        # drilling under load (issue 16); named, not imported: drilling_cli uses this module's helpers
+        # drilling under load; named, not imported: drilling_cli uses this module's helpers
         import importlib
 
         return importlib.import_module("impact.drilling_cli").main(argv)

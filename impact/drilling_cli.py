@@ -1,4 +1,4 @@
-"""``python -m impact --load rock --wob 7 ...``: drilling under load against free mass (issue 16).
+"""``python -m impact --load rock --wob 7 ...``: drilling under load against free mass.
 
 Prints per free mass: blow rate, penetration per blow, drilling rate (mm/min), depth after the
 drilling time, energy transfer efficiency (95 % CIs over seeded members), and the no-load tool

@@ -1,7 +1,7 @@
 """A drive source with series resistance: the modal horn's electrical port as a state.
 
 With ``ModalHorn.series_resistance = R > 0`` the source ``V_s(t) = V0 sin W t`` drives the electrodes
-through ``R``; the electrode voltage ``V_p`` is no longer given but follows the charge::
+through ``R``; the electrode voltage ``V_p`` is not imposed (as it is with ``R = 0``) but follows the charge::
 
     m_i (q_i'' + 2 zeta_i omega_i q_i' + omega_i^2 q_i) = theta_i V_p
     C0 V_p' = i - G V_p - sum theta_i q_i',       i = (V_s - V_p) / R

@@ -1,5 +1,5 @@
 """Opt-in pipeline stage (``python -m results --load rock --wob 7``): drilling under load with the
-horn amplitude the FE chain computed (issue 16).
+horn amplitude the FE chain computed.
 
 Each free mass drills with the pipeline's loaded tip amplitude for that mass (A0 from the FE
 working point under the no-load impact load, the same hand-off as the impact stage) at the

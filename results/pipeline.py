@@ -88,7 +88,7 @@ class PipelineSettings:
     coupled_model : run the coupled model (FE transducer in the impact loop) beside the kinematic horn
     coupled_modes : modes of the reduced transducer (None: the tip-participation rule of fem.reduced)
     coupled_history_s : length of the coupled ring-up history with the reference free mass, s
-    load : None, or "rock": also predict drilling under load (results.drilling; issue 16)
+    load : None, or "rock": also predict drilling under load (results.drilling)
     wob : weight on bit of the drilling stage, N
     """
 
@@ -420,7 +420,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
             reference_m_free=settings.reference_m_free, say=say)
     timings["coupled_s"] = time.perf_counter() - t0
     drilling = None
-    if settings.load == "rock":                # opt-in: drilling under load (issue 16)
+    if settings.load == "rock":                # opt-in: drilling under load
         from .drilling import drilling_stage
 
         t0 = time.perf_counter()
