@@ -13,7 +13,8 @@ import numpy as np
 
 from rpud_common.figures import axes_or_new
 
-__all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass", "plot_tool_ke_history", "ke_errorbars"]
+__all__ = ["plot_history", "plot_spectrum", "plot_ke_vs_mass", "plot_tool_ke_history", "ke_errorbars",
+           "errorbars_on_top"]
 
 
 def plot_history(result, t_max: float | None = None, title: str = "", *, ax=None):
@@ -84,10 +85,25 @@ def plot_ke_vs_mass(sweep_result, *, ax=None, label: str = "model", fmt: str = "
     return ax
 
 
-def ke_errorbars(ax, sweep_result, fmt: str = "o", label: str = "model", zero: bool = False):
+def errorbars_on_top(container, zorder: float = 3.5) -> None:
+    """Raise the bars and caps of an ``ax.errorbar`` result above its markers and line.
+
+    A CI of a few percent is shorter than a marker is tall: drawn under a filled marker (the
+    matplotlib default order) it disappears, and the figure looks as if it had no uncertainty.
+    """
+    _, caps, bars = container
+    for artist in (*caps, *bars):
+        artist.set_zorder(zorder)
+
+
+def ke_errorbars(ax, sweep_result, fmt: str = "o", label: str = "model", zero: bool = False,
+                 headline: bool = False):
     """Mean tool KE after impact (mJ) vs free mass (g) with 95 % CI error bars and the fitted line.
 
-    ``zero`` adds the point (0 g, 0 mJ): no free mass, no impact. Returns the Axes.
+    Markers are hollow and the bars (with caps) drawn above them, so a CI smaller than a marker
+    still shows. ``zero`` adds the point (0 g, 0 mJ): no free mass, no impact. ``headline`` marks
+    the sweep whose numbers the report leads with: a heavier line and ``headline:`` in its legend
+    label. Returns the Axes.
     """
     s = sweep_result
     ke, hw = s.column("mean_tool_ke_after_j")
@@ -95,8 +111,11 @@ def ke_errorbars(ax, sweep_result, fmt: str = "o", label: str = "model", zero: b
     if zero:
         m, ke, hw = np.r_[0.0, m], np.r_[0.0, ke], np.r_[0.0, hw]
     n = [r.members for r in s.rows]
-    line = ax.errorbar(m, ke * 1e3, yerr=np.nan_to_num(hw) * 1e3, fmt=fmt, capsize=3, ms=5,
-                       label=f"{label} ({s.scenario.name}, {min(n)}-{max(n)} members per mass, 95 % CI)")
+    text = f"{label} ({s.scenario.name}, {min(n)}-{max(n)} members per mass, 95 % CI)"
+    line = ax.errorbar(m, ke * 1e3, yerr=np.nan_to_num(hw) * 1e3, fmt=fmt, capsize=4, capthick=1.2,
+                       elinewidth=1.2, ms=6 if headline else 5, mfc="none", mew=1.2, lw=2.4 if headline else 1.2,
+                       label=f"headline: {text}" if headline else text)
+    errorbars_on_top(line)
     f = s.fit
     if np.isfinite(f.slope):
         xx = np.linspace(s.m_free.min() * 1e3, s.m_free.max() * 1e3, 10)   # the fitted range only

@@ -40,7 +40,10 @@ def _errorbar(ax, stats_list, key, scale, fmt, label):
     m = np.array([s.params.m_free for s in stats_list]) * 1e3
     mean = np.array([s.estimates[key].mean for s in stats_list]) * scale
     hw = np.array([s.estimates[key].half_width for s in stats_list]) * scale
-    ax.errorbar(m, mean, yerr=hw, fmt=fmt, capsize=3, ms=4, label=label)
+    from impact.plots import errorbars_on_top
+
+    errorbars_on_top(ax.errorbar(m, mean, yerr=hw, fmt=fmt, capsize=4, ms=5, mfc="none", label=label,
+                                 lw=2.4 if label.startswith("headline:") else 1.2))
 
 
 def ke_three_models(kinematic, damper, coupled, *, ax=None):
@@ -49,7 +52,8 @@ def ke_three_models(kinematic, damper, coupled, *, ax=None):
     Each argument: list of :class:`impact.stats.EnsembleStats`, one per free mass."""
     ax = axes_or_new(ax, figsize=(8, 5), dpi=120)
     _errorbar(ax, kinematic, "mean_tool_ke_after_j", 1e3, "k^:", "kinematic horn, unloaded FE amplitude")
-    _errorbar(ax, damper, "mean_tool_ke_after_j", 1e3, "s--", "kinematic horn, damper-corrected amplitude")
+    _errorbar(ax, damper, "mean_tool_ke_after_j", 1e3, "s--", "headline: kinematic horn, damper-corrected amplitude "
+              "(the report's device scenario)")
     _errorbar(ax, coupled, "mean_tool_ke_after_j", 1e3, "o-", "coupled model (FE modes in the loop)")
     ax.set_xlabel("free mass (g)")
     ax.set_ylabel("mean tool kinetic energy after impact (mJ)")

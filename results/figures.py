@@ -34,15 +34,17 @@ SWEEP_LABELS = {
 }
 
 
-def kinetic_energy(sweeps: dict, with_zero: bool = False, *, ax=None):
+def kinetic_energy(sweeps: dict, with_zero: bool = False, *, headline: str | None = "device_fe", ax=None):
     """Mean tool kinetic energy after impact vs free mass, each sweep (name -> SweepResult)
-    with 95 % CI error bars and its line fit; ``with_zero`` adds the (0 g, 0 mJ) point."""
+    with 95 % CI error bars (drawn above the markers) and its line fit; ``with_zero`` adds the
+    (0 g, 0 mJ) point. The ``headline`` sweep (the report's headline model, ``summary.json``
+    ``impacts.headline``) gets a heavy line and ``headline:`` in its legend label."""
     from impact.plots import ke_errorbars
 
     ax = axes_or_new(ax, figsize=(8, 5), dpi=120)
     for key, sw in sweeps.items():
         label, fmt = SWEEP_LABELS.get(key, (key, "o-"))
-        ke_errorbars(ax, sw, fmt, label, zero=with_zero)
+        ke_errorbars(ax, sw, fmt, label, zero=with_zero, headline=key == headline)
     ax.set_xlabel("free mass (g)")
     ax.set_ylabel("mean tool kinetic energy after impact (mJ)")
     ax.set_title("Drill-tool kinetic energy vs free-mass weight (article Fig. 8 / 13)")
@@ -59,8 +61,11 @@ def a0_coupling(coupled, rel_error: float | None = None, *, ax=None):
     m = np.array(sorted(coupled))
     a0 = np.array([coupled[k].A0 * 1e6 for k in m])
     if rel_error is not None and np.isfinite(rel_error):
-        ax.errorbar(m * 1e3, a0, yerr=rel_error * a0, fmt="o-", capsize=3,
-                    label=f"loaded by the free-mass impacts (bars: FE discretisation error, ±{100 * rel_error:.2g} %)")
+        from impact.plots import errorbars_on_top
+
+        errorbars_on_top(ax.errorbar(m * 1e3, a0, yerr=rel_error * a0, fmt="o-", capsize=4, mfc="none",
+                                     label="loaded by the free-mass impacts (bars: FE discretisation error, "
+                                           f"±{100 * rel_error:.2g} %)"))
     else:
         ax.plot(m * 1e3, a0, "o-", label="loaded by the free-mass impacts")
     ax.plot(m * 1e3, [coupled[k].A0_unloaded * 1e6 for k in m], "k--", label="no impact load")
