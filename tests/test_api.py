@@ -1,4 +1,4 @@
-"""The notebook user's view of the result objects and figures (issue 18).
+"""The notebook user's view of the result objects and figures.
 
 Every analysis result has a short ``repr`` that shows its headline numbers, a ``to_dict()`` that
 is strict JSON (no NaN/inf) holding the same numbers as the object, and ``save(folder)`` whose

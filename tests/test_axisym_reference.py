@@ -38,8 +38,8 @@ from rpud_common import ParameterError
 
 import axisym_reference as ar
 
-ISSUE_19 = (19682.31, 21410.33)
-"""f_r, f_a (Hz) of the default design without slots and teeth from the independent (r, z) model of issue 19."""
+AXISYM_CONVERGED = (19682.31, 21410.33)
+"""f_r, f_a (Hz) of the default design without slots and teeth, converged with the independent (r, z) model."""
 
 TOL_3D = 0.006
 """Fractional agreement of the 3-D default mesh with the converged reference on the default design
@@ -223,10 +223,11 @@ def reference():
 def test_reference_converges_at_order_4_to_the_independent_values(reference):
     c = reference
     assert 3.0 < c.order_r < 5.0 and 3.0 < c.order_a < 5.0           # graded: smooth P2 rate h^4
-    assert c.f_r_limit == pytest.approx(ISSUE_19[0], rel=2e-5)
-    assert c.f_a_limit == pytest.approx(ISSUE_19[1], rel=2e-5)
+    assert c.f_r_limit == pytest.approx(AXISYM_CONVERGED[0], rel=2e-5)
+    assert c.f_a_limit == pytest.approx(AXISYM_CONVERGED[1], rel=2e-5)
     # the Richardson error estimate of the finest level brackets the independent value
-    assert abs(c.f_r[-1] - ISSUE_19[0]) < 1.5 * c.error_r and abs(c.f_a[-1] - ISSUE_19[1]) < 1.5 * c.error_a
+    assert (abs(c.f_r[-1] - AXISYM_CONVERGED[0]) < 1.5 * c.error_r
+            and abs(c.f_a[-1] - AXISYM_CONVERGED[1]) < 1.5 * c.error_a)
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""CAD in (issue 17): ``kind = "cad"`` designs (a STEP file and a rule table), the STEP export of
+"""CAD in: ``kind = "cad"`` designs (a STEP file and a rule table), the STEP export of
 parametric designs, and the split of the design kinds into modules of their own.
 
 Reference: the parametric design itself. Exported as STEP + rules and read back, the default

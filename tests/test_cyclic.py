@@ -194,8 +194,8 @@ def test_sector_counts_follow_the_coupler_symmetry():
 
 
 PLAIN_REFERENCE = {"f_r": 19682.31, "f_a": 21410.33, "torsion": 15286.16, "bending": 5161.55}
-"""Converged (r, z) answers of the default design without slots and teeth, Hz (issue 19's
-model, reproduced by tests/axisym_reference.py: harmonic n = 0 for the working mode and the
+"""Converged (r, z) answers of the default design without slots and teeth, Hz (the independent
+model of tests/axisym_reference.py: harmonic n = 0 for the working mode and the
 torsion, n = 1 for the first bending pair)."""
 
 

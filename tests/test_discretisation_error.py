@@ -4,7 +4,7 @@ Validation case: the default design without slots and teeth (fully axisymmetric)
 ungraded mesh (refine 1) with the estimator's one coarser solve (refine 1.4), order 1 assumed
 (ungraded, re-entrant edges). Exact answers from the independent axisymmetric (r, z) model
 (tests/axisym_reference.py, graded, P2):
-- f_r, f_a: 19 682.31 / 21 410.33 Hz (issue 19, converged to 1e-7), and k_eff from them;
+- f_r, f_a: 19 682.31 / 21 410.33 Hz (converged to 1e-7), and k_eff from them;
 - the horn-tip axial amplitude per volt at the mode's own f_r with Q = 100 on every part and the
   datasheet tan delta (the pipeline's setting): 107.949 nm/V (Richardson of h = 1.41, 1.0, 0.707 mm:
   107.9406, 107.9468, 107.9485 nm/V, observed order 3.8, estimated error 1e-5 relative).
@@ -31,7 +31,7 @@ from fem.errors import ErrorEstimate, annotate, estimate, estimate_from_levels, 
 from rpud_common import ParameterError
 
 F_R, F_A = 19682.31, 21410.33
-"""Converged working mode of the default design without slots and teeth (issue 19), Hz."""
+"""Converged working mode of the default design without slots and teeth (tests/axisym_reference.py), Hz."""
 K_EFF = math.sqrt(1 - (F_R / F_A) ** 2)
 TIP_PER_VOLT = 107.949e-9
 """Converged horn-tip amplitude per volt of that design at its f_r, Q = 100, datasheet tan delta, m/V."""

@@ -1,4 +1,4 @@
-"""Drilling under load (issue 16): the rod's wave model against Saint-Venant's pulse, the bit-rock
+"""Drilling under load: the rod's wave model against Saint-Venant's pulse, the bit-rock
 law against closed forms with its energy balance, WOB settling to the static equilibrium,
 momentum (mean rock force), the free-mass trend, and bad input."""
 

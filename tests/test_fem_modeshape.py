@@ -381,10 +381,10 @@ def test_surface_means_are_one_linear_map(sandwich_modes):
 
 @pytest.mark.parametrize("which", ["steel", "k33"])
 def test_shares_of_gmsh_rods_mean_what_their_names_say(which):
-    """Issue 14: bending modes of a rod must not show a torsional share (a report read 14/44/42
-    for a k33 rod's first bending pair; not reproduced at this version, kept as a regression
-    check on the unstructured Gmsh meshes the CLIs use): first bending pair torsional < 5 %,
-    first torsional mode > 90 % torsional, first longitudinal mode > 90 % axial."""
+    """Bending modes of a rod must not show a torsional share (a split like 14/44/42 for a k33
+    rod's first bending pair would misname the mode), checked on the unstructured Gmsh meshes the
+    CLIs use: first bending pair torsional < 5 %, first torsional mode > 90 % torsional, first
+    longitudinal mode > 90 % axial."""
     import geometry
     from fem.assembly import assemble
     from fem.modal import modal_analysis

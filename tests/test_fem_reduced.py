@@ -35,7 +35,7 @@ def setup(system):
 @pytest.mark.parametrize("n_modes", [None, 1, 3])
 def test_steady_tip_and_charge_equal_the_direct_working_point(system, setup, ratio, n_modes):
     """Kept modes (viscous damping equivalent at the drive) + residual = direct solution:
-    amplitude and phase within 0.5 % (issue 12), for any number of kept modes."""
+    amplitude and phase within 0.5 %, for any number of kept modes."""
     _, f_r, loss, basis = setup
     f = ratio * f_r
     red = reduce_transducer(system, basis, f, tip_surface=TIP[0], n_modes=n_modes)

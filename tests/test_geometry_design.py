@@ -177,7 +177,7 @@ def test_onedim_piezo_modulus_and_default_design_frequency():
 
 
 def test_1d_reference_validity_slender_and_stubby_rods():
-    """The 1-D number says where it applies (issue 14): a slender rod is inside, a stubby rod
+    """The 1-D number says where it applies: a slender rod is inside, a stubby rod
     (lateral inertia) and an end-electroded k33 rod (field inside the ceramic) are not, and the
     printed line says so. The Rayleigh-Love estimate is checked against the 3-D FE of a rod of
     L/R = 5: FE/1-D - 1 = -0.768 % (converged to 1e-6 between 3 and 2 mm meshes), estimate

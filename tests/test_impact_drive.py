@@ -1,6 +1,6 @@
 """The series-resistance drive (impact.drive) against independent references.
 
-References and tolerances (issue 12, "a source with series resistance as an option"):
+References and tolerances:
 - steady state: the pseudo-modal form equals the frequency-domain solution of the physical
   equations (modes + electrode circuit, solved directly here): 1e-9 relative;
 - ring-up from rest without impacts: the closed form (eigen-decomposition) equals the exact

@@ -1,4 +1,4 @@
-"""Own materials (issue 14): strain-charge records, validation, a design's [materials] table,
+"""Own materials: strain-charge records, validation, a design's [materials] table,
 --materials FILE on the command lines, and the constants recorded by meshes, systems and results."""
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ def _close(got: Material, ref: Material, rel: float, tables=("c_E", "e", "eps_S"
 
 @pytest.mark.parametrize("name", ["PZT-4", "PZT-8"])
 def test_strain_charge_input_converts_to_the_builtin_stress_charge_record(name, tmp_path):
-    """Verification (issue 14): the strain-charge form of a built-in ceramic, given as a user record,
+    """Verification: the strain-charge form of a built-in ceramic, given as a user record,
     becomes its stress-charge record within 1e-6. The strain-charge values are made here by
     inverting the built-in record with plain numpy (references.md lists them only to 3 digits,
     see the next test), so this is a round trip through the library's conversion."""

@@ -14,7 +14,7 @@ the discretisation-error tools of fem.convergence.
 * The two-level estimator (fem.convergence.two_level_error, order ESTIMATOR_ORDER) bounds the
   study's Richardson error from above on that case, by less than a factor 5.
 * Accuracy: the default design without slots and teeth (fully axisymmetric), graded, at refine 1
-  against the converged axisymmetric answer of issue 19 (f_r 19 682.31 Hz, f_a 21 410.33 Hz,
+  against the converged axisymmetric answer (f_r 19 682.31 Hz, f_a 21 410.33 Hz,
   an independent (r, z) model graded at the corners, converged to 1e-7): measured +0.119 % /
   +0.149 % at 98.5k DOFs (ungraded default: +0.45 % / +0.56 % at 35k, tests/test_axisym_reference.py),
   asserted within 0.2 %.
@@ -38,7 +38,7 @@ from geometry.sizing import graded_edges, region_sizes
 from rpud_common import ParameterError
 
 F_R_AXISYM, F_A_AXISYM = 19682.31, 21410.33
-"""Converged working mode of default_design() with coupler.n_slots = coupler.n_teeth = 0 (issue 19)."""
+"""Converged working mode of default_design() with coupler.n_slots = coupler.n_teeth = 0 (tests/axisym_reference.py)."""
 
 
 def test_reentrant_edges_of_the_default_design():

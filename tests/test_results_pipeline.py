@@ -87,7 +87,7 @@ def test_kinetic_energy_grows_with_free_mass(run):
 
 
 def test_coupled_model_beside_the_kinematic_results(run):
-    """The coupled model (issue 12): its figures are written, the impacts lower the tip amplitude
+    """The coupled model: its figures are written, the impacts lower the tip amplitude
     below the unloaded harmonic one and the loading grows with the free mass, the ring-up history
     closes its energy balance, and the power drawn stays below the unloaded drive's."""
     out, s = run

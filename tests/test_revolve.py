@@ -1,12 +1,12 @@
 """The swept mesher (``mesher="revolve"``, geometry/revolve.py): element cuts, the mesh it builds,
-and the working mode against the converged axisymmetric answer of issue 19.
+and the working mode against the converged axisymmetric answer.
 
 References: the prism/pyramid cuts against the element volumes and each other (a shared
 quadrilateral cut the same way from both sides, the Dompierre et al. rule); the swept mesh's
 part volumes against the closed forms (quadratic arcs of 30 degrees: 3e-4; the free coupler 1e-3); the working mode of the
 default design without slots and teeth against the independent (r, z) model's converged
-f_r / f_a (tests/test_axisym_reference.py): 0.05 %, issue 19's target (measured +0.041 % /
-+0.044 %).
+f_r / f_a (tests/test_axisym_reference.py): 0.05 %, the swept mesher's accuracy target (measured
++0.041 % / +0.044 %).
 """
 
 import itertools
@@ -25,19 +25,19 @@ from rpud_common import ParameterError
 
 import axisym_reference as ar
 
-ISSUE_19 = (19682.31, 21410.33)
-"""Converged f_r, f_a (Hz) of the default design without slots and teeth (issue 19's (r, z) model,
-reproduced to 2e-5 by tests/axisym_reference.py in tests/test_axisym_reference.py)."""
+AXISYM_CONVERGED = (19682.31, 21410.33)
+"""Converged f_r, f_a (Hz) of the default design without slots and teeth (the (r, z) model of
+tests/axisym_reference.py, reproduced to 2e-5 in tests/test_axisym_reference.py)."""
 
 TOL_REVOLVE = 5e-4
-"""Issue 19's 0.05 % on f_r and f_a."""
+"""The swept mesher's accuracy target: 0.05 % on f_r and f_a."""
 
 TOL_BENDING = 2.5e-3
 """Bending pairs of the swept default mesh against the converged (r, z) harmonic n = 1 (measured
-+0.194 % / +0.128 %; issue 19 asks 0.1 %: not met)."""
++0.194 % / +0.128 %; the 0.1 % aimed for is not met)."""
 
 TOL_TORSION = 1e-3
-"""First torsion against the converged harmonic n = 0 (measured +0.069 %; issue 19's 0.1 %)."""
+"""First torsion against the converged harmonic n = 0 (measured +0.069 %; 0.1 % aimed for)."""
 
 _PRISM = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 1.0]])
 
@@ -164,15 +164,15 @@ def test_working_mode_within_issue_19_target_of_the_converged_answer(axisymmetri
     res = fem.modal_analysis(system, 20e3, 8)
     w = fem.working_mode(system, res.f_r_hz, res.vectors, 20e3)
     f_r, f_a = float(res.f_r_hz[w]), float(res.f_a_hz[w])
-    assert abs(f_r / ISSUE_19[0] - 1) < TOL_REVOLVE, f_r
-    assert abs(f_a / ISSUE_19[1] - 1) < TOL_REVOLVE, f_a
+    assert abs(f_r / AXISYM_CONVERGED[0] - 1) < TOL_REVOLVE, f_r
+    assert abs(f_a / AXISYM_CONVERGED[1] - 1) < TOL_REVOLVE, f_a
     # the two-level estimator on the swept mesh (one solve at refine 1.4, order 2 of a graded
     # mesh) bounds the true error and stays within 4x of it (measured 19 / 24 Hz against 8.1 / 9.5 Hz)
     from fem.errors import estimate
 
     est = estimate(_design, {"f_r_hz": f_r, "f_a_hz": f_a}, system.ndof, harmonic=False, n_modes=8,
                    mesher="revolve")
-    for key, value, exact in (("f_r_hz", f_r, ISSUE_19[0]), ("f_a_hz", f_a, ISSUE_19[1])):
+    for key, value, exact in (("f_r_hz", f_r, AXISYM_CONVERGED[0]), ("f_a_hz", f_a, AXISYM_CONVERGED[1])):
         assert abs(value - exact) <= est.error(key) <= 4 * abs(value - exact), (key, est.error(key))
 
 
@@ -180,7 +180,7 @@ def test_bending_and_torsion_against_the_converged_harmonics(axisymmetric_build)
     """The swept mesh's non-axisymmetric modes against the (r, z) harmonics n = 1 / n = 0
     (tests/axisym_reference.py, converged to ~1e-5): stiff (too high) and within TOL_BENDING /
     TOL_TORSION. Measured +0.194 % / +0.128 % (first / second bending pair), +0.069 % (torsion):
-    issue 19's 0.1 % holds for torsion, not for the bending pairs (3 sectors per quarter and the
+    the 0.1 % aimed for holds for torsion, not for the bending pairs (3 sectors per quarter and the
     horn's 6.3 mm section size; see README, "true errors")."""
     _design, tm, _rep = axisymmetric_build
     res = fem.modal_analysis(fem.assemble(tm), 8e3, 12)

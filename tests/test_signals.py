@@ -140,9 +140,9 @@ def _tree(root: Path) -> list[str]:
 def test_geometry_cli_while_gmsh_meshes(tmp_path, sig, code, word):
     """Gmsh is in native code in its thread: the process still ends by the clean line, no crash.
 
-    (It used to crash about one run in five: an interrupted ``Thread.join`` marks the thread
-    stopped although Gmsh runs on, so the CLI exited normally and the C library's exit handlers
-    ran under Gmsh, corrupting the heap.)
+    (The trap: an interrupted ``Thread.join`` marks the thread stopped although Gmsh runs on; a
+    CLI that trusted it would exit normally and run the C library's exit handlers under Gmsh,
+    corrupting the heap, a crash in about one run in five.)
     """
     # a finer mesh than the default (about 6 s on a quiet core instead of 2): the signal at 2.5 s
     # then arrives while Gmsh meshes, not after the command has finished

@@ -1,4 +1,4 @@
-"""Stress recovery, peaks over a cycle, bolt preload, material limits, utilisation table (issue 17).
+"""Stress recovery, peaks over a cycle, bolt preload, material limits, utilisation table.
 
 References: the 1-D free-free bar (sigma_max = E k u_max at the node), a uniform axial preload
 (P/A), Euler-Bernoulli beam bending (sigma = M c / I), numpy's eigvalsh and dense phase sampling.

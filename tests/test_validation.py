@@ -1,5 +1,5 @@
 """The validation layer: bounded design values, output paths, TOML files, dataclass mapping, the
-atomic writers (issue 13).
+atomic writers.
 
 Every refusal is a :class:`ParameterError` whose message names the parameter, shows the value
 and states what is allowed, with its unit; nothing is created on disk by a refused call.
