@@ -10,15 +10,16 @@ from pathlib import Path
 DOCS = Path(__file__).resolve().parent
 ROOT = DOCS.parent
 sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(DOCS))   # the local extensions in _ext/
+sys.path.insert(0, str(DOCS))   # the local extensions in _ext/ and _gallery_hooks
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 os.environ.setdefault("PYVISTA_OFF_SCREEN", "true")
 
 import pyvista  # noqa: E402 - after the environment above
 
+# the renders close their plotters once the PNG is written: the gallery shows the written files
+# (_gallery_hooks.saved_pictures_scraper), so pyvista's own gallery mode stays off
 pyvista.OFF_SCREEN = True
-pyvista.BUILDING_GALLERY = True   # sphinx-gallery's pyvista scraper collects the plotters' images
 
 project = "rpud"
 author = "the rpud developers"
@@ -56,8 +57,9 @@ sphinx_gallery_conf = {
     "gallery_dirs": ["gallery"],
     "filename_pattern": r"/ex\d+_",            # every example runs during the build
     "ignore_pattern": r"__init__\.py",
-    "image_scrapers": ("matplotlib",),
-    "reset_argv": lambda gallery_conf, script_vars: ["--fast"],
+    # by dotted name, not as function objects: the configuration stays picklable for Sphinx's cache
+    "image_scrapers": ("_gallery_hooks.saved_pictures_scraper",),
+    "reset_argv": "_gallery_hooks.reset_argv",
     "abort_on_example_error": True,
     "download_all_examples": False,
     "remove_config_comments": True,

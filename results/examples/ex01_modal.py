@@ -1,4 +1,7 @@
-"""Example 1: the modes of the default drill, and a picture of its working mode.
+"""Modes of the default drill
+===========================
+
+Example 1: the modes of the default drill, and a picture of its working mode.
 
 The default design is the article's drill (Table 1): percussive horn, four PZT-8 rings and the
 V-type coupler. Gmsh meshes it with tagged volumes and surfaces, ``fem.assemble`` builds the

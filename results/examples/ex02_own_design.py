@@ -1,4 +1,7 @@
-"""Example 2: your own transducer from a design file, its modes and its admittance.
+"""Your own transducer from a design file
+=======================================
+
+Example 2: your own transducer from a design file, its modes and its admittance.
 
 A design is a TOML file (SI units: m, Hz; materials by name from the library in
 ``geometry/materials.toml``). Here a half-wave Langevin sandwich: two steel cylinders clamping

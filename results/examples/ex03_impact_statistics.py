@@ -1,4 +1,7 @@
-"""Example 3: what one free mass does to the drill tool, as statistics.
+"""Free-mass impacts as statistics
+================================
+
+Example 3: what one free mass does to the drill tool, as statistics.
 
 The free mass bounces between the horn tip and the drill tool (article section 3). Its motion
 is chaotic: a change of the launch speed in the tenth digit gives another sequence of impacts

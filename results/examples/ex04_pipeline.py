@@ -1,4 +1,7 @@
-"""Example 4: the whole chain from Python, geometry to drill-tool kinetic energy.
+"""The whole chain from Python
+============================
+
+Example 4: the whole chain from Python, geometry to drill-tool kinetic energy.
 
 ``results.run_pipeline`` does what ``python -m results`` (and ``make run``) does: mesh the
 design, match horn and coupler to the target frequency, compute the horn-tip amplitude A0 at
