@@ -23,7 +23,8 @@ from geometry.render import offscreen_plotter
 
 from .modeshape import _context, axis_frame, check_shapes
 
-__all__ = ["render_mode", "render_modes", "write_modes_vtu", "mode_names", "around", "DEFAULT_WINDOW"]
+__all__ = ["render_mode", "render_modes", "write_modes_vtu", "mode_names", "around", "add_triad",
+           "DEFAULT_WINDOW"]
 
 DEFAULT_WINDOW = (1200, 800)
 _SCALE_FRACTION = 0.09      # auto scale: peak displacement = 9 % of the largest bounding-box side
@@ -112,8 +113,10 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
     show_edges : bool
         Draw the element edges of the deformed surface.
 
-    The deformed boundary is coloured by the displacement magnitude over its maximum; the undeformed shape is a
-    translucent grey ghost with its feature edges (dihedral angle > 60 deg) drawn as grey lines.
+    The deformed boundary is coloured by the displacement magnitude over its maximum (a mode shape has no
+    absolute amplitude, so the colour bar is dimensionless, 0 to 1); the undeformed shape is a translucent grey
+    ghost with its feature edges (dihedral angle > 60 deg) drawn as grey lines. An x, y, z triad at the lower
+    left gives the orientation (:func:`add_triad`).
     """
     u = check_shapes(mesh, shape, "shape", allow_complex=False)
     if u.shape[0] != 1:
@@ -143,16 +146,27 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
             pl.add_mesh(s.edges, color="gray", line_width=1.0, opacity=0.6)
         pl.add_mesh(deformed, scalars="displacement", cmap="turbo", clim=(0.0, 1.0),
                     show_edges=show_edges, edge_color="black", smooth_shading=False,
-                    scalar_bar_args={"title": "displacement / max", "color": "black", "vertical": True,
-                                     "position_x": 0.87, "position_y": 0.2, "height": 0.6, "title_font_size": 14,
+                    scalar_bar_args={"title": "displacement / max (-)", "color": "black", "vertical": True,
+                                     "position_x": 0.84, "position_y": 0.2, "height": 0.6, "title_font_size": 14,
                                      "width": 0.05, "fmt": "%.1f"})
         if title:
             pl.add_text(title, position="upper_left", font_size=14, color="black")
         pl.add_text(f"displacement x {scale:.3g}", position="lower_left", font_size=9, color="dimgray")
+        add_triad(pl)
         _shoot(pl, s, axis_dir, path)
     finally:
         pl.close()
     return path
+
+
+def add_triad(pl, *, viewport=(0.0, 0.08, 0.16, 0.32)) -> None:
+    """Draw the x, y, z orientation triad (model axes, red/green/blue) in a corner of ``pl``.
+
+    A mode shape seen obliquely has no other cue to which way the drill axis and the bending
+    planes lie. The triad follows the camera, so it is right for whatever view is shot.
+    ``viewport``: (xmin, ymin, xmax, ymax) of the triad as fractions of the picture.
+    """
+    pl.add_axes(xlabel="x", ylabel="y", zlabel="z", line_width=3, color="black", viewport=viewport)
 
 
 def _shoot(pl, s, axis_dir: str, path) -> None:
