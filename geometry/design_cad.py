@@ -95,7 +95,15 @@ def step_path(value: Any, base_dir: str | os.PathLike | None = None) -> Any:
 
 @dataclass(frozen=True)
 class Plane:
-    """The plane ``normal . x = offset`` (normal: any non-zero vector, normalised here; m)."""
+    """The plane ``normal . x = offset`` (normal: any non-zero vector, normalised here; m).
+
+    Attributes
+    ----------
+    normal : tuple of 3 float
+        Normal vector, any length but not zero, dimensionless (normalised on construction).
+    offset : float
+        Signed distance of the plane from the origin along the unit normal, m.
+    """
 
     normal: tuple[float, float, float]
     offset: float
@@ -123,7 +131,21 @@ class Plane:
 
 @dataclass(frozen=True)
 class Selector:
-    """Which solids or faces of the STEP file a rule takes; every given criterion must hold."""
+    """Which solids or faces of the STEP file a rule takes; every given criterion must hold.
+
+    Attributes
+    ----------
+    name : str or None
+        Label of a solid in the STEP file (solids only).
+    point : tuple of 3 float or None
+        A point inside the solid or on the face, m.
+    box : tuple of 6 float or None
+        ``[xmin, ymin, zmin, xmax, ymax, zmax]``, m: the solid or face lies inside it.
+    plane : Plane or None
+        Faces lying in this plane (faces only).
+    regions : tuple of str
+        Faces bounding these regions (faces only).
+    """
 
     name: str | None = None
     point: tuple[float, float, float] | None = None
@@ -238,7 +260,18 @@ class SurfaceRule:
 
 @dataclass(frozen=True)
 class SizeRule:
-    """An element-size cap (m, at ``refine`` 1): over a region, or inside a box (6 numbers)."""
+    """An element-size cap (m, at ``refine`` 1): over a region, or inside a box (6 numbers).
+
+    Attributes
+    ----------
+    size : float
+        Largest element edge, m (at ``refine`` 1).
+    region : str
+        Region the cap applies to (give this or ``box``).
+    box : tuple of 6 float or None
+        ``[xmin, ymin, zmin, xmax, ymax, zmax]``, m: the cap applies inside it (give this or
+        ``region``).
+    """
 
     size: float
     region: str = ""
@@ -260,6 +293,17 @@ class LengthRule:
     sections). ``part`` says which part it belongs to (resonance matching tunes a front part,
     ``horn``/``flange``, and a back part, ``coupler``/``stack``). ``value`` defaults to the
     drawn length ``z1 - z0``.
+
+    Attributes
+    ----------
+    name : str
+        Length name; resonance matching and studies address it as ``lengths.<name>.value``.
+    z0, z1 : float
+        Ends of the band in the drawing, m.
+    part : str
+        Part the length belongs to (``horn``, ``flange``: front; ``coupler``, ``stack``: back).
+    value : float or None
+        The length to stretch the band to, m (default: the drawn ``z1 - z0``).
     """
 
     name: str
@@ -293,17 +337,25 @@ class CadDesign(DesignBase):
     Attributes
     ----------
     kind : "cad"
+        The design kind.
     name : str
+        Design name; it names the results folder and the tuned design file.
     step : str
         Path of the STEP file (``.step``/``.stp``); relative paths are taken from the TOML
         file's folder when loaded from a file.
     volumes, surfaces, sizes, lengths : tuples of rules
+        The rule tables ``[[volumes]]``, ``[[surfaces]]``, ``[[sizes]]``, ``[[lengths]]``
+        (:class:`VolumeRule`, :class:`SurfaceRule`, :class:`SizeRule`, :class:`LengthRule`).
     target_frequency : float
         Hz (elements-per-wavelength mesh size; default of the modal and matching target).
     elements_per_wavelength : float
+        Elements per shear wavelength of each material at ``target_frequency``, dimensionless.
     default_tuned : tuple of str
         Lengths tuned by resonance matching unless the user names others
         (``lengths.<name>.value``; default: the first front and first back length declared).
+    materials : mapping of str to Material
+        The design's own material records (table ``[materials]``, layout of ``materials.toml``),
+        over the built-in library.
     """
 
     kind: Literal["cad"] = "cad"

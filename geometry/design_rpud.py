@@ -53,8 +53,8 @@ class HornDesign:
     back_diameter, tip_diameter : float
         Diameters at the back (flange side) and at the tip, m.
     step_fraction : float
-        Stepped profile only: back-section length as a fraction of ``length`` (0.5 = the
-        classic two quarter-wave sections).
+        Stepped profile only: back-section length as a fraction of ``length``, dimensionless
+        (0.5 = the classic two quarter-wave sections).
     """
 
     _prefix: ClassVar[str] = "horn"
@@ -118,6 +118,7 @@ class StackRings:
     shim_thickness : float
         Shim thickness, m.
     shim_material : str
+        Material of the shims (default copper).
     """
 
     _prefix: ClassVar[str] = "stack"
@@ -160,6 +161,7 @@ class FlangeDesign:
     Attributes
     ----------
     material : str
+        Material name (default titanium alloy Ti-6Al-4V).
     thickness, outer_diameter : float
         m. The flange is clamped on its two annular faces outside the stack and horn
         (facet set ``flange``).
@@ -189,6 +191,7 @@ class CouplerDesign:
     Attributes
     ----------
     material : str
+        Material name (default titanium alloy Ti-6Al-4V).
     length : float
         Overall axial length including the teeth, m (tuned by resonance matching).
     outer_diameter, inner_diameter : float
@@ -316,15 +319,21 @@ class RPUDDesign(DesignBase):
     Attributes
     ----------
     kind : "rpud"
+        The design kind (the default when a file gives none).
     name : str
+        Design name; it names the results folder and the tuned design file.
     target_frequency : float
         Working frequency, Hz (sets the elements-per-wavelength mesh size).
     elements_per_wavelength : float
-        Elements per shear wavelength of each material at ``target_frequency``.
+        Elements per shear wavelength of each material at ``target_frequency``, dimensionless.
     bore_diameter : float
         Central through-bore of the flange and horn (and the coupler, if larger than its own
         bore), m; 0 = solid. Must not exceed the rings' inner diameter.
     horn, stack, flange, coupler : part designs
+        The parts, tables ``[horn]``, ``[stack]``, ``[flange]``, ``[coupler]`` of the file.
+    materials : mapping of str to Material
+        The design's own material records (table ``[materials]``, layout of ``materials.toml``),
+        over the built-in library.
     """
 
     kind: Literal["rpud"] = "rpud"

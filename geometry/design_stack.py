@@ -48,6 +48,7 @@ class Segment:
         ``outer_diameter`` at the -z end to ``end_diameter`` at the +z end); box (rectangular
         bar: ``thickness`` along x, ``width`` along y, centred on the axis).
     material : str
+        Material name (built-in library or the design's ``[materials]`` table).
     outer_diameter, end_diameter, inner_diameter : float
         m; ``end_diameter`` only for cones; ``inner_diameter`` a central bore (0 = solid).
     thickness, width : float
@@ -141,6 +142,7 @@ class ElectrodeSpec:
     face : {"bottom", "top", "+x", "-x", "+y", "-y"}
         "bottom"/"top" are the -z/+z end faces; "+x" etc. the flat sides of a box.
     role : {"hot", "ground"}
+        Wiring: ``hot`` electrodes carry the drive voltage, ``ground`` ones 0 V.
     """
 
     name: str
@@ -164,13 +166,20 @@ class StackDesign(DesignBase):
     Attributes
     ----------
     kind : "stack"
+        The design kind.
     name : str
+        Design name; it names the results folder and the tuned design file.
     segments : tuple of Segment
-        From -z to +z.
+        From -z to +z (``[[segments]]`` tables).
     electrodes : tuple of ElectrodeSpec
+        The electrodes (``[[electrodes]]`` tables).
     target_frequency : float
         Hz, for the elements-per-wavelength mesh size.
     elements_per_wavelength : float
+        Elements per shear wavelength of each material at ``target_frequency``, dimensionless.
+    materials : mapping of str to Material
+        The design's own material records (table ``[materials]``, layout of ``materials.toml``),
+        over the built-in library.
     """
 
     kind: Literal["stack"] = "stack"

@@ -89,7 +89,9 @@ class Material:
     Attributes
     ----------
     name : str
+        Record name, the key a design's ``material`` fields use.
     kind : {"isotropic", "piezo"}
+        Isotropic elastic solid, or piezoceramic (poled along its part's poling direction).
     density : float
         kg/m^3.
     youngs_modulus, poisson_ratio : float
@@ -99,19 +101,20 @@ class Material:
     e : mapping
         Piezoelectric stress constants, C/m^2 (keys e31 e33 e15, optional others).
     eps_S : mapping
-        Clamped relative permittivity (keys eps11 eps33, optional eps22 eps12...).
+        Clamped relative permittivity, dimensionless (keys eps11 eps33, optional eps22 eps12...).
     s_E, d, eps_T : mapping
         Strain-charge input instead: compliance 1/Pa (s11 s12 s13 s33 s44 s66), d C/N (d31 d33
         d15), free relative permittivity (eps11 eps33).
     q_mech : float
-        Mechanical quality factor (loss factor 1/Q); omitted or inf: lossless.
+        Mechanical quality factor, dimensionless (loss factor 1/Q); omitted or inf: lossless.
     tan_delta : float
-        Dielectric loss tangent (piezo only; 0 for passive records).
+        Dielectric loss tangent, dimensionless (piezo only; 0 for passive records).
 
     Every number must lie in its stated range (:data:`FIELD_RANGES`, :data:`POISSON_RANGE`,
     :data:`TABLE_RANGES`), and the pairs of them a solid (:data:`SOUND_SPEED_RANGE`; derived
     bulk, shear and open-circuit moduli at most those of the stiffest solid).
     description : str
+        Free text: grade, source of the constants.
     fatigue_strength : float, optional
         Metals: fully reversed fatigue strength (stress amplitude, Pa) at a stated number of
         cycles (the record's source says which); compared with the peak von Mises stress.

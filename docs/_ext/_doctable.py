@@ -6,6 +6,7 @@ docstrings holding ``*``, backticks or ``|`` render as written instead of as mar
 
 from __future__ import annotations
 
+import re
 from collections.abc import Sequence
 
 from docutils import nodes
@@ -26,6 +27,23 @@ def code(text: str) -> nodes.Node:
     """Inline literal in a paragraph (option names, keys, defaults)."""
     para = nodes.paragraph()
     para += nodes.literal(text=text)
+    return para
+
+
+_INLINE = re.compile(r"``([^`]+)``|:[a-z:]+:`~?([^`]+)`")
+
+
+def inline(text: str) -> nodes.paragraph:
+    """A paragraph of docstring text with its ````literals```` and ``:role:`targets``` as code."""
+    para = nodes.paragraph()
+    at = 0
+    for m in _INLINE.finditer(text):
+        if m.start() > at:
+            para += nodes.Text(text[at:m.start()])
+        para += nodes.literal(text=m.group(1) or m.group(2).split(".")[-1] if m.group(2) else m.group(1))
+        at = m.end()
+    if at < len(text):
+        para += nodes.Text(text[at:])
     return para
 
 
