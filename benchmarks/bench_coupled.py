@@ -3,7 +3,7 @@
 The default design's reduced transducer with 8 modes (the working mode and the 7 other basis
 modes of largest tip participation; Q_m 100, 225 V, drive at the working resonance), free mass 8 g,
 article scenario (50 ms), modes started on their steady response. The kinematic case runs the
-same parameters with A0 = the unloaded FE tip amplitude. Target (issue 12): one 50 ms coupled case
+same parameters with A0 = the unloaded FE tip amplitude. Target: one 50 ms coupled case
 with 8 modes costs at most 5x the kinematic kernel case. Times: best of several calls, compiled
 code loaded from numba's disk cache before timing; 2 threads for the ensembles. The last rows
 run the same 8 modes behind a 50 ohm source resistance (the series drive's pseudo-modes and

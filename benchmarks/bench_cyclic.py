@@ -9,7 +9,7 @@
    difference of the whole drill's resonances from the harmonics'.
 2. ``--rules``: the command line's rules (AXIAL_RULE for k = 0, LATERAL_RULE for k = 1) on the
    default design and on the design without slots and teeth; the latter against the converged
-   (r, z) answers of issue 19 (tests/axisym_reference.py), ~40 s.
+   (r, z) answers (tests/axisym_reference.py), ~40 s.
 
 Usage: ``python benchmarks/bench_cyclic.py [--refine 1.0] [--repeat 2] [--rules]``.
 """
@@ -37,7 +37,7 @@ from geometry.design import default_design  # noqa: E402
 from geometry.sector import AXIAL_RULE, LATERAL_RULE, replicate  # noqa: E402
 
 REFERENCE = {"f_r": 19682.31, "f_a": 21410.33, "torsion": 15286.16, "bending": 5161.55}
-"""Converged (r, z) answers of the default design without slots and teeth (Hz; README, issue 19)."""
+"""Converged (r, z) answers of the default design without slots and teeth (Hz; tests/axisym_reference.py)."""
 
 
 def speed(refine: float, repeat: int) -> None:

@@ -1,4 +1,4 @@
-"""Drilling under load (issue 16): the 9-mass (0-8 g), 5-minute-equivalent prediction (converged
+"""Drilling under load: the 9-mass (0-8 g), 5-minute-equivalent prediction (converged
 ensembles over a 200 ms window, depth = rate x 300 s), against the no-load device KE sweep of the
 same masses in the same run, and the step-size (cell count) convergence of the prediction.
 

@@ -1,18 +1,18 @@
 """Swept and graded meshes against the ungraded free mesh, same run, same machine.
 
 For the default design and for it without slots and teeth (whose converged working mode is
-known: f_r 19 682.31 Hz, f_a 21 410.33 Hz, issue 19), prints DOFs, meshing and modal time
+known: f_r 19 682.31 Hz, f_a 21 410.33 Hz, tests/axisym_reference.py), prints DOFs, meshing and modal time
 (12 modes near 20 kHz, short and open circuit, as ``python -m fem.modal``) and the working
 mode's f_r / f_a (with the error against the axisymmetric answer where it is known).
 
 Also the swept mesher (``mesher="revolve"``, geometry/revolve.py) on both designs, and the free
-default solved with the earlier modal path (ARPACK one vector at a time, open circuit from
-scratch) in this process. The whole-process baseline (``python -m fem.modal`` of the commit
-before issue 19's work against this checkout's) is benchmarks/bench_modal_cli.py.
+default solved with the reference modal path (ARPACK one vector at a time, open circuit from
+scratch) in this process. The whole-process comparison (``python -m fem.modal`` of a baseline
+commit against this checkout's) is benchmarks/bench_modal_cli.py.
 
     python benchmarks/bench_mesh_grading.py [--quick] [--study]
-    # --quick: the axisymmetric design only; --study: also the finer grading rules of issue 19's
-    # study (geometry.sizing's knobs) on the axisymmetric design, up to ~260k DOFs (minutes)
+    # --quick: the axisymmetric design only; --study: also the finer grading rules of the
+    # grading study (geometry.sizing's knobs) on the axisymmetric design, up to ~260k DOFs (minutes)
 """
 
 from __future__ import annotations

@@ -1,17 +1,18 @@
 """Modal analysis (short + open circuit, 12 modes near 20 kHz), side by side in one run.
 
-* today's path: ARPACK (scipy ``eigsh``, one right-hand side per call) for the short circuit,
-  then the open circuit from scratch (ARPACK on the bordered operator, same factorisation):
-  ``modal_analysis(..., eigen="arpack", open_circuit="scratch")``;
-* the previous default: block shift-invert Lanczos (``fem.eigen``, block right-hand sides) for
+* the ARPACK reference: ARPACK (scipy ``eigsh``, one right-hand side per call) for the short
+  circuit, then the open circuit from scratch (ARPACK on the bordered operator, same
+  factorisation): ``modal_analysis(..., eigen="arpack", open_circuit="scratch")``;
+* block + seeded: block shift-invert Lanczos (``fem.eigen``, block right-hand sides) for
   the short circuit, then the open circuit seeded with the short-circuit modes:
   ``modal_analysis(..., open_circuit="seeded")``;
-* the new path (default): one block Lanczos run for both, its start block holding the response
+* block joint (the default): one block Lanczos run for both, its start block holding the response
   to the hot electrode, the open circuit by Rayleigh-Ritz of the bordered operator in the same
   basis (``open_circuit="joint"``): ``modal_analysis(...)``;
 
-The earlier paths factorise with PARDISO's weighted matching (as the earlier code did), the new
-one without (``modal_analysis`` now); times are the best of ``--repeat`` alternating runs
+The two other paths factorise with PARDISO's weighted matching (its setting for a general matrix),
+the default one without, as ``modal_analysis`` does (the shifted pencil has a full non-zero
+diagonal); times are the best of ``--repeat`` alternating runs
 (the machine is shared: the ratio of the same run is what counts); CPU seconds of the process
 (all threads) are printed too, a steadier measure of the work on a loaded machine. Meshes: the default design
 at its default mesh and a finer one (``--size``, about 4x the DOF; ``--no-fine`` skips it).
@@ -45,8 +46,8 @@ PATHS = (("old", dict(eigen="arpack", open_circuit="scratch")), ("seeded", dict(
 
 
 def _run(system, matching, **kw):
-    """One modal analysis, timed with its factorisation: the earlier paths factorise as the
-    earlier code did (PARDISO with weighted matching), the new one as ``modal_analysis`` does."""
+    """One modal analysis, timed with its factorisation: ``matching`` factorises with PARDISO's
+    weighted matching (the two other paths), else as ``modal_analysis`` does (the default)."""
     t, c = time.perf_counter(), time.process_time()
     F = None
     if matching:
@@ -108,7 +109,7 @@ def main(argv=None):
             print(row, flush=True)
     print()
     print("| case | DOF | ARPACK + scratch s (factorise / SC eigen / OC eigen; cpu s) | block + seeded s (same) "
-          "| block joint (new default) s (same) | new vs ARPACK | new vs seeded | max rel. diff f_r | max rel. diff f_a |")
+          "| block joint (default) s (same) | joint vs ARPACK | joint vs seeded | max rel. diff f_r | max rel. diff f_a |")
     print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
     for r in rows:
         print(r)

@@ -1,9 +1,9 @@
 """``python -m fem.modal`` on the default design as a whole process: this checkout against the
-code of an earlier commit (default: the commit before issue 19's work, whose default was the
-free 68.6k-DOF mesh and the ARPACK modal path), same run, alternating A B A B.
+code of a baseline commit (default ``BASELINE``, whose defaults are the free 68.6k-DOF mesh and
+the ARPACK modal path), same run, alternating A B A B.
 
 Each run is a fresh interpreter: imports, meshing, assembly, short- and open-circuit modes (12
-near 20 kHz), mode classification and the table, as a user sees it. The earlier code runs from a
+near 20 kHz), mode classification and the table, as a user sees it. The baseline runs from a
 temporary ``git worktree`` of that commit with this checkout's virtual environment. Prints the
 median wall and CPU time of each, their ratio per pair, and the DOFs and working mode each run
 reported.
@@ -28,7 +28,8 @@ from _table import print_table
 
 ROOT = Path(__file__).resolve().parents[1]
 BASELINE = "e56a14d"
-"""Last commit before the issue 19 work (free mesh, ARPACK open circuit from scratch)."""
+"""The baseline commit: free mesh and ARPACK open circuit from scratch by default, the cost the
+swept mesher and the block Lanczos path are measured against."""
 
 
 def timed(cmd: list[str], cwd: Path) -> tuple[float, float, str]:
@@ -61,7 +62,7 @@ def summary(stdout: str) -> tuple[str, str]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--runs", type=int, default=3, help="counted runs of each (after one warm-up each)")
-    ap.add_argument("--baseline", default=BASELINE, help="commit of the earlier code")
+    ap.add_argument("--baseline", default=BASELINE, help="commit to compare against")
     ap.add_argument("extra", nargs="*", help="more fem.modal options for this checkout (after --)")
     args = ap.parse_args()
     if not 1 <= args.runs <= 50:

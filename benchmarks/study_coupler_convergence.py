@@ -16,7 +16,7 @@ Not scaled by ``s``: the curvature rule (12 elements per circle caps the coupler
 3.9 mm, below its scaled size down to s ~ 0.36) and the coupler's face against the first ring
 (its triangles are the swept stack's). Both lie in smooth parts of the field, away from the notches.
 
-Measured on this machine (2 cores, 24 GB), 2026-11-26 (levels 1 / 0.7 / 0.5 / 0.4, peak 12.2 GB):
+Measured on this machine (2 cores, 24 GB) (levels 1 / 0.7 / 0.5 / 0.4, peak 12.2 GB):
 
     | s | DOFs | first torsion Hz | working f_r Hz | working f_a Hz | 1st bending Hz |
     | ungraded default | 111,619 | 15411.07 | 19915.19 | 21666.38 | 5213.83 |

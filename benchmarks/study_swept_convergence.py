@@ -25,7 +25,7 @@ slots and teeth at refine 1 against its converged axisymmetric (r, z) answer.
     # the design without slots and teeth, every level's (or variant's) true error against the
     # converged (r, z) values of tests/axisym_reference.py (bending and torsion harmonics, working mode)
 
-Measured on this machine (2 cores, 24 GB, another job running), 2026-11-23, 1 min 43 s wall for
+Measured on this machine (2 cores, 24 GB, another job running), 1 min 43 s wall for
 the whole run (peak 5.6 GB; levels refine 1 / 0.8 / 0.64; refine 0.5, 551k DOFs, passed 9.9 GB
 in the factorisation and was stopped, so the default --max-dofs is 400k)::
 
@@ -67,7 +67,7 @@ largest credible order) the refine-1 errors would be bending ~0.18 %, torsion ~0
 f_a ~0.045 %. Only f_a is within its target (0.049 % by the p = 2 bound). The axisymmetric variant's
 working mode at refine 1 is +0.041 % / +0.044 % from its converged (r, z) answer (the cross-check),
 so the default design's slotted, toothed (free-meshed) coupler adds error to f_r.
-Correction (2026-11-26): for torsion, f_r and f_a the p = 2 bound is too small: the coupler's notch
+For torsion, f_r and f_a, however, the p = 2 bound is too small: the coupler's notch
 edges converge at a corner's rate; refined alone (``study_coupler_convergence.py``) they put the
 refine-1 errors at torsion ~+0.28 %, f_r ~+0.09 to +0.11 %, f_a ~+0.07 to +0.09 % (bending +0.20 %).
 
@@ -110,7 +110,7 @@ from geometry.revolve import sectors_per_quarter
 from geometry.sizing import REFINE_RANGE
 
 F_R, F_A = 19682.31, 21410.33
-"""Converged working mode of the default design without slots and teeth (axisymmetric (r, z), issue 19)."""
+"""Converged working mode of the default design without slots and teeth (axisymmetric (r, z), tests/axisym_reference.py)."""
 
 TRUE_NO_SLOTS = {"bend1": 5161.55, "bend2": 10512.14, "tors1": 15286.155, "f_r": F_R, "f_a": F_A}
 """Converged values (Hz) of the design without slots and teeth: the (r, z) model's harmonics n = 1
