@@ -333,7 +333,8 @@ def test_write_json_refuses_nonfinite_before_any_file_exists(tmp_path, bad):
 def test_json_nonfinite_as_null_and_numpy_values(tmp_path):
     import numpy as np
 
-    text = json_text({"a": np.float64("nan"), "b": np.arange(2), "c": (np.int32(3), True)}, nonfinite="null")
+    text = json_text({"a": np.float64("nan"), "b": np.arange(2), "c": (np.int32(3), True)}, nonfinite="null",
+                     provenance=False)
     assert text == '{\n  "a": null,\n  "b": [\n    0,\n    1\n  ],\n  "c": [\n    3,\n    true\n  ]\n}\n'
     with pytest.raises(ParameterError, match=r"^--json = nan: result entry 'a'"):
         json_text({"a": np.float32("nan")}, name="--json")
