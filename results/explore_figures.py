@@ -17,9 +17,39 @@ from rpud_common import axes_or_new, save_figure
 
 from .study import OUTPUTS
 
-__all__ = ["main_effects", "pareto_front", "tolerance_spread", "study_figures", "pareto_mask", "tolerance_table"]
+__all__ = ["main_effects", "pareto_front", "tolerance_spread", "study_figures", "pareto_mask", "tolerance_table",
+           "axis_label", "param_scale"]
 
 _SCALE = {"m": (1e6, "um"), "m/V": (1e9, "nm/V"), "J": (1e3, "mJ"), "Hz": (1e-3, "kHz")}
+
+#: study output -> the words on a figure axis; the unit comes from :data:`results.study.OUTPUTS`
+#: through :func:`_scale`, so a label and the numbers plotted against it use the same unit
+_OUTPUT_NAMES = {
+    "tetrahedra": "mesh tetrahedra", "nodes": "mesh nodes",
+    "f_r_hz": "working-mode resonance f_r", "f_a_hz": "working-mode anti-resonance f_a",
+    "k_eff": "coupling factor k_eff", "matched": "resonance matching converged, 1 = yes",
+    "tip_per_volt_m": "tip amplitude per volt", "A0_unloaded_m": "tip amplitude A0, no impacts",
+    "teeth_ellipse_ratio": "teeth ellipse ratio (tangential / axial)", "power_w": "electrical power, no impacts",
+    "A0_m": "tip amplitude A0, impact-loaded", "tool_ke_j": "tool kinetic energy after impact",
+    "ke_gain_j": "tool kinetic energy gain per impact", "tool_power_w": "power delivered to the tool",
+    "tool_rate_hz": "tool impact rate", "horn_power_w": "work of the horn on the free mass per second",
+}
+
+#: varied parameter (``drive.*``, ``impact.*``) -> (factor from SI to the plotted unit, words, unit);
+#: the units are those of :class:`impact.ImpactParams` and the drive settings
+_PARAMS = {
+    "drive.voltage": (1.0, "drive voltage", "V"), "drive.q_mech": (1.0, "mechanical quality factor Q_m", "-"),
+    "impact.m_free": (1e3, "free mass", "g"), "impact.m_tool": (1e3, "drill-tool mass", "g"),
+    "impact.e1": (1.0, "restitution free mass / tool e1", "-"),
+    "impact.e2": (1.0, "restitution free mass / horn e2", "-"),
+    "impact.k0": (1.0, "tool holder stiffness k0", "N/m"), "impact.c": (1.0, "tool damping c", "N s/m"),
+    "impact.gap": (1e3, "free stroke L0", "mm"), "impact.v0": (1.0, "free-mass start velocity v0", "m/s"),
+    "impact.spring_force": (1.0, "restoring spring force", "N"),
+}
+
+#: design fields (SI, metres) drawn in mm, recognised by the last part of their dotted path
+_LENGTH_WORDS = ("length", "diameter", "radius", "thickness", "width", "depth", "height", "offset", "gap",
+                 "chamfer", "fillet", "pitch")
 
 
 def _scale(name: str) -> tuple[float, str]:
@@ -27,6 +57,36 @@ def _scale(name: str) -> tuple[float, str]:
     if name.startswith("tool_rate") or name.startswith("horn_rate"):
         return 1.0, "Hz"
     return _SCALE.get(unit, (1.0, unit))
+
+
+def param_scale(name: str) -> tuple[float, str]:
+    """Factor from the stored (SI) value of a varied parameter to its axis, and the axis label
+    ``'words (unit)'``: ``impact.m_free`` -> ``(1e3, 'free mass (g)')``, a design length such as
+    ``horn.length`` -> ``(1e3, 'horn length (mm)')``, an angle ``..._deg`` in deg. A design field
+    of unknown unit keeps its dotted path and says so: ``(1.0, 'stack.preload_model (design-file unit)')``."""
+    if name in _PARAMS:
+        k, words, unit = _PARAMS[name]
+        return k, f"{words} ({unit})"
+    part, _, field = name.rpartition(".")
+    words = f"{part} {field.replace('_', ' ')}".strip()
+    if field.endswith("_deg"):
+        return 1.0, f"{part} {field[:-4].replace('_', ' ')} (deg)".strip()
+    if field.startswith("n_"):
+        return 1.0, f"{part} number of {field[2:].replace('_', ' ')} (count)".strip()
+    if field.endswith("_fraction") or field.endswith("_ratio"):
+        return 1.0, f"{words} (-)"
+    if any(field.endswith(w) for w in _LENGTH_WORDS):
+        return 1e3, f"{words} (mm)"
+    return 1.0, f"{name} (design-file unit)"
+
+
+def axis_label(name: str) -> str:
+    """The axis label ``'words (unit)'`` of a study output or a varied parameter (the unit is the
+    plotted one: ``tool_ke_j`` -> ``'tool kinetic energy after impact (mJ)'``)."""
+    if name in OUTPUTS:
+        _, unit = _scale(name)
+        return f"{_OUTPUT_NAMES.get(name, name)} ({unit})"
+    return param_scale(name)[1]
 
 
 def _ok(rows):
@@ -46,10 +106,11 @@ def main_effects(result, outputs=None, axes=None):
     axes = np.atleast_1d(axes_or_new(axes, n, figsize=(6.4, 2.4 * n + 0.6))).ravel()
     for k, (out, par) in enumerate((o, p) for o in outputs for p in params):
         ax = axes[k]
-        x = _values(rows, f"in.{par}")
+        px, _ = param_scale(par)
+        x = _values(rows, f"in.{par}") * px
         y = _values(rows, out)
         hw = _values(rows, f"{out}_ci95")
-        s, unit = _scale(out)
+        s, _ = _scale(out)
         levels = np.unique(x[np.isfinite(x)])
         if 0 < len(levels) <= 12:
             sel = [(x == lv) & np.isfinite(y) for lv in levels]
@@ -67,8 +128,8 @@ def main_effects(result, outputs=None, axes=None):
             ax.legend(fontsize=7)
         else:
             ax.errorbar(x, y * s, yerr=np.where(np.isfinite(hw), hw, 0) * s, fmt="o", ms=3, capsize=2)
-        ax.set_xlabel(par)
-        ax.set_ylabel(f"{out} ({unit})")
+        ax.set_xlabel(axis_label(par))
+        ax.set_ylabel(axis_label(out))
         ax.grid(alpha=0.3)
     return tuple(axes)
 
@@ -89,14 +150,14 @@ def pareto_front(result, first: str, second: str, ax=None):
     rows = _ok(result.rows)
     a, b = _values(rows, first), _values(rows, second)
     ea, eb = _values(rows, f"{first}_ci95"), _values(rows, f"{second}_ci95")
-    (sa, ua), (sb, ub) = _scale(first), _scale(second)
+    (sa, _), (sb, _) = _scale(first), _scale(second)
     ax.errorbar(a * sa, b * sb, xerr=np.nan_to_num(ea) * sa, yerr=np.nan_to_num(eb) * sb, fmt="o", ms=4,
                 color="0.6", capsize=2, label="points (95 % CI where statistical)")
     m = pareto_mask(a, b)
     order = np.argsort(a[m])
     ax.plot(a[m][order] * sa, b[m][order] * sb, "o-", color="C3", label="Pareto front (both maximised)")
-    ax.set_xlabel(f"{first} ({ua})")
-    ax.set_ylabel(f"{second} ({ub})")
+    ax.set_xlabel(axis_label(first))
+    ax.set_ylabel(axis_label(second))
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
     return ax
@@ -135,7 +196,7 @@ def tolerance_spread(result, outputs=None, axes=None):
         ax.boxplot(rel, widths=0.5)
         ax.plot(np.ones_like(rel) + np.linspace(-0.1, 0.1, len(rel)), rel, "o", ms=3, alpha=0.6)
         ax.axhline(0, color="k", lw=0.8)
-        ax.set_xticks([1], [name])
+        ax.set_xticks([1], [axis_label(name)])
         ax.set_ylabel("change from nominal (%)")
         ax.grid(alpha=0.3)
         if name in ("tool_ke_j",):
