@@ -260,3 +260,45 @@ def test_the_browser_check_sees_a_broken_page(tmp_path):
     assert any("boom" in e for e in seen["errors"])
     assert seen["images"] == [["gone", True, 0]]
     assert seen["headline"] is None
+
+
+# ---- the figures the report embeds -------------------------------------------------------------
+
+def test_ke_figure_marks_the_headline_and_draws_ci_bars_above_the_markers():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    import impact
+    from results.figures import kinetic_energy
+
+    tiny = impact.StatsSettings(rel_tol=0.5, n_start=4, n_max=4)
+    sweeps = {k: impact.sweep(impact.ImpactParams(), [0.004, 0.008], scenario=sc, settings=tiny)
+              for k, sc in (("device_fe", "device"), ("article_fe", "article"))}
+    ax = kinetic_energy(sweeps, True)
+    try:
+        labels = [t.get_text() for t in ax.get_legend().get_texts()]
+        assert sum(t.startswith("headline: device") for t in labels) == 1
+        assert not any(t.startswith("headline:") and "article" in t.split("(")[0] for t in labels)
+        for c in ax.containers:                              # every errorbar: bars and caps over the markers
+            line, caps, bars = c
+            assert caps and all(a.get_zorder() > line.get_zorder() for a in (*caps, *bars))
+        heavy = [c.lines[0].get_linewidth() for c in ax.containers]
+        assert heavy[0] > heavy[1]                           # the headline line is the heavy one
+    finally:
+        plt.close(ax.figure)
+
+
+def test_explore_axes_carry_words_and_units():
+    from results.explore_figures import axis_label, param_scale
+    from results.study import OUTPUTS
+
+    for name in OUTPUTS:
+        label = axis_label(name)
+        assert label != name and re.search(r"\([^()]+\)$", label), label
+    assert axis_label("tool_ke_j") == "tool kinetic energy after impact (mJ)"
+    assert axis_label("f_r_hz").endswith("(kHz)") and axis_label("tool_rate_hz").endswith("(Hz)")
+    assert param_scale("impact.m_free") == (1e3, "free mass (g)")
+    assert param_scale("horn.length") == (1e3, "horn length (mm)")
+    assert param_scale("coupler.slot_angle_deg") == (1.0, "coupler slot angle (deg)")
