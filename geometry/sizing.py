@@ -21,8 +21,8 @@ refines; the element count grows about as ``F**-3``):
   pipeline's and the test suite's time budgets are set on the ungraded mesh.
   Study knobs (module constants, defaults = the ``--grade`` rule): :data:`EDGE_FRACTION`,
   :data:`GROWTH`, :data:`GRADE_MINOR`, :data:`GRADE_BORES`, :data:`MINOR_FRACTION`,
-  :data:`RING_ELEMENTS`, :data:`FLANGE_FACTOR`. Issue 19's 0.05 % on the working mode of the
-  axisymmetric variant (no slots, no teeth) is met only at ~260k DOFs (EDGE_FRACTION 0.04,
+  :data:`RING_ELEMENTS`, :data:`FLANGE_FACTOR`. An error within 0.05 % on the working mode of the
+  axisymmetric variant (no slots, no teeth) is reached only at ~260k DOFs (EDGE_FRACTION 0.04,
   GRADE_BORES, GROWTH 0.4: +0.044 % / +0.055 %): isotropic tetrahedra pay the edge size along
   the whole circumference of each edge (elements ~ r / (GROWTH^2 h_edge)), and single meshes
   scatter by ~0.02 % (the smallest elements at the edges are placed differently), see

@@ -44,7 +44,7 @@ AXISYM_CONVERGED = (19682.31, 21410.33)
 TOL_3D = 0.006
 """Fractional agreement of the 3-D default mesh with the converged reference on the default design
 without slots and teeth (+0.45 % f_r, +0.56 % f_a on that mesh: the re-entrant flange/horn and horn-step
-edges converge as h^1.1). Issue 19's 0.0005 is not met by the default mesh: isotropic graded
+edges converge as h^1.1). The 0.0005 aimed for is not met by the default mesh: isotropic graded
 tetrahedra reach +0.044 % / +0.055 % only at ~260k DOFs (benchmarks/bench_mesh_grading.py --study),
 too slow for the suite and the default."""
 

@@ -199,8 +199,8 @@ model of tests/axisym_reference.py: harmonic n = 0 for the working mode and the
 torsion, n = 1 for the first bending pair)."""
 
 
-def test_command_line_rules_meet_issue_19_on_the_design_without_slots():
-    """Issue 19's targets for the meshes ``python -m fem.modal`` uses by default (AXIAL_RULE for
+def test_command_line_rules_meet_the_targets_on_the_design_without_slots():
+    """The accuracy targets for the meshes ``python -m fem.modal`` uses by default (AXIAL_RULE for
     k = 0, LATERAL_RULE for k = 1): f_r, f_a within 0.05 %, first torsion and bending within
     0.1 % (measured +0.019 / +0.022 / +0.023 / +0.075 %)."""
     d = default_design()

@@ -18,7 +18,7 @@ the discretisation-error tools of fem.convergence.
   an independent (r, z) model graded at the corners, converged to 1e-7): measured +0.119 % /
   +0.149 % at 98.5k DOFs (ungraded default: +0.45 % / +0.56 % at 35k, tests/test_axisym_reference.py),
   asserted within 0.2 %.
-  Issue 19 asks for 0.05 %: NOT reached by isotropic tetrahedra at an affordable size (edge size
+  The 0.05 % aimed for is NOT reached by isotropic tetrahedra at an affordable size (edge size
   halved: +0.075 % at 224k DOFs).
 """
 

@@ -200,7 +200,7 @@ def test_bad_settings_and_cli_input(tmp_path):
 
 
 def test_stress_utilisation_table_in_summary_and_report(run):
-    """Issue 17: the utilisation table at the drive voltage, in summary.json and report.md."""
+    """The utilisation table at the drive voltage, in summary.json and report.md."""
     out, s = run
     st = s["stress"]
     u = st["utilisation"]

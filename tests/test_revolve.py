@@ -158,7 +158,7 @@ def test_swept_mesh_volumes_groups_and_quality(axisymmetric_build):
         assert area == pytest.approx(polygon * np.pi * (r_out ** 2 - r_in ** 2), rel=1e-9), name
 
 
-def test_working_mode_within_issue_19_target_of_the_converged_answer(axisymmetric_build):
+def test_working_mode_within_the_target_of_the_converged_answer(axisymmetric_build):
     _design, tm, _rep = axisymmetric_build
     system = fem.assemble(tm)
     res = fem.modal_analysis(system, 20e3, 8)
