@@ -76,7 +76,7 @@ def _pochhammer(w, k, a, c1, c2):
             - 4 * k * k * q * pJ1 * jv(0, q * a)).real
 
 
-def test_pochhammer_chree_rod_with_sliding_ends():
+def test_pochhammer_chree_rod_with_sliding_ends(vv):
     m = get_material("steel_45")
     E, nu, rho = m.youngs_modulus, m.poisson_ratio, m.density
     lam, mu = E * nu / ((1 + nu) * (1 - 2 * nu)), E / (2 * (1 + nu))
@@ -94,6 +94,19 @@ def test_pochhammer_chree_rod_with_sliding_ends():
     for h in (5e-4, 1e-3):
         res = ar.modes(ar.assemble(sec, h, 1e-3, fixed=(("z", "z", 0.0), ("z", "z", L))), f_exact, 2)
         f.append(res.f_r[np.argmin(np.abs(res.f_r - f_exact))])
+    vv.record("VV-AX-01", title="Pochhammer-Chree mode of a steel cylinder with sliding ends",
+              quantity="first longitudinal frequency",
+              description="A steel_45 cylinder, radius 5 mm and length 10 mm, with sliding ends (u_z = 0, "
+              "shear-free) carries exactly the infinite rod's longitudinal mode of wavenumber pi / L "
+              "(k a = pi / 2, far from 1-D theory). The independent axisymmetric (r, z) model "
+              "(tests/axisym_reference.py, P2 elements, h = 0.5 mm) is compared with the root of the "
+              "Pochhammer-Chree frequency equation.",
+              reference="Pochhammer-Chree frequency equation of the longitudinal modes of an infinite "
+              "elastic cylinder, solved to round-off with brentq.",
+              assumptions="Linear isotropic elasticity; the tolerance is the model's own discretisation "
+              "error estimated from a level twice as coarse (P2: h^4), and the model must lie above the "
+              "exact value.",
+              target=f_exact, computed=f[0], tolerance=two_level(*f) / f_exact, unit="Hz")
     # within its own discretisation error (about 4e-7 at h = 0.5 mm), from above
     assert 0 < f[0] - f_exact <= two_level(*f)
 
@@ -132,9 +145,21 @@ def disc():
     return t, R, models[0], fine, errors
 
 
-def test_thickness_mode_of_a_laterally_clamped_disc_is_ieee176_exact(disc):
+def test_thickness_mode_of_a_laterally_clamped_disc_is_ieee176_exact(disc, vv):
     t, R, _model, res, (err_r, err_a) = disc
     fs, fp, _ = _thickness_disc(get_material("PZT-4"), t, lossy=False)
+    common = dict(description="A PZT-4 disc 2 mm thick, radius 1 mm, electroded on both faces, with "
+                  "u_r = 0 on its rim: exactly the laterally clamped plate of 1-D thickness-mode theory. "
+                  "The independent axisymmetric piezoelectric model (h = 0.125 mm) is compared with the "
+                  "closed form.",
+                  reference="IEEE Std 176, thickness-extensional plate: f_p = v^D / (2 t), f_s the root of "
+                  "(pi/2)(f/f_p) tan((pi/2)(f_p - f)/f_p) = k_t^2, from the library's stress-charge constants.",
+                  assumptions="Lossless linear piezoelectricity; the tolerance is the model's own discretisation "
+                  "error from a level twice as coarse (P2: h^4), and the model must lie above the exact value.")
+    vv.record("VV-AX-02", title="IEEE 176 thickness mode of a clamped PZT-4 disc: resonance",
+              quantity="series resonance f_s", target=fs, computed=res.f_r[0], tolerance=err_r, unit="Hz", **common)
+    vv.record("VV-AX-03", title="IEEE 176 thickness mode of a clamped PZT-4 disc: anti-resonance",
+              quantity="parallel resonance f_p", target=fp, computed=res.f_a[0], tolerance=err_a, unit="Hz", **common)
     # within their own discretisation error (about 3e-7 / 4e-7 relative), from above
     assert 0 < res.f_r[0] / fs - 1 <= err_r
     assert 0 < res.f_a[0] / fp - 1 <= err_a
@@ -167,7 +192,7 @@ def test_thickness_disc_admittance_is_exact(disc, lossy):
 
 
 @pytest.mark.parametrize("poling", [1, -1])
-def test_k33_rod_against_ieee176_with_rayleigh_love(poling):
+def test_k33_rod_against_ieee176_with_rayleigh_love(poling, vv):
     m = get_material("PZT-4")
     C, e, eps = m.voigt_matrices()
     s = np.linalg.inv(C)
@@ -185,6 +210,17 @@ def test_k33_rod_against_ieee176_with_rayleigh_love(poling):
     sec = ar.Section((ar._rect("rod", "PZT-4", poling, 0.0, R, 0.0, L),),
                      (ar.ElectrodeLine("ground", 0.0, 0.0, R), ar.ElectrodeLine("hot", L, 0.0, R)))
     res = ar.modes(ar.assemble(sec, 1e-3, 1e-3), fs, 2)
+    if poling == 1:
+        vv.record("VV-AX-04", title="IEEE 176 k33 rod with Rayleigh-Love correction: resonance",
+                  quantity="series resonance f_s",
+                  description="A PZT-4 rod, length 40 mm and radius 2 mm (L / R = 20), poled and electroded "
+                  "along its axis, free. The independent axisymmetric piezoelectric model (h = 1 mm) is "
+                  "compared with the 1-D length-extensional resonance corrected for lateral inertia.",
+                  reference="IEEE Std 176 length-extensional k33 bar, times the Rayleigh-Love factor "
+                  "1 - nu^2 (R^2 / 2) (pi / L)^2 / 2 with the effective Poisson ratio -s13/s33 at constant field.",
+                  assumptions="Lossless; the Rayleigh-Love factor is a first-order correction for a slender "
+                  "rod: tolerance 1e-4.",
+                  target=fs * rayleigh_love(-s[0, 2] / s[2, 2]), computed=res.f_r[0], tolerance=1e-4, unit="Hz")
     assert res.f_r[0] == pytest.approx(fs * rayleigh_love(-s[0, 2] / s[2, 2]), rel=1e-4)
     assert res.f_a[0] == pytest.approx(fp * rayleigh_love(-sD[0, 2] / sD[2, 2]), rel=1e-4)
 
@@ -290,7 +326,7 @@ def sandwich_bending_torsion(sandwich):
     return bend, tors, three_d
 
 
-def test_torsion_harmonic_of_a_free_free_cylinder_is_exact():
+def test_torsion_harmonic_of_a_free_free_cylinder_is_exact(vv):
     """u_theta = r cos(k pi z / L) is an exact torsional mode of a free-free cylinder: f = k c_s / (2 L)."""
     m = get_material("steel_45")
     L, R = 0.1, 0.01
@@ -300,6 +336,15 @@ def test_torsion_harmonic_of_a_free_free_cylinder_is_exact():
     coarse, _ = ar.harmonic_modes(sec, 4e-3, 2e-3, 0, exact[1], 3)
     fine, _ = ar.harmonic_modes(sec, 2e-3, 2e-3, 0, exact[1], 3)
     err_c, err_f = np.sort(coarse) / exact - 1, np.sort(fine) / exact - 1
+    vv.record("VV-AX-05", title="First torsional mode of a free-free steel cylinder",
+              quantity="first torsional frequency",
+              description="A steel_45 cylinder, length 100 mm and radius 10 mm, free at both ends. The "
+              "independent axisymmetric model's torsional (n = 0, u_theta) harmonic at h = 2 mm is compared "
+              "with the exact first torsional mode.",
+              reference="u_theta = r cos(pi z / L) is an exact mode: f = c_s / (2 L), c_s = sqrt(G / rho).",
+              assumptions="Linear isotropic elasticity; the tolerance is the model's own discretisation error "
+              "from a level twice as coarse (P2: h^4).",
+              target=exact[0], computed=np.sort(fine)[0], tolerance=float(two_level(err_f, err_c)[0]), unit="Hz")
     # from above, at the P2 rate h^4 (16x): the exact value is then within the fine level's own
     # error estimate (two_level), and a wrong limit (an error not falling with h) fails
     assert np.all(err_f > 0) and np.all(err_c / err_f > 10)

@@ -59,11 +59,18 @@ def test_layout_and_vector_interleaving():
     assert np.all(s.nodes[s.phi_nodes, 2] > 0) and np.all(s.nodes[s.phi_nodes, 2] < 0.02)
 
 
-def test_capacitances_of_a_k31_bar():
+def test_capacitances_of_a_k31_bar(vv):
     l, w, t = 0.04, 0.004, 0.001
     s = assemble(bar(l, w, t, n=(10, 2, 1)))
     eps33S = piezo_matrices("PZT-4").eps_S[2, 2]
     c_blocked = s.capacitance_static("blocked")
+    vv.record("VV-FE-06", title="Blocked capacitance of a PZT-4 plate", quantity="static capacitance, clamped",
+              description="A PZT-4 bar 40 x 4 x 1 mm with electrodes on its 40 x 4 mm faces, every displacement "
+              "held (blocked); the capacitance of the assembled piezoelectric system at zero frequency.",
+              reference="Parallel-plate capacitor: C = eps33^S A / t (the field of a blocked plate is uniform).",
+              assumptions="Uniform field, no fringing (the electrodes cover the faces): exact up to round-off, "
+              "tolerance 1e-9.",
+              target=eps33S * l * w / t, computed=c_blocked, tolerance=1e-9, unit="F")
     assert c_blocked == pytest.approx(eps33S * l * w / t, rel=1e-9)   # uniform field: exact
     # free bar: eps33 between eps^S and eps^T; thin bar -> close to eps^T minus the k31 clamp in y
     _, d, epsT = strain_charge(piezo_matrices("PZT-4"))

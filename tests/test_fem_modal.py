@@ -27,7 +27,7 @@ def steel_rod():
     return L, R, assemble(rod(L, R, n_r=2, n_z=40))
 
 
-def test_steel_rod_longitudinal_and_torsional(steel_rod):
+def test_steel_rod_longitudinal_and_torsional(steel_rod, vv):
     L, R, s = steel_rod
     res = modal_analysis(s, 21e3, 6)
     c = np.sqrt(E / RHO)
@@ -36,6 +36,24 @@ def test_steel_rod_longitudinal_and_torsional(steel_rod):
     i_l = int(np.argmax(res.shares[:, 0]))
     i_t = int(np.argmax(res.shares[:, 1]))
     assert res.shares[i_l, 0] > 0.95 and res.shares[i_t, 1] > 0.95
+    vv.record("VV-FE-01", title="Free-free steel rod: first longitudinal mode", quantity="frequency",
+              description="A steel rod (E = 209 GPa, nu = 0.269, rho = 7890 kg/m^3), length 100 mm, radius "
+              "2.5 mm (L / R = 40), meshed by rod(L, R, n_r=2, n_z=40) of tests/test_fem_util.py, "
+              "assembled by fem.assembly and solved by fem.modal_analysis. "
+              "Free at both ends; the mode with the largest longitudinal share.",
+              reference="1-D bar f = c / (2 L), c = sqrt(E / rho), with the Rayleigh-Love lateral-inertia "
+              "factor 1 - nu^2 (R^2 / 2) (pi / L)^2 / 2.",
+              assumptions="Linear isotropic elasticity; slender rod (Rayleigh-Love's lateral-inertia correction); "
+              "tolerance 0.5 % covers the 3-D mesh's discretisation error.",
+              target=f_long, computed=res.f_r_hz[i_l], tolerance=0.005, unit="Hz")
+    vv.record("VV-FE-02", title="Free-free steel rod: first torsional mode", quantity="frequency",
+              description="A steel rod (E = 209 GPa, nu = 0.269, rho = 7890 kg/m^3), length 100 mm, radius "
+              "2.5 mm (L / R = 40), meshed by rod(L, R, n_r=2, n_z=40) of tests/test_fem_util.py, "
+              "assembled by fem.assembly and solved by fem.modal_analysis. "
+              "Free at both ends; the mode with the largest torsional share.",
+              reference="Exact torsion of a circular rod: f = c_s / (2 L), c_s = sqrt(G / rho), G = E / (2 (1 + nu)).",
+              assumptions="Linear isotropic elasticity; tolerance 0.5 % covers the 3-D mesh's discretisation error.",
+              target=f_tors, computed=res.f_r_hz[i_t], tolerance=0.005, unit="Hz")
     assert res.f_r_hz[i_l] == pytest.approx(f_long, rel=0.005)
     assert res.f_r_hz[i_t] == pytest.approx(f_tors, rel=0.005)
     assert res.labels[i_l] == "longitudinal" and res.labels[i_t] == "torsional"
@@ -51,12 +69,21 @@ def test_steel_rod_longitudinal_and_torsional(steel_rod):
     assert res.shapes.shape == (6, s.n_nodes, 3)
 
 
-def test_clamped_free_rod_quarter_wave(steel_rod):
+def test_clamped_free_rod_quarter_wave(steel_rod, vv):
     L, R, s = steel_rod
     c = np.sqrt(E / RHO)
     res = modal_analysis(s, c / (4 * L), 3, clamp=["bottom"])
     i = int(np.argmax(res.shares[:, 0]))
     assert len(res.rigid_hz) == 0
+    vv.record("VV-FE-03", title="Clamped-free steel rod: quarter-wave mode", quantity="frequency",
+              description="A steel rod (E = 209 GPa, nu = 0.269, rho = 7890 kg/m^3), length 100 mm, radius "
+              "2.5 mm (L / R = 40), meshed by rod(L, R, n_r=2, n_z=40) of tests/test_fem_util.py, "
+              "assembled by fem.assembly and solved by fem.modal_analysis. "
+              "Every degree of freedom of the bottom face clamped.",
+              reference="1-D quarter-wave bar: f = c / (4 L), c = sqrt(E / rho).",
+              assumptions="Linear isotropic elasticity; the clamp also stops the face's lateral contraction and "
+              "lateral inertia is neglected in the reference: tolerance 0.5 %.",
+              target=c / (4 * L), computed=res.f_r_hz[i], tolerance=0.005, unit="Hz")
     assert res.f_r_hz[i] == pytest.approx(c / (4 * L), rel=0.005)
     tip = s.displacement(res.vectors[:, i])
     assert np.abs(tip[s.surface_nodes("bottom")]).max() == 0.0
@@ -83,11 +110,20 @@ def _ieee():
     return (fs, fp), (fs1, fp1)
 
 
-def test_k33_rod_against_ieee176():
+def test_k33_rod_against_ieee176(vv):
     (fs, fp), _ = _ieee()
     s = assemble(rod(0.04, 0.001, n_r=1, n_z=20, material="PZT-4", poling=(0, 0, 1), electrodes=True))
     res = modal_analysis(s, 40e3, 3)
     i = int(np.argmax(res.k_eff))
+    vv.record("VV-FE-04", title="3-D piezoelectric k33 rod against IEEE 176: anti-resonance",
+              quantity="parallel resonance f_p",
+              description="A PZT-4 rod, length 40 mm and radius 1 mm, poled along its axis with electrodes on "
+              "its end faces, free; the 3-D coupled piezo-elastic model (fem.assembly, fem.modal_analysis) "
+              "at the mode of largest effective coupling.",
+              reference="IEEE Std 176 length-extensional k33 bar: f_p = 1 / (2 L sqrt(rho s33^E (1 - k33^2))), "
+              "from the library's stress-charge constants converted to strain-charge form.",
+              assumptions="Lossless; 1-D theory (no lateral inertia) for a rod of L / R = 40: tolerance 0.5 %.",
+              target=fp, computed=res.f_a_hz[i], tolerance=0.005, unit="Hz")
     assert res.f_r_hz[i] == pytest.approx(fs, rel=0.005)
     assert res.f_a_hz[i] == pytest.approx(fp, rel=0.005)
     assert res.f_r_hz[i] == pytest.approx(38352, rel=0.01)    # references.md worked numbers
@@ -97,11 +133,18 @@ def test_k33_rod_against_ieee176():
     assert res.k_eff[i] == pytest.approx(k33_ieee, rel=0.01)
 
 
-def test_k31_bar_against_ieee176():
+def test_k31_bar_against_ieee176(vv):
     _, (fs, fp) = _ieee()
     s = assemble(bar(0.04, 0.004, 0.001, n=(40, 4, 1)))
     res = modal_analysis(s, 42e3, 4)
     i = int(np.argmax(res.k_eff))
+    vv.record("VV-FE-05", title="3-D piezoelectric k31 bar against IEEE 176: resonance",
+              quantity="series resonance f_s",
+              description="A PZT-4 bar 40 x 4 x 1 mm, poled through its thickness with electrodes on its large "
+              "faces, free; the 3-D coupled piezo-elastic model at the mode of largest effective coupling.",
+              reference="IEEE Std 176 length-extensional k31 bar: f_s = 1 / (2 L sqrt(rho s11^E)).",
+              assumptions="Lossless; 1-D theory for a thin, narrow bar: tolerance 0.5 %.",
+              target=fs, computed=res.f_r_hz[i], tolerance=0.005, unit="Hz")
     assert res.f_r_hz[i] == pytest.approx(fs, rel=0.005)
     assert res.f_a_hz[i] == pytest.approx(fp, rel=0.005)
     assert res.f_r_hz[i] == pytest.approx(41155, rel=0.01)
