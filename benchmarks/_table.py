@@ -43,8 +43,10 @@ def machine_record() -> dict:
         cores = len(os.sched_getaffinity(0))
     except AttributeError:
         cores = os.cpu_count()
+    load = os.getloadavg()[0] if hasattr(os, "getloadavg") else None
+    # the 1-minute load average when the table was written: a loaded machine slows every timing
     return {"cpu": _cpu_model(), "cores": cores, "os": f"{platform.system()} {platform.release()}",
-            "python": platform.python_version()}
+            "python": platform.python_version(), "load_average_1min": load}
 
 
 def _script_name() -> str | None:
