@@ -108,12 +108,13 @@ def render_page(rec: dict) -> str:
 
 def summary_markdown(recs: list[dict]) -> str:
     """The index table: one row per check, linked to its page."""
-    lines = ["| Check | Title | Unit | Target | Computed | Ratio | Tolerance | Result |",
-             "|---|---|---|---|---|---|---|---|"]
+    lines = ["| Check | Title | Unit | Target | Computed | Ratio | Deviation | Tolerance | Result |",
+             "|---|---|---|---|---|---|---|---|---|"]
     for r in recs:
-        ratio = _num(r["ratio"]) if r["ratio"] is None else f"{r['ratio']:.6f}"
+        ratio = _num(r["ratio"]) if r["ratio"] is None else f"{r['ratio']:.9f}"
         lines.append(f"| [{r['id']}](checks/{page_name(r)}.md) | {r['title']} | {r['unit'] or '—'} "
-                     f"| {_num(r['target'])} | {_num(r['computed'])} | {ratio} | {_tol(r)} | {_status(r)} |")
+                     f"| {_num(r['target'])} | {_num(r['computed'])} | {ratio} | {r['deviation']:.3g} | {_tol(r)} "
+                     f"| {_status(r)} |")
     n_pass = sum(r["passed"] for r in recs)
     lines += ["", f"{n_pass} of {len(recs)} checks within their tolerance."]
     return "\n".join(lines)
