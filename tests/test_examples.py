@@ -91,7 +91,7 @@ def test_ex05_own_horn(tmp_path):
     out, folder = _run("ex05_own_horn.py", tmp_path)
     f_r = {name: float(f) for name, f in re.findall(r"^(\S+) +horn [\d.]+ mm: .*f_r = ([\d.]+) Hz", out, flags=re.M)}
     assert set(f_r) == {"rpud-default", "longer_horn"}
-    # the default drill is matched to 20 kHz; a 10 mm longer horn (of a drill about 150 mm long)
+    # the default drill is matched to 20 kHz; a 10 mm longer horn (on a drill 140 mm long)
     # lowers the working resonance by a few per cent
     assert f_r["rpud-default"] == pytest.approx(20e3, rel=0.02)
     assert 0.02 < 1 - f_r["longer_horn"] / f_r["rpud-default"] < 0.12

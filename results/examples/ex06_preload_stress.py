@@ -8,10 +8,11 @@ The state is the harmonic working point: 225 V at the working resonance, with th
 assembled-transducer quality factor Q_m = 100 of the pipeline. ``fem.StressRecovery`` recovers
 stress and electric field from the solution; the utilisation table gives per region the peak
 over one cycle (von Mises for the metals; the largest tensile and compressive principal stress
-and the peak field |E| for the ceramic rings), where it sits and its ratio to the limit in the
+and the peak field ``|E|`` for the ceramic rings), where it sits and its ratio to the limit in the
 material record (``geometry/materials.toml``). A bolt preload is a static solve
 (``fem.preload_solve``: equal and opposite tractions on the stack's end faces) whose stress is
-added to the dynamic one before the peaks are taken. The 20 kN is the README's worked example.
+added to the dynamic one before the peaks are taken. The 20 kN is the preload of the worked
+example on the stress page of the Theory manual.
 
 Peaks at re-entrant corners and on the bonded ring edges are singular in the elastic solution
 and grow with mesh refinement: the "off edges" columns leave those cells out. On the coarse mesh

@@ -67,8 +67,7 @@ if __name__ == "__main__":
     print(f"{len(result.rows)} points, {result.failed} failed, {result.computed} computed in "
           f"{result.seconds:.1f} s on {result.workers} workers")
 
-    # %%
-    # The table: one row per point; impact outputs carry their 95 % CI half-width.
+    # the table: one row per point; impact outputs carry their 95 % CI half-width
     table = result.frame()
     columns = ["in.impact.m_free", "in.drive.voltage", "status", "A0_m", "tool_ke_j", "tool_ke_j_ci95"]
     print(table[columns].to_string(index=False, float_format="{:.4g}".format))   # SI units: kg, V, m, J
@@ -86,7 +85,7 @@ if __name__ == "__main__":
 # `dask-jobqueue <https://jobqueue.dask.org>`_ (not an rpud dependency: install it yourself)
 # submits the workers as batch jobs. Each worker needs rpud installed (the same virtual
 # environment), one thread, and the file system of the output folder (the resume records
-# are written there). A sketch, with queue, account and sizes to adapt:
+# are written there). A sketch; add ``queue=`` and ``account=`` as your site requires and adapt the sizes:
 #
 # .. code-block:: python
 #
