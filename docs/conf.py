@@ -65,6 +65,7 @@ sphinx_gallery_conf = {
     "remove_config_comments": True,
     "plot_gallery": "True",
     "within_subsection_order": "FileNameSortKey",
+    "capture_repr": (),                        # the pages show what the examples print, not stray return values
 }
 
 html_theme = "pydata_sphinx_theme"
@@ -73,6 +74,7 @@ html_static_path = ["_static"]
 html_theme_options = {
     "navigation_with_keys": False,
     "show_toc_level": 2,
+    "header_links_before_dropdown": 6,         # the six manuals in the top bar; the rest under "More"
     "footer_start": ["copyright"],
 }
 html_last_updated_fmt = None
