@@ -38,6 +38,34 @@ def test_every_example_has_a_gallery_title():
         assert title and lines[1] == "=" * len(lines[1]) and len(lines[1]) >= len(title), path.name
 
 
+def test_gallery_shows_the_pictures_an_example_writes(tmp_path):
+    # renders close their plotters, so the gallery shows the written PNGs: each new one once,
+    # none left from an earlier run
+    pytest.importorskip("sphinx_gallery")
+    from sphinx_gallery.scrapers import ImagePathIterator
+
+    sys.path.insert(0, str(ROOT / "docs"))
+    try:
+        import _gallery_hooks as hooks
+    finally:
+        sys.path.remove(str(ROOT / "docs"))
+    written = tmp_path / "example_output" / "renders"
+    written.mkdir(parents=True)
+    stale = tmp_path / "example_output" / "stale.png"
+    stale.write_bytes(b"from an earlier run")
+    os.utime(stale, ns=(0, 0))
+    render = written / "mode.png"
+    render.write_bytes(b"this run's picture")
+    (tmp_path / "images").mkdir()
+    block_vars = {"src_file": str(tmp_path / "ex99_demo.py"),
+                  "image_path_iterator": ImagePathIterator(tmp_path / "images" / "sphx_glr_ex99_demo_{0:03}.png")}
+    rst = hooks.saved_pictures_scraper(None, block_vars, {"src_dir": str(tmp_path)})
+    assert "sphx_glr_ex99_demo_001.png" in rst and "002" not in rst
+    assert (tmp_path / "images" / "sphx_glr_ex99_demo_001.png").read_bytes() == render.read_bytes()
+    assert hooks.saved_pictures_scraper(None, block_vars, {"src_dir": str(tmp_path)}) == ""
+    assert hooks.reset_argv({}, {}) == ["--fast"]
+
+
 def test_ex01_modal(tmp_path):
     out, folder = _run("ex01_modal.py", tmp_path)
     f_r, f_a, k = map(float, re.search(r"f_r = ([\d.]+) Hz, f_a = ([\d.]+) Hz, k_eff = ([\d.]+)", out).groups())
