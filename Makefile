@@ -47,13 +47,15 @@ test-fast: $(STAMP)
 		$(PY) -m pytest -q -n 2 --dist loadfile -m "not slow"
 
 # the documentation site: warnings are errors, the gallery's examples run during the build; the
-# verification manual's numbers come from the tests marked vv, run first (stale records removed)
+# verification manual's numbers come from the tests marked vv, run first (stale records removed);
+# then every internal link and the front page in a headless browser (docs/check_site.py)
 docs: $(STAMP)
 	rm -f docs/_generated/vv/*.json
 	OMP_NUM_THREADS=1 MKL_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 \
 		$(PY) -m pytest -q -m vv -p no:cacheprovider
 	MPLBACKEND=Agg PYVISTA_OFF_SCREEN=true OMP_NUM_THREADS=1 \
 		$(PY) -m sphinx -W --keep-going -q -b html docs docs/_build/html
+	$(PY) docs/check_site.py
 
 bench: $(STAMP)
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(PY) $$b || exit 1; done

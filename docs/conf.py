@@ -78,3 +78,5 @@ html_theme_options = {
     "footer_start": ["copyright"],
 }
 html_last_updated_fmt = None
+# a fixed colour mode: without one the theme logs a console error on a first visit
+html_context = {"default_mode": "light"}
