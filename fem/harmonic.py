@@ -439,7 +439,7 @@ class HarmonicResult(Result):
         return _extremum(self.freqs_hz, np.abs(self.admittance), "min")
 
     def amplitude(self, surface: str = "horn_tip", component: str = "axial") -> np.ndarray:
-        """|mean displacement| (m) of a surface component over the band."""
+        """Modulus of the mean displacement (m) of a surface component over the band."""
         if surface not in self.surfaces:
             raise ParameterError("surface", surface, "not computed; computed: " + ", ".join(self.surfaces))
         return np.abs(self.surfaces[surface][component])

@@ -885,13 +885,16 @@ def surface_motion(mesh, shape, surface: str, *, axis_point=(0.0, 0.0),
         Signed mean ``(1/A) * integral u_c dA`` (net piston motion, net rotation x r, ...);
         for complex shapes the modulus of the complex mean.
     ``axial_rms``, ``tangential_rms``, ``radial_rms``, ``max_magnitude``
+        Root-mean-square of each component over the surface, and the largest displacement
+        magnitude at its quadrature points.
     ``ellipse_ratio``
         ``tangential / axial`` (mean amplitudes), the aspect of the tooth-top ellipse; ``inf``
         if the surface has no axial motion.
     ``phase_deg``
         For complex shapes, the phase of the tangential mean relative to the axial mean
         (degrees; 0 or 180 for a real mode shape, whose "ellipse" degenerates to a line).
-    ``area`` (m^2), ``n_nodes`` (nodes on the surface), ``surface``.
+    ``area``, ``n_nodes``, ``surface``
+        Surface area (m^2), nodes on the surface, and the facet set's name.
     """
     u = check_shapes(mesh, shape, "shape")
     if u.shape[0] != 1:

@@ -15,7 +15,7 @@ __all__ = ["admittance", "tip_response", "ring_up"]
 
 
 def admittance(res, f_r: float, f_a: float = float("nan"), *, axes=None):
-    """|Y| (log, mS) and phase of Y (deg) over the band, with the modal f_r / f_a (Hz) marked.
+    """Modulus of Y (log, mS) and phase of Y (deg) over the band, with the modal f_r / f_a (Hz) marked.
 
     Parameters
     ----------

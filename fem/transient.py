@@ -92,7 +92,7 @@ class TransientResult(Result):
         return steady_amplitude(self.t, self.surfaces[surface][component], self.freq_hz, cycles)
 
     def envelope(self, surface: str | None = None, component: str = "axial") -> tuple[np.ndarray, np.ndarray]:
-        """Per-cycle peak |displacement| (m) and the cycle centre times (s) (``surface``: the
+        """Per-cycle peak of the displacement modulus (m) and the cycle centre times (s) (``surface``: the
         first one computed, by default ``horn_tip``)."""
         y = self.surfaces[self._surface(surface)][component]
         n = max(int(round(1.0 / (self.freq_hz * self.dt))), 1)

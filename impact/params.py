@@ -28,7 +28,7 @@ class ImpactParams:
     error names the field, the value and the range with its unit): m_free in [1e-6, 10] kg,
     A0 0 or in [1e-12, 1e-3] m, freq in [1, 1e6] Hz, e1 and e2 in [0, 1], m_horn and m_tool in
     [1e-6, 100] kg, k0 in (0, 1e10] N/m, c in [0, 1e6] N s/m, gap in (2 A0, 1] m and beyond the
-    tool's static deflection under the resting free mass, |g| <= 1e4 m/s^2, v0 in [0, 100] m/s,
+    tool's static deflection under the resting free mass, ``|g| <= 1e4`` m/s^2, v0 in [0, 100] m/s,
     t_end in (0, 100] s, spring_force in [0, 1e4] N, v_stick in (0, 1] m/s, sample_dt in
     [1e-9, 1e-2] s with at most 2e7 samples, max_events an integer in [1, 1e8].
 

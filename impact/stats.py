@@ -123,7 +123,7 @@ class Estimate:
 
     @property
     def rel_half_width(self) -> float:
-        """Half-width relative to |mean| (inf for a zero mean, NaN when absent)."""
+        """Half-width relative to the modulus of the mean (inf for a zero mean, NaN when absent)."""
         if not (math.isfinite(self.mean) and math.isfinite(self.half_width)):
             return math.nan
         return self.half_width / abs(self.mean) if self.mean != 0 else math.inf
