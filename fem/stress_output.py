@@ -99,7 +99,7 @@ def render_stress(system, values: np.ndarray, path, *, title: str = "", label: s
     """
     from geometry.render import offscreen_plotter
 
-    from .render import _check_window, _shoot, _surface
+    from .render import _check_window, _shoot, _surface, add_triad
 
     path = Path(path)
     if path.suffix.lower() != ".png":
@@ -125,6 +125,7 @@ def render_stress(system, values: np.ndarray, path, *, title: str = "", label: s
                           render_points_as_spheres=True)
         if title:
             pl.add_text(title, position="upper_left", font_size=12, color="black")
+        add_triad(pl)
         _shoot(pl, s, axis_dir, path)
     finally:
         pl.close()
