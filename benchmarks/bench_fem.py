@@ -24,9 +24,11 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import geometry  # noqa: E402
+from _table import print_table  # noqa: E402
 from fem.assembly import assemble  # noqa: E402
 from fem.modal import modal_analysis  # noqa: E402
 from fem.solvers import factorize  # noqa: E402
@@ -138,16 +140,13 @@ def main(argv=None):
             prev = (fr, fa)
 
     print()
-    print("| DOFs | assembly ours s | plain skfem (same quadrature) s | plain skfem (its default quadrature) s "
-          "| factorisation PARDISO s | scipy splu s |")
-    print("|---:|---:|---:|---:|---:|---:|")
-    for n, a, r, rd, f, l in rows:
-        print(f"| {n} | {a:.2f} | {r:.2f} | {rd:.2f} | {f:.2f} | {l:.1f} |")
+    print_table([(str(n), f"{a:.2f}", f"{r:.2f}", f"{rd:.2f}", f"{f:.2f}", f"{l:.1f}") for n, a, r, rd, f, l in rows],
+                ("DOFs", "assembly ours s", "plain skfem (same quadrature) s", "plain skfem (its default quadrature) s",
+                 "factorisation PARDISO s", "scipy splu s"))
     print()
-    print("| case | DOFs | assembly s | factorisation s | eigen s | total s |")
-    print("|---|---:|---:|---:|---:|---:|")
-    print(f"| default design, 12 modes near 20 kHz (short + open) | {res.ndof} | {tt['assembly_s']:.2f} "
-          f"| {tt['factorisation_s']:.2f} | {tt['eigen_s']:.2f} | {t_e2e:.2f} |")
+    print_table([("default design, 12 modes near 20 kHz (short + open)", str(res.ndof), f"{tt['assembly_s']:.2f}",
+                  f"{tt['factorisation_s']:.2f}", f"{tt['eigen_s']:.2f}", f"{t_e2e:.2f}")],
+                ("case", "DOFs", "assembly s", "factorisation s", "eigen s", "total s"))
     return 0
 
 

@@ -14,7 +14,9 @@ whether the 15 s target is met.
 from __future__ import annotations
 
 import argparse
+import sys
 import time
+from pathlib import Path
 
 import geometry.layers
 from geometry.builder import build
@@ -22,6 +24,9 @@ from geometry.design_rpud import default_design
 from geometry.examples import bonded_sandwich
 from geometry.guard import estimate
 from geometry.report import mesh_part_volumes
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from _table import print_table  # noqa: E402
 
 CASES = [
     ("chosen: order 2, Delaunay", dict(order=2, algorithm="delaunay")),
@@ -49,9 +54,9 @@ def main() -> None:
         vols, _ = mesh_part_volumes(tm)
         err = max(abs(vols[p] / closed[p] - 1) for p in closed)
         rows.append((label, best, tm.n_cells, tm.n_points, rep.quality["min_sicn"], rep.quality["median_sicn"], err))
-    print(f"{'case':<38} {'s':>6} {'tets':>7} {'nodes':>7} {'min SICN':>9} {'med SICN':>9} {'vol err %':>9} {'< 5 s':>6}")
-    for label, t, n, p, qmin, qmed, err in rows:
-        print(f"{label:<38} {t:6.2f} {n:7d} {p:7d} {qmin:9.3f} {qmed:9.3f} {err * 100:9.4f} {'yes' if t < 5 else 'no':>6}")
+    print_table([(label, f"{t:.2f}", str(n), str(p), f"{qmin:.3f}", f"{qmed:.3f}", f"{err * 100:.4f}",
+                  "yes" if t < 5 else "no") for label, t, n, p, qmin, qmed, err in rows],
+                ("case", "s", "tets", "nodes", "min SICN", "med SICN", "vol err %", "< 5 s"))
     print()
     sandwich(args.repeat, args.try_free)
 
@@ -60,8 +65,7 @@ def sandwich(repeat: int, try_free: float | None) -> None:
     """The bonded sandwich: structured layers vs the free mesh."""
     design = bonded_sandwich()
     closed = design.part_volumes()
-    print(f"{'bonded sandwich, 55 mm, 2 x 0.275 mm bonds':<44} {'s':>7} {'tets':>9} {'nodes':>8} "
-          f"{'layer tets':>10} {'vol err %':>9} {'< 15 s':>6}")
+    rows = []
     for label, factor in (("chosen: structured layers", 1.0), ("same, one refinement (sizes / 1.5)", 1 / 1.5)):
         best = float("inf")
         for _ in range(repeat):
@@ -70,25 +74,27 @@ def sandwich(repeat: int, try_free: float | None) -> None:
             best = min(best, time.perf_counter() - t0)
         vols, _ = mesh_part_volumes(tm)
         err = max(abs(vols[p] / closed[p] - 1) for p in closed)
-        print(f"{label:<44} {best:7.2f} {tm.n_cells:9d} {tm.n_points:8d} {rep.quality['layer_elements']:10d} "
-              f"{err * 100:9.4f} {'yes' if best < 15 else 'no':>6}")
+        rows.append((label, f"{best:.2f}", str(tm.n_cells), str(tm.n_points), str(rep.quality["layer_elements"]),
+                     f"{err * 100:.4f}", "yes" if best < 15 else "no"))
     ratio = geometry.layers.LAYER_RATIO
     geometry.layers.LAYER_RATIO = 0.0  # no layers: the free mesh of the builder before them
     try:
         est = estimate(design)
-        print(f"{'baseline: free tetrahedra (guard estimate)':<44} {'-':>7} {est.elements:9d} "
-              f"{est.nodes:8d} {0:10d} {'-':>9} {'-':>6}")
+        rows.append(("baseline: free tetrahedra (guard estimate)", "-", str(est.elements), str(est.nodes), "0",
+                     "-", "-"))
         if try_free:
             t0 = time.perf_counter()
             try:
                 tm, _ = build(design, time_limit=try_free)
-                print(f"{'baseline: free tetrahedra':<44} {time.perf_counter() - t0:7.2f} {tm.n_cells:9d} "
-                      f"{tm.n_points:8d} {0:10d} {'-':>9} {'no':>6}")
+                rows.append(("baseline: free tetrahedra", f"{time.perf_counter() - t0:.2f}", str(tm.n_cells),
+                             str(tm.n_points), "0", "-", "no"))
             except Exception as exc:  # noqa: BLE001 - the time limit, reported as a row
-                print(f"{'baseline: free tetrahedra':<44} {'>' + format(try_free, 'g'):>7} "
-                      f"(did not finish: {type(exc).__name__})")
+                rows.append(("baseline: free tetrahedra", f">{try_free:g}", f"(did not finish: {type(exc).__name__})",
+                             "-", "-", "-", "no"))
     finally:
         geometry.layers.LAYER_RATIO = ratio
+    print_table(rows, ("bonded sandwich, 55 mm, 2 x 0.275 mm bonds", "s", "tets", "nodes", "layer tets", "vol err %",
+                       "< 15 s"))
 
 
 if __name__ == "__main__":

@@ -33,6 +33,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from _table import print_table  # noqa: E402
+
 import geometry  # noqa: E402
 from fem.assembly import assemble  # noqa: E402
 from fem.modal import modal_analysis  # noqa: E402
@@ -108,11 +110,11 @@ def main(argv=None):
             rows.append(row)
             print(row, flush=True)
     print()
-    print("| case | DOF | ARPACK + scratch s (factorise / SC eigen / OC eigen; cpu s) | block + seeded s (same) "
-          "| block joint (default) s (same) | joint vs ARPACK | joint vs seeded | max rel. diff f_r | max rel. diff f_a |")
-    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|")
-    for r in rows:
-        print(r)
+    # each row is already a Markdown row: its cells, without the outer pipes
+    print_table([tuple(c.strip() for c in r.strip().strip("|").split("|")) for r in rows],
+                ("case", "DOF", "ARPACK + scratch s (factorise / SC eigen / OC eigen; cpu s)", "block + seeded s (same)",
+                 "block joint (default) s (same)", "joint vs ARPACK", "joint vs seeded", "max rel. diff f_r",
+                 "max rel. diff f_a"))
 
     return 0
 
