@@ -28,7 +28,6 @@ import dataclasses
 import hashlib
 import json
 import logging
-import math
 import os
 import re
 import shutil
@@ -40,7 +39,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Callable
 
-from rpud_common import ParameterError, atomic_folder, write_json
+from rpud_common import ParameterError, atomic_folder, is_finite_number, write_json
 from rpud_common.result import Result
 
 from .study import OUTPUTS, STAGES, Study
@@ -264,15 +263,6 @@ def _bad_record(path: Path, value: Any, why: str) -> ParameterError:
     return ParameterError(f"resume record {path}", value, f"{why}; delete the file or run without --resume")
 
 
-def _is_number(v: Any) -> bool:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        return False
-    try:
-        return math.isfinite(v)
-    except OverflowError:      # an integer beyond the float range
-        return False
-
-
 def _no_constant(name: str):
     raise ValueError(f"{name} is not written by a study (non-finite values are null)")
 
@@ -326,10 +316,10 @@ def _check_field(path: Path, key: str, value: Any) -> None:
         if not isinstance(value, str) or len(value) > _TEXT_FIELDS[key]:
             raise _bad_record(path, value, f"field {key!r} must be text of at most {_TEXT_FIELDS[key]} characters")
     elif key.startswith("in."):
-        if not _is_number(value):
+        if not is_finite_number(value):
             raise _bad_record(path, value, f"field {key!r} must be a finite number")
     elif key in _NUMBER_FIELDS or key.startswith("tuned."):
-        if value is not None and not _is_number(value):
+        if value is not None and not is_finite_number(value):
             raise _bad_record(path, value, f"field {key!r} must be a finite number or null")
     else:
         raise _bad_record(path, key, "has an unknown field")

@@ -51,7 +51,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from rpud_common import ParameterError, check_choice, check_integer, check_range, load_toml
+from rpud_common import ParameterError, check_choice, check_finite, check_integer, check_range, load_toml
 
 __all__ = ["Study", "StudyParameter", "StudySettings", "load_study", "STAGES", "SAMPLINGS", "OUTPUTS"]
 
@@ -232,14 +232,8 @@ _PARAMETER_KEYS = ("values", "range", "n", "tolerance")
 
 
 def _number(where: str, v: Any) -> float:
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise ParameterError(where, v, "must be a finite number")
-    try:
-        x = float(v)
-    except OverflowError:       # an integer beyond the float range
-        raise ParameterError(where, v, "must be a finite number") from None
-    if not math.isfinite(x):
-        raise ParameterError(where, v, "must be a finite number")
+    check_finite(where, v)
+    x = float(v)
     if x != 0 and not 1e-12 <= abs(x) <= 1e12:
         raise ParameterError(where, v, "must be 0 or of magnitude 1e-12 to 1e12 (SI units)")
     return x

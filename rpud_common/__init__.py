@@ -11,7 +11,7 @@ loads no mesh, FE or rendering package.
 from .lazy import exports
 
 _WHERE = {
-    "errors": ("ParameterError", "check_positive", "check_nonnegative", "check_finite", "check_integer",
+    "errors": ("ParameterError", "is_finite_number", "check_positive", "check_nonnegative", "check_finite", "check_integer",
                "check_range", "check_choice"),
     "records": ("MAX_TOML_BYTES", "MAX_TOML_DEPTH", "load_toml", "toml_section", "dump_toml", "from_mapping",
                 "to_mapping", "to_jsonable"),

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ParameterError", "check_positive", "check_nonnegative", "check_finite", "check_integer",
+__all__ = ["ParameterError", "is_finite_number", "check_positive", "check_nonnegative", "check_finite", "check_integer",
            "check_range", "check_choice"]
 
 
@@ -43,21 +43,35 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
 
 
+def is_finite_number(value: Any) -> bool:
+    """True for a real number (not a bool) that is finite as a float.
+
+    An integer beyond the float range (a TOML file may hold one) counts as not finite rather
+    than raising ``OverflowError`` from :func:`math.isfinite`.
+    """
+    if not _is_number(value):
+        return False
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
 def check_positive(name: str, value: Any, unit: str = "") -> None:
     """Raise :class:`ParameterError` unless ``value`` is a finite number > 0."""
-    if not (_is_number(value) and math.isfinite(value) and value > 0):
+    if not (is_finite_number(value) and value > 0):
         raise ParameterError(name, value, f"must be a finite number > 0{' ' + unit if unit else ''}")
 
 
 def check_nonnegative(name: str, value: Any, unit: str = "") -> None:
     """Raise :class:`ParameterError` unless ``value`` is a finite number >= 0."""
-    if not (_is_number(value) and math.isfinite(value) and value >= 0):
+    if not (is_finite_number(value) and value >= 0):
         raise ParameterError(name, value, f"must be a finite number >= 0{' ' + unit if unit else ''}")
 
 
 def check_finite(name: str, value: Any, unit: str = "") -> None:
     """Raise :class:`ParameterError` unless ``value`` is a finite number (any sign)."""
-    if not (_is_number(value) and math.isfinite(value)):
+    if not is_finite_number(value):
         raise ParameterError(name, value, f"must be a finite number{' ' + unit if unit else ''}")
 
 
@@ -74,7 +88,7 @@ def check_integer(name: str, value: Any, minimum: int, maximum: int | None = Non
 def check_range(name: str, value: Any, lo: float, hi: float, unit: str = "",
                 lo_open: bool = False, hi_open: bool = False) -> None:
     """Raise :class:`ParameterError` unless ``lo <= value <= hi`` (bounds optionally open)."""
-    ok = _is_number(value) and math.isfinite(value)
+    ok = is_finite_number(value)
     if ok:
         ok = (value > lo if lo_open else value >= lo) and (value < hi if hi_open else value <= hi)
     if not ok:

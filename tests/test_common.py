@@ -100,3 +100,15 @@ def test_a_toml_integer_too_long_to_convert_is_a_parameter_error(tmp_path):
     path.write_text(f"x = {'9' * (sys.get_int_max_str_digits() + 1)}\n")
     with pytest.raises(ParameterError, match="digits"):
         load_toml(path, "--design")
+
+
+def test_an_integer_beyond_the_float_range_is_not_a_finite_number():
+    """math.isfinite raises OverflowError on such an int; the checks refuse it as a bad value."""
+    from rpud_common import check_finite, check_positive, check_range, is_finite_number
+
+    huge = 10 ** 400
+    assert not is_finite_number(huge) and is_finite_number(3) and not is_finite_number(True)
+    for check in (lambda: check_finite("x", huge), lambda: check_positive("x", huge),
+                  lambda: check_range("x", huge, 0.0, 1.0)):
+        with pytest.raises(ParameterError, match="x = "):
+            check()
