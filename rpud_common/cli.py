@@ -16,7 +16,7 @@ import typing
 from collections.abc import Callable, Mapping
 from typing import Any
 
-from .errors import ParameterError
+from .errors import ParameterError, is_finite_number
 from .launch import (
     Terminated, _quiet_unraisable, clear_pending, forget_interrupt, handle, on_sigint, on_sigterm, pending_signal, raise_pending, settle,
     signals_held,
@@ -312,12 +312,10 @@ def check_zero_or_range(name: str, value: float, lo: float, hi: float, unit: str
     For options where 0 switches something off or picks an automatic value (``--ring-up 0``: six
     time constants) while a tiny positive value is a typo, not a request.
     """
-    if isinstance(value, (int, float)) and not isinstance(value, bool) and value == 0:
+    if is_finite_number(value) and (value == 0 or lo <= value <= hi):
         return
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) and lo <= value <= hi
-    if not ok:
-        unit_text = f" {unit}" if unit else ""
-        raise ParameterError(name, value, f"must be 0{f' ({zero})' if zero else ''} or in [{lo:g}, {hi:g}]{unit_text}")
+    unit_text = f" {unit}" if unit else ""
+    raise ParameterError(name, value, f"must be 0{f' ({zero})' if zero else ''} or in [{lo:g}, {hi:g}]{unit_text}")
 
 
 # --------------------------------------------------------------------------- the inputs a run used
