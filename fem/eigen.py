@@ -445,6 +445,9 @@ def rigid_basis(system, free, M=None):
     """M-orthonormal rigid-body modes (3 translations, 3 rotations; zero potential) on ``free``
     (``M``: the mass restricted to ``free``, sliced here when not given)."""
     x0 = system.nodes.mean(axis=0)
+    motions = list(getattr(system, "rigid_motions", range(6)))
+    if len(motions) < 6:            # a sector's fields: rotations about the drill's axis, x = y = 0
+        x0[:2] = 0.0
     r = system.nodes - x0
     R = np.zeros((system.ndof, 6))
     for c in range(3):
@@ -453,7 +456,8 @@ def rigid_basis(system, free, M=None):
         w = np.zeros(3)
         w[c] = 1.0
         R[: system.n_u, 3 + c] = np.cross(w, r).ravel()
-    R = R[free]
+    # a system restricted to some fields keeps the rigid motions they hold (fem.sector_system)
+    R = R[free][:, motions]
     if M is None:
         M = system.M[free][:, free]
     G = R.T @ (M @ R)

@@ -153,7 +153,9 @@ def surface_functional(system: PiezoSystem, name: str) -> SurfaceFunctional:
     :func:`fem.modeshape.surface_rows` (about the z axis) on the u DOFs, zero on the potential."""
     rows, area = surface_rows(system, name)
     rows = rows.tocoo()
-    return SurfaceFunctional(name, area, sp.csr_matrix((rows.data, (rows.row, rows.col)), shape=(3, system.ndof)))
+    out = sp.csr_matrix((rows.data, (rows.row, rows.col)), shape=(3, system.ndof))
+    tie = getattr(system, "tie", None)            # a sector system's vectors hold its unknowns only
+    return SurfaceFunctional(name, area, out if tie is None else (out @ tie).tocsr())
 
 
 def _charge_row(system: PiezoSystem, L: sp.csr_matrix) -> np.ndarray:

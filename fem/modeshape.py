@@ -226,8 +226,10 @@ def mass_matrix(mesh, part: str | None = None) -> sp.csr_matrix:
         return _masses(mesh)[None]
     M = _SYSTEM_MASS.get(mesh)
     if M is None:
-        # THE matrix of the system: its displacement block is M (x) I_3 (u DOF 3 k + c)
-        M = _SYSTEM_MASS[mesh] = mesh.M[0:mesh.n_u:3, 0:mesh.n_u:3].tocsr()
+        # THE matrix of the system: its displacement block is M (x) I_3 (u DOF 3 k + c); a
+        # fem.sector_system.SectorSystem's shapes are its sector's fields, whose mass that is
+        own = getattr(mesh, "sector", None) or mesh
+        M = _SYSTEM_MASS[mesh] = own.M[0:own.n_u:3, 0:own.n_u:3].tocsr()
     return M
 
 
@@ -435,9 +437,13 @@ def _slab_fit(fr: _Frame, w: np.ndarray, y: np.ndarray, cols: np.ndarray,
     return out
 
 
-def _decompose(fr: _Frame, w: np.ndarray, u: np.ndarray) -> dict[str, np.ndarray]:
+def _decompose(fr: _Frame, w: np.ndarray, u: np.ndarray, axisymmetric: bool = False) -> dict[str, np.ndarray]:
     """Split (k, n, 3) shapes into scalar nodal fields per category, (k, n, c) each (the
-    category's energy is the sum over its c fields); ``w`` are the slab-fit weights."""
+    category's energy is the sum over its c fields); ``w`` are the slab-fit weights.
+
+    ``axisymmetric``: the shapes are one sector's of fields unchanged by the drill's symmetry
+    (:mod:`fem.sector_system`), which hold no m = 1 motion: no translation or tilt is fitted (on
+    a sector they would not be orthogonal to the twist and the breathing)."""
     u1, u2, ua = u @ fr.e1, u @ fr.e2, u @ fr.d           # (k, n) each
     n = len(fr.s)
     one, zero = np.ones(n), np.zeros(n)
@@ -445,15 +451,19 @@ def _decompose(fr: _Frame, w: np.ndarray, u: np.ndarray) -> dict[str, np.ndarray
     cos, sin = fr.er @ fr.e1, fr.er @ fr.e2
     # in-plane model per slab: translation (m = 1), twist r (c0 + c1 r + c2 r^2) e_theta (m = 0),
     # breathing r (d0 + d1 r + d2 r^2) e_r (m = 0)
-    cols = [np.column_stack([one, zero]), np.column_stack([zero, one])]
+    cols = [] if axisymmetric else [np.column_stack([one, zero]), np.column_stack([zero, one])]
     for p in (1, 2, 3):
         cols.append(np.column_stack([-sin, cos]) * rho[:, None] ** p)
     for p in (1, 2, 3):
         cols.append(np.column_stack([cos, sin]) * rho[:, None] ** p)
+    m1 = 0 if axisymmetric else 2
     trans, twist = _slab_fit(fr, w, np.stack([u1, u2], axis=-1), np.stack(cols, axis=-1),
-                             [[0, 1], [2, 3, 4]])
-    # axial model per slab: piston + tilt (m = 1 of the axial motion, the section rotation)
-    (tilt,) = _slab_fit(fr, w, ua[:, :, None], np.stack([one, fr.xi, fr.eta], axis=-1)[:, None, :], [[1, 2]])
+                             [list(range(m1)), [m1, m1 + 1, m1 + 2]])
+    if axisymmetric:
+        tilt = np.zeros(ua.shape + (1,), dtype=np.result_type(ua, float))
+    else:
+        # axial model per slab: piston + tilt (m = 1 of the axial motion, the section rotation)
+        (tilt,) = _slab_fit(fr, w, ua[:, :, None], np.stack([one, fr.xi, fr.eta], axis=-1)[:, None, :], [[1, 2]])
     bending = trans[:, :, 0, None] * fr.e1 + trans[:, :, 1, None] * fr.e2 + tilt * fr.d
     va, vt, vr = _project(fr, u - bending)
     tors = -twist[:, :, 0] * sin + twist[:, :, 1] * cos
@@ -552,19 +562,22 @@ class ModeShares:
         return out
 
 
-def _rigid_modes(nodes: np.ndarray) -> np.ndarray:
-    """The six rigid-body fields (3 translations, 3 rotations about the centroid), (6, n, 3)."""
+def _rigid_modes(nodes: np.ndarray, axisymmetric: bool = False) -> np.ndarray:
+    """The six rigid-body fields (3 translations, 3 rotations about the centroid), (6, n, 3);
+    ``axisymmetric``: the two a sector's axisymmetric fields hold (along and about the z axis)."""
     x = nodes - nodes.mean(axis=0)
+    if axisymmetric:
+        x[:, :2] = nodes[:, :2]
     R = np.zeros((6, len(x), 3))
     for c in range(3):
         R[c, :, c] = 1.0
         R[3 + c] = np.cross(np.eye(3)[c], x) / max(np.abs(x).max(), 1e-300)
-    return R
+    return R[[2, 5]] if axisymmetric else R
 
 
-def _rigid_fraction(M, nodes: np.ndarray, u: np.ndarray) -> np.ndarray:
+def _rigid_fraction(M, nodes: np.ndarray, u: np.ndarray, axisymmetric: bool = False) -> np.ndarray:
     """Energy fraction of each shape in span{3 translations, 3 rotations} (mass metric)."""
-    R = _rigid_modes(nodes)
+    R = _rigid_modes(nodes, axisymmetric)
     C = _gram(M, R, u)                                   # (6, k)
     proj = np.real(np.einsum("pk,pk->k", np.conj(C), np.linalg.solve(np.real(_gram(M, R, R)), C)))
     return _ratio(proj, _energy(M, u))
@@ -594,7 +607,8 @@ def energy_shares(mesh, shapes, *, axis_point=(0.0, 0.0), axis_dir=(0.0, 0.0, 1.
     u = check_shapes(mesh, shapes)
     M = mass_matrix(mesh)
     parts = {p: Mp for p, Mp in _masses(mesh).items() if p is not None}
-    fields = _decompose(_frame(mesh, axis_point, axis_dir), np.maximum(M.diagonal(), 0.0), u)
+    axisymmetric = getattr(mesh, "sector", None) is not None           # fem.sector_system
+    fields = _decompose(_frame(mesh, axis_point, axis_dir), np.maximum(M.diagonal(), 0.0), u, axisymmetric)
 
     def shares_in(Mp):
         E = {c: _energy(Mp, f) for c, f in fields.items()}
@@ -605,7 +619,7 @@ def energy_shares(mesh, shapes, *, axis_point=(0.0, 0.0), axis_dir=(0.0, 0.0, 1.
     cart = _energy(M, u)
     return ModeShares(overall=overall, parts={p: shares_in(Mp)[0] for p, Mp in parts.items()},
                       part_energy={p: _ratio(_energy(Mp, u), cart) for p, Mp in parts.items()},
-                      rigid=_rigid_fraction(M, _context(mesh).nodes, u),
+                      rigid=_rigid_fraction(M, _context(mesh).nodes, u, axisymmetric),
                       closure=_ratio(tot, cart, empty=1.0), energy=cart)
 
 

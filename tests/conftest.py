@@ -113,6 +113,7 @@ SLOW: tuple[str, ...] = (
     "tests/test_impact_stats.py::test_cli_statistics_json",
     "tests/test_impact_stats.py::test_cli_sweep_one_mass_writes_json_and_csv",
     "tests/test_layout.py::test_import_graph_is_one_way_and_acyclic",
+    "tests/test_sector_system.py",
     "tests/test_mesh_grading.py",
     "tests/test_no_history.py",
     "tests/test_notches.py::test_grading_puts_the_edge_size_along_the_apex_lines",
