@@ -14,7 +14,7 @@ from rpud_common import (CliParser, ParameterError, check_output_paths, check_ra
                          setup_logging, write_json)
 from rpud_common.cli import check_given, check_usual, echo_inputs, quantity
 
-from .cli import REL_TOL_RANGE, _add_output_flags, _real, _threads, masses_text, warn_first
+from .options import REL_TOL_RANGE, add_output_flags, masses_text, real_number, set_threads, warn_first
 from .drilling import DrillParams, DrillSettings, DrillSweep, drilling_sweep
 from .params import ImpactParams
 from .rock import RockLaw
@@ -37,25 +37,25 @@ def build_parser() -> CliParser:
                                "the tool a rigid collar on an elastic rod, a bilinear bit-rock law with a crushing "
                                "threshold. Means with 95 %% CIs over seeded members; depth = rate x drilling time.")
     ap.add_argument("--load", choices=["rock"], required=True, help="load scenario (rock: bit on rock)")
-    ap.add_argument("--wob", type=_real, default=None, metavar="N",
+    ap.add_argument("--wob", type=real_number, default=None, metavar="N",
                     help=f"weight on bit, N (default {WOB:g}, the article's)")
     ap.add_argument("--m-free", default="0,0.001,0.002,0.003,0.004,0.005,0.006,0.007,0.008", metavar="M1,M2,..",
                     help="free masses, kg; 0 = none (default 0-8 g in 1 g steps)")
-    ap.add_argument("--a0", "--A0", dest="a0", type=_real, default=15e-6, metavar="M",
+    ap.add_argument("--a0", "--A0", dest="a0", type=real_number, default=15e-6, metavar="M",
                     help="horn-tip amplitude, m (default 15e-6, Table 1; the pipeline passes its loaded FE value)")
-    ap.add_argument("--freq", type=_real, default=19.95e3, metavar="HZ", help="drive frequency, Hz (default 19950)")
-    ap.add_argument("--k-load", type=_real, default=RockLaw().k_load, metavar="N/M", help="rock loading stiffness, N/m")
-    ap.add_argument("--k-unload", type=_real, default=RockLaw().k_unload, metavar="N/M", help="rock unloading stiffness, N/m")
-    ap.add_argument("--f-threshold", type=_real, default=RockLaw().f_threshold, metavar="N",
+    ap.add_argument("--freq", type=real_number, default=19.95e3, metavar="HZ", help="drive frequency, Hz (default 19950)")
+    ap.add_argument("--k-load", type=real_number, default=RockLaw().k_load, metavar="N/M", help="rock loading stiffness, N/m")
+    ap.add_argument("--k-unload", type=real_number, default=RockLaw().k_unload, metavar="N/M", help="rock unloading stiffness, N/m")
+    ap.add_argument("--f-threshold", type=real_number, default=RockLaw().f_threshold, metavar="N",
                     help="rock crushing threshold force, N")
-    ap.add_argument("--rod-length", type=_real, default=ToolRod().length, metavar="M", help="tool rod length, m")
-    ap.add_argument("--rod-diameter", type=_real, default=ToolRod().diameter, metavar="M", help="tool rod diameter, m")
+    ap.add_argument("--rod-length", type=real_number, default=ToolRod().length, metavar="M", help="tool rod length, m")
+    ap.add_argument("--rod-diameter", type=real_number, default=ToolRod().diameter, metavar="M", help="tool rod diameter, m")
     ap.add_argument("--cells", type=int, default=ToolRod().cells, metavar="N",
                     help="rod segments (time step = length / (cells c)); default 32")
-    ap.add_argument("--drill-time", type=_real, default=300.0, metavar="S", help="drilling time for the depth, s (300)")
-    ap.add_argument("--t-from", type=_real, default=0.02, metavar="S", help="start of the statistics window, s")
-    ap.add_argument("--t-end", type=_real, default=0.22, metavar="S", help="end of the statistics window, s")
-    ap.add_argument("--rel-tol", type=_real, default=0.05, metavar="R",
+    ap.add_argument("--drill-time", type=real_number, default=300.0, metavar="S", help="drilling time for the depth, s (300)")
+    ap.add_argument("--t-from", type=real_number, default=0.02, metavar="S", help="start of the statistics window, s")
+    ap.add_argument("--t-end", type=real_number, default=0.22, metavar="S", help="end of the statistics window, s")
+    ap.add_argument("--rel-tol", type=real_number, default=0.05, metavar="R",
                     help="grow members until drilling and blow rates have 95%% CIs within R (default 0.05)")
     ap.add_argument("--max-members", type=int, default=512, metavar="N", help="member cap per mass (512)")
     ap.add_argument("--seed", type=int, default=20260, metavar="N", help="seed of the members (20260)")
@@ -63,7 +63,7 @@ def build_parser() -> CliParser:
     ap.add_argument("--no-load-ke", action="store_true", help="skip the no-load tool KE column")
     ap.add_argument("--json", metavar="PATH", help="write the table and parameters as JSON")
     ap.add_argument("--plots", metavar="DIR", help="write depth_vs_free_mass.png here")
-    _add_output_flags(ap)
+    add_output_flags(ap)
     return ap
 
 
@@ -128,7 +128,7 @@ def main(argv) -> int:
             raise ParameterError("m_free", m, f"must leave a positive housing mass (m_drill {p.m_drill:g} kg)")
     settings = DrillSettings(rel_tol=ns.rel_tol, n_start=min(16, ns.max_members), n_max=ns.max_members, seed=ns.seed)
     check_output_paths(folders=("plots",), json=ns.json, plots=ns.plots)
-    _threads(ns.threads)
+    set_threads(ns.threads)
     _warn_unusual(ap.prog, p, masses)
     echo_inputs(_inputs(p, masses, settings), ns.quiet)
     say = None if ns.no_progress or ns.quiet else (lambda m: print(m, flush=True))

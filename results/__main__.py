@@ -76,7 +76,7 @@ def check_options(args) -> None:
     from geometry.options import check_design_options
 
     check_design_options(args)
-    from impact.cli import REL_TOL_RANGE
+    from impact.options import REL_TOL_RANGE
 
     check_range("--rel-tol", args.rel_tol, *REL_TOL_RANGE)
     from impact.stats import MAX_MEMBERS

@@ -1,8 +1,8 @@
 """``python -m impact --horn fem``: the impact model with the FE transducer in the loop.
 
-``impact`` may not import ``fem``; its entry point hands ``--horn fem`` to this module (by name),
-which builds the reduced transducer from the design (:func:`results.coupled.build_transducer`)
-and runs the coupled model (:mod:`impact.coupled`). Outputs:
+``impact``'s library may not import ``fem``; its command (:mod:`impact.__main__`) hands
+``--horn fem`` to this one, which builds the reduced transducer from the design
+(:func:`results.coupled.build_transducer`) and runs the coupled model (:mod:`impact.coupled`). Outputs:
 
 * the ring-up from rest with the free mass in place (``--history`` s): tip displacement history,
   running amplitude envelope (fundamental over 4-cycle windows), energy balance per interval,
@@ -29,7 +29,7 @@ HISTORY = 0.05
 
 
 def _parser() -> CliParser:
-    from impact.cli import _add_params, _real
+    from impact.options import add_model_options, real_number
 
     ap = CliParser(prog="python -m impact --horn fem",
                    description="Impact model with the FE transducer in the loop: the design's modes that carry "
@@ -39,32 +39,32 @@ def _parser() -> CliParser:
     from geometry.options import add_design_options
 
     add_design_options(ap, include=("design", "materials"), metavar="TOML")
-    ap.add_argument("--voltage", type=_real, default=225.0, metavar="V", help="drive amplitude, V (default 225)")
-    ap.add_argument("--series-resistance", dest="series_resistance", type=_real, default=0.0, metavar="OHM",
+    ap.add_argument("--voltage", type=real_number, default=225.0, metavar="V", help="drive amplitude, V (default 225)")
+    ap.add_argument("--series-resistance", dest="series_resistance", type=real_number, default=0.0, metavar="OHM",
                     help="source resistance in series with the electrodes, ohm (default 0: voltage drive; > 0: the "
                          "electrode voltage follows the charge, with the resistor's loss in the energy balance)")
-    ap.add_argument("--freq", type=_real, default=None, metavar="HZ",
+    ap.add_argument("--freq", type=real_number, default=None, metavar="HZ",
                     help="drive frequency, Hz (default: the working mode's resonance)")
-    ap.add_argument("--q-mech", type=_real, default=100.0, metavar="Q",
+    ap.add_argument("--q-mech", type=real_number, default=100.0, metavar="Q",
                     help="assembled-transducer quality factor (default 100; 0 = datasheet losses)")
     ap.add_argument("--modes", type=int, default=None, metavar="N",
                     help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
     ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
-    add_design_options(ap, include=("mesh_size", "refine", "grade"), number_type=_real)
+    add_design_options(ap, include=("mesh_size", "refine", "grade"), number_type=real_number)
     ap.add_argument("--contact", choices=["newton", "hunt-crossley"], default="newton",
                     help="horn contact: newton = instantaneous impact with restitution e2 (default); hunt-crossley = "
                          "Hertz contact (horn material vs a steel sphere of the free mass) with Hunt-Crossley damping "
                          "matching e2, integrated through each contact (statistics only: no history)")
-    ap.add_argument("--history", type=_real, default=None, metavar="S",
+    ap.add_argument("--history", type=real_number, default=None, metavar="S",
                     help=f"length of the ring-up history from rest with the free mass in place, s (default "
                          f"{HISTORY:g}; not with --contact hunt-crossley)")
-    _add_params(ap, skip=("A0", "freq", "m_horn"))
+    add_model_options(ap, skip=("A0", "freq", "m_horn"))
     ap.add_argument("--json", metavar="PATH", help="write the reduced transducer, history summary, energy balance "
                                                    "and statistics as JSON")
     ap.add_argument("--history-csv", dest="history_csv", metavar="PATH",
                     help="write the ring-up history sampled every --sample-dt (tip, free mass, tool face, drive "
                          "voltage and current) as CSV")
-    ap.add_argument("--sample-dt", dest="sample_dt", type=_real, default=None, metavar="S",
+    ap.add_argument("--sample-dt", dest="sample_dt", type=real_number, default=None, metavar="S",
                     help="sample spacing of the history, s (default 2.5e-6)")
     ap.add_argument("--plots", metavar="DIR", help="write tip_envelope.png and displacement.png here")
     return ap
@@ -74,7 +74,7 @@ def _check(ns):
     """Every option checked before any work: ``(params, scenario, settings)`` of the impacts."""
     from geometry.options import check_design_options
 
-    from impact.cli import _check_horn_mass, _params, _scenario, _settings
+    from impact.options import check_horn_mass, params_from_options, scenario_from_options, settings_from_options
 
     check_range("--voltage", ns.voltage, 1e-3, 1e4, "V")
     check_zero_or_range("--series-resistance", ns.series_resistance, 1e-3, 1e6, "ohm", "voltage drive")
@@ -89,10 +89,10 @@ def _check(ns):
         check_range("--history", ns.history, 1e-4, 1.0, "s")
     if ns.horn_law not in (None, "kinematic"):
         raise ParameterError("--horn-law", ns.horn_law, "must be kinematic with --horn fem (the modes carry the mass)")
-    p = _params(ns)
-    _check_horn_mass(ns, p)
-    sc = _scenario(ns, p)
-    settings = _settings(ns)
+    p = params_from_options(ns)
+    check_horn_mass(ns, p)
+    sc = scenario_from_options(ns, p)
+    settings = settings_from_options(ns)
     if ns.sample_dt is not None:
         check_range("--sample-dt", ns.sample_dt, 1e-8, 1e-4, "s")
         p = p.with_(sample_dt=ns.sample_dt)
@@ -116,7 +116,7 @@ def _check_compliant(ns) -> None:
 
 def _inputs(ns, design, p, sc, settings) -> dict:
     """The run's inputs for the inputs line."""
-    from impact.cli import param_items, scenario_items
+    from impact.options import param_items, scenario_items
 
     items = {"design": design.name, "voltage": quantity(ns.voltage, "V")}
     if ns.series_resistance > 0:
@@ -137,7 +137,7 @@ def main(argv=None) -> int:
     ap = _parser()
     ns = ap.parse_args(argv)
     check_given(ap, ns)
-    from impact.cli import _print_stats, _progress, _quiet, _threads, _warn_unusual
+    from impact.options import is_quiet, progress_printer, set_threads, stats_lines, warn_unusual
 
     from geometry.options import design_from_options, design_inputs, mesh_options
 
@@ -145,7 +145,7 @@ def main(argv=None) -> int:
     history = ns.history or HISTORY
     check_output_paths(inputs={"--config": ns.config, **design_inputs(ns)}, folders=("plots",), json=ns.json,
                        plots=ns.plots, history_csv=ns.history_csv)
-    _threads(ns.threads)
+    set_threads(ns.threads)
     from geometry.guard import check_budget
 
     from impact.coupled import COUPLED_QUANTITIES, coupled_batch
@@ -154,10 +154,10 @@ def main(argv=None) -> int:
 
     design = design_from_options(ns)
     check_budget(design, ns.mesh_size, **mesh_options(ns))
-    _warn_unusual(ap.prog, ns, p, skip=("A0", "freq"))
+    warn_unusual(ap.prog, ns, p, skip=("A0", "freq"))
     check_usual(ap.prog, "--voltage", ns.voltage, "voltage")
-    echo_inputs(_inputs(ns, design, p, sc, settings), _quiet(ns))
-    say = _progress(ns) or (lambda msg: None)
+    echo_inputs(_inputs(ns, design, p, sc, settings), is_quiet(ns))
+    say = progress_printer(ns) or (lambda msg: None)
     say("[1/3] FE transducer")
     fe = build_transducer(design, voltage=ns.voltage, q_mech=None if ns.q_mech == 0 else ns.q_mech,
                           freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say,
@@ -178,10 +178,10 @@ def main(argv=None) -> int:
             print(line)
     say(f"[3/3] statistics, {sc.name} scenario, steady operation")
     horn = horn_from_reduced(fe.reduced, ns.voltage, start="steady", series_resistance=ns.series_resistance)
-    st = coupled_batch([p], horn, sc, settings, progress=_progress(ns), contact=contact)[0]
+    st = coupled_batch([p], horn, sc, settings, progress=progress_printer(ns), contact=contact)[0]
     if st.failed:
         raise ParameterError("gap", p.gap, st.note)
-    _print_stats(st)
+    print("\n".join(stats_lines(st)))
     for name, unit, text in COUPLED_QUANTITIES:
         scale, u = {"m": (1e6, "um"), "W": (1.0, "W")}[unit]
         print(f"  {text:<66} {st.estimates[name].scaled(scale)} {u}")

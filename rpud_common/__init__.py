@@ -20,7 +20,7 @@ _WHERE = {
     "figures": ("subplots", "save_figure", "axes_or_new"),
     "result": ("Result",),
     "cli": ("CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running"),
-    "launch": ("Terminated",),
+    "signals": ("Terminated",),
     "provenance": ("__version__", "provenance_record"),
 }
 # loaded on first use: an entry point imports rpud_common.launch (standard library only) before

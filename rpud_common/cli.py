@@ -17,8 +17,8 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 from .errors import ParameterError, is_finite_number
-from .launch import (
-    Terminated, _quiet_unraisable, clear_pending, forget_interrupt, handle, on_sigint, on_sigterm, pending_signal, raise_pending, settle,
+from .signals import (
+    Terminated, quiet_unraisable, clear_pending, forget_interrupt, handle, on_sigint, on_sigterm, pending_signal, raise_pending, settle,
     signals_held,
 )
 
@@ -164,7 +164,7 @@ def run_cli(main: Callable[[list[str] | None], int | None], argv: list[str] | No
     if in_main:
         saved[signal.SIGTERM] = handle(signal.SIGTERM, on_sigterm)
         saved[signal.SIGINT] = handle(signal.SIGINT, on_sigint)
-        sys.unraisablehook = _quiet_unraisable
+        sys.unraisablehook = quiet_unraisable
     try:
         code = _run_main(main, argv, prog)
     except BaseException as exc:

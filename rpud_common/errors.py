@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["ParameterError", "is_finite_number", "check_positive", "check_nonnegative", "check_finite", "check_integer",
+__all__ = ["ParameterError", "is_real_number", "is_finite_number", "check_positive", "check_nonnegative", "check_finite", "check_integer",
            "check_range", "check_choice"]
 
 
@@ -39,7 +39,8 @@ class ParameterError(ValueError):
         super().__init__(f"{name} = {shown}: {allowed}")
 
 
-def _is_number(value: Any) -> bool:
+def is_real_number(value: Any) -> bool:
+    """True for an int or float (numpy's too) that is not a bool; finite or not."""
     return isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
 
 
@@ -49,7 +50,7 @@ def is_finite_number(value: Any) -> bool:
     An integer beyond the float range (a TOML file may hold one) counts as not finite rather
     than raising ``OverflowError`` from :func:`math.isfinite`.
     """
-    if not _is_number(value):
+    if not is_real_number(value):
         return False
     try:
         return math.isfinite(value)

@@ -19,12 +19,12 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ParameterError
-from .launch import raise_pending, signals_held
+from .signals import raise_pending, signals_held
 from .provenance import provenance_record
 from .records import to_jsonable
 
 __all__ = ["atomic_output", "atomic_write_text", "json_text", "write_json", "NAME_MAX", "PATH_MAX",
-           "check_output_paths", "atomic_folder"]
+           "check_output_paths", "atomic_folder", "null_nonfinite"]
 
 
 def _umask() -> int:
@@ -97,13 +97,14 @@ def _nonfinite(obj: Any, where: str) -> tuple[str, float] | None:
     return None
 
 
-def _null_nonfinite(obj: Any) -> Any:
+def null_nonfinite(obj: Any) -> Any:
+    """``obj`` with every non-finite float (in nested dicts and lists) replaced by None (JSON null)."""
     if isinstance(obj, float):
         return obj if math.isfinite(obj) else None
     if isinstance(obj, Mapping):
-        return {k: _null_nonfinite(v) for k, v in obj.items()}
+        return {k: null_nonfinite(v) for k, v in obj.items()}
     if isinstance(obj, list):
-        return [_null_nonfinite(v) for v in obj]
+        return [null_nonfinite(v) for v in obj]
     return obj
 
 
@@ -129,7 +130,7 @@ def json_text(data: Any, nonfinite: str = "error", name: str = "json", provenanc
     if provenance and isinstance(obj, dict) and "provenance" not in obj:
         obj = {**obj, "provenance": provenance_record()}
     if nonfinite == "null":
-        obj = _null_nonfinite(obj)
+        obj = null_nonfinite(obj)
     else:
         hit = _nonfinite(obj, "")
         if hit:

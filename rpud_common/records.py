@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import ParameterError, _is_number, check_choice
+from .errors import ParameterError, check_choice, is_real_number
 
 __all__ = ["MAX_TOML_BYTES", "MAX_TOML_DEPTH", "load_toml", "toml_section", "dump_toml", "from_mapping",
            "to_mapping", "to_jsonable"]
@@ -153,7 +153,7 @@ def _convert(value: Any, hint: Any, where: str) -> Any:
         check_choice(where, value, args)
         return value
     if hint is float:
-        if not _is_number(value):
+        if not is_real_number(value):
             raise ParameterError(where, value, "must be a number")
         try:
             number = float(value)

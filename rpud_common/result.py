@@ -20,7 +20,7 @@ import os
 import re
 from pathlib import Path
 
-from .files import _null_nonfinite, atomic_output, write_json
+from .files import atomic_output, null_nonfinite, write_json
 from .records import to_jsonable
 
 __all__ = ["Result"]
@@ -49,7 +49,7 @@ class Result:
 
     def to_dict(self) -> dict:
         """The result as JSON-safe plain data (SI units; ``None`` where a value is undefined)."""
-        return _null_nonfinite(to_jsonable(self._record()))
+        return null_nonfinite(to_jsonable(self._record()))
 
     def save(self, folder: str | os.PathLike, name: str | None = None) -> Path:
         """Write ``<name>.json`` (:meth:`to_dict`) and, if the result has arrays, ``<name>.npz``

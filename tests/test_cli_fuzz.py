@@ -312,7 +312,7 @@ IMPACT_OPTS = {**{o: IMPACT_FLOATS for o in _IMPACT_FIELDS},
 @settings(max_examples=EXAMPLES["impact"], **_SETTINGS)
 @given(st.one_of(_options(IMPACT_OPTS), _bad_outputs(["--json", "--plots"], {"--json": ".json"})))
 def test_impact_cli_refuses_cleanly(argv):
-    from impact.cli import main
+    from impact.__main__ import main
 
     run_clean(main, argv + ["--t-end", "0.001"] if "--t-end" not in argv else argv)
 
@@ -324,7 +324,7 @@ def test_impact_cli_refuses_cleanly(argv):
     _bad_outputs(["--json", "--csv", "--plots"], {"--json": ".json", "--csv": ".csv"}).map(
         lambda a: ["--m-free", "0.004", "--t-end", "0.001"] + a)))
 def test_impact_sweep_cli_refuses_cleanly(argv):
-    from impact.cli import main
+    from impact.__main__ import main
 
     run_clean(main, ["sweep", "--no-progress"] + argv)
 
@@ -336,7 +336,7 @@ def test_impact_sweep_cli_refuses_cleanly(argv):
                         ["--out", "o", "--config", "missing.toml"], ["--out", "o", "--config", "afile"],
                         ["--out", "o", "--config", "adir"], ["--out", "o", "--config", ""]]))
 def test_impact_article_cli_refuses_cleanly(argv):
-    from impact.cli import main
+    from impact.__main__ import main
 
     run_clean(main, ["article"] + argv)
 
@@ -363,6 +363,6 @@ def hostile_config(draw):
 @given(hostile_config(), st.sampled_from([[], ["sweep", "--m-free", "0.004", "--no-progress"],
                                           ["article", "--out", "o"]]))
 def test_impact_config_files_are_refused_cleanly(data, head):
-    from impact.cli import main
+    from impact.__main__ import main
 
     run_clean(main, head + ["--config", "c.toml"], setup=_toml_writer(data, "c.toml"))

@@ -26,7 +26,7 @@ from test_cli_fuzz import run_clean
 
 
 def _impact(argv):
-    from impact.cli import main
+    from impact.__main__ import main
 
     return main(argv)
 

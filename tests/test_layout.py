@@ -1,8 +1,14 @@
 """Layout: the import graph is one-way (rpud_common -> geometry -> fem -> results, impact apart
-from geometry and fem) and acyclic, and ``import impact`` loads no mesh, FE or rendering package.
+from geometry and fem) and acyclic, commands sit on top of it, and ``import impact`` loads no
+mesh, FE or rendering package.
 
-The graph is read from the source (every ``import`` statement, also those inside functions),
-so a lazy import counts as an arrow too."""
+The graph is read from the source (every ``import`` statement, also those inside functions, and
+every import by a constant string: ``importlib.import_module("x")``, ``__import__("x")``,
+``launch("x")``), so a lazy import counts as an arrow too.
+
+Commands are the top layer: a package's ``__main__`` module, its ``*_cli`` modules, the code under
+an ``if __name__ == "__main__":`` guard and the console scripts (``rpud_common.entry``). A
+command may import any package; a library module may import no command."""
 
 import ast
 import subprocess
@@ -13,7 +19,7 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("rpud_common", "geometry", "fem", "impact", "results")
-#: which packages each package may import (besides itself)
+#: which packages each package's library may import (besides itself)
 ALLOWED = {
     "rpud_common": set(),
     "geometry": {"rpud_common"},
@@ -21,6 +27,18 @@ ALLOWED = {
     "impact": {"rpud_common"},
     "results": {"rpud_common", "geometry", "fem", "impact"},
 }
+CONSOLE_SCRIPTS = "rpud_common.entry"
+#: the part of a module that runs only as a program (its ``if __name__ == "__main__":`` block)
+GUARD = ":__main__"
+#: calls whose constant first argument names a module they import
+STRING_IMPORTERS = ("import_module", "__import__", "launch")
+
+
+def is_command(module: str) -> bool:
+    """True for a module (or guard block) of the command layer."""
+    last = module.rpartition(".")[2]
+    return (module.endswith(GUARD) or last == "__main__" or last.endswith("_cli")
+            or module == CONSOLE_SCRIPTS)
 
 
 def _modules() -> dict[str, Path]:
@@ -44,32 +62,81 @@ def _resolve(name: str, mods) -> str | None:
     return None
 
 
-def import_graph() -> dict[str, set[str]]:
-    """Project module -> the project modules it imports anywhere in its source."""
+def _is_main_guard(node) -> bool:
+    """``if __name__ == "__main__":``"""
+    t = getattr(node, "test", None)
+    return (isinstance(node, ast.If) and isinstance(t, ast.Compare) and isinstance(t.left, ast.Name)
+            and t.left.id == "__name__" and len(t.comparators) == 1
+            and getattr(t.comparators[0], "value", None) == "__main__")
+
+
+def _string_import(node) -> str | None:
+    """The module a call imports by a constant string, or None."""
+    if not (isinstance(node, ast.Call) and node.args):
+        return None
+    f = node.func
+    name = f.attr if isinstance(f, ast.Attribute) else getattr(f, "id", None)
+    arg = node.args[0]
+    if name in STRING_IMPORTERS and isinstance(arg, ast.Constant) and isinstance(arg.value, str):
+        return arg.value
+    return None
+
+
+def _imported_names(node, here: str) -> tuple[str, list[str]]:
+    """(module, names) of an ``import`` or ``from ... import`` statement; module absolute."""
+    if isinstance(node, ast.Import):
+        return "", [a.name for a in node.names]
+    base = here.split(".")
+    stem = node.module or ""
+    if node.level:
+        base = base[: len(base) - (node.level - 1)]
+        stem = ".".join(base + ([node.module] if node.module else []))
+    return stem, [a.name for a in node.names]
+
+
+def module_imports(name: str, source: str, mods) -> dict[str, dict[str, set[str]]]:
+    """What module ``name`` imports: ``{part: {"code": modules, "string": modules}}``.
+
+    ``part`` is ``name``, or ``name + GUARD`` for the imports under its ``__main__`` guard."""
+    tree = ast.parse(source)
+    here = name if mods.get(name, Path()).name == "__init__.py" else name.rpartition(".")[0]
+    guarded = {id(n) for g in tree.body if _is_main_guard(g) for stmt in g.body for n in ast.walk(stmt)}
+    out = {name: {"code": set(), "string": set()}, name + GUARD: {"code": set(), "string": set()}}
+    for node in ast.walk(tree):
+        part = out[name + GUARD if id(node) in guarded else name]
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            stem, names = _imported_names(node, here)
+            targets = names if isinstance(node, ast.Import) else [f"{stem}.{n}" for n in names] + [stem]
+            kind = "code"
+        elif (target := _string_import(node)) is not None:
+            targets, kind = [target], "string"
+        else:
+            continue
+        for t in targets:
+            r = _resolve(t, mods)
+            if r is not None and r != name:
+                part[kind].add(r)
+    return {k: v for k, v in out.items() if k == name or v["code"] or v["string"]}
+
+
+def _all_imports() -> dict[str, dict[str, set[str]]]:
     mods = _modules()
-    graph = {}
+    out = {}
     for name, path in mods.items():
-        is_pkg = path.name == "__init__.py"
-        here = name if is_pkg else name.rpartition(".")[0]
-        out = set()
-        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
-            targets = []
-            if isinstance(node, ast.Import):
-                targets = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
-                if node.level:
-                    base = here.split(".")
-                    base = base[: len(base) - (node.level - 1)]
-                    stem = ".".join(base + ([node.module] if node.module else []))
-                else:
-                    stem = node.module or ""
-                targets = [f"{stem}.{a.name}" for a in node.names] + [stem]
-            for t in targets:
-                r = _resolve(t, mods)
-                if r is not None and r != name:
-                    out.add(r)
-        graph[name] = out
-    return graph
+        out.update(module_imports(name, path.read_text(encoding="utf-8"), mods))
+    return out
+
+
+def import_graph() -> dict[str, set[str]]:
+    """Project module (or guard block) -> the project modules it imports anywhere in its source."""
+    return {m: kinds["code"] | kinds["string"] for m, kinds in _all_imports().items()}
+
+
+def string_imports_between_packages(imports=None) -> list[str]:
+    """Imports by a string that cross a package boundary: a dispatch no reader of the imports sees."""
+    imports = _all_imports() if imports is None else imports
+    return [f"{src} imports {dst} by a string" for src, kinds in sorted(imports.items())
+            for dst in sorted(kinds["string"]) if _package_of(dst) != _package_of(src)]
 
 
 def _cycles(graph) -> list[list[str]]:
@@ -105,17 +172,21 @@ def _cycles(graph) -> list[list[str]]:
 
 
 def _package_of(module: str) -> str:
-    return module.split(".")[0]
+    return module.split(".")[0].split(":")[0]
 
 
 def problems(graph) -> list[str]:
-    """Upward or sideways arrows between packages, and import cycles between modules."""
+    """Upward or sideways arrows between packages, libraries importing commands, and import cycles."""
     bad = []
     for src, dsts in sorted(graph.items()):
         p = _package_of(src)
         for dst in sorted(dsts):
             q = _package_of(dst)
-            if q != p and q not in ALLOWED[p]:
+            if is_command(src):
+                continue
+            if is_command(dst):
+                bad.append(f"{src} imports {dst}: a library module may import no command")
+            elif q != p and q not in ALLOWED[p]:
                 bad.append(f"{src} imports {dst}: {p} may import only {sorted(ALLOWED[p]) or 'nothing of ours'}")
     # a package's __init__ re-exporting its modules is not a cycle with the modules importing
     # the package's siblings; leave __init__ -> submodule arrows out of the cycle search
@@ -128,22 +199,56 @@ def test_import_graph_is_one_way_and_acyclic():
     assert problems(import_graph()) == []
 
 
+def test_no_string_import_between_packages():
+    assert string_imports_between_packages() == []
+
+
 def test_the_check_catches_an_upward_import_and_a_cycle():
     """The same check on the real graph plus one deliberately added upward import and one cycle."""
     g = import_graph()
     g["geometry.design"] = g["geometry.design"] | {"results.pipeline"}          # upward
     g["impact.model"] = g["impact.model"] | {"fem.modal"}                        # sideways
     g["rpud_common.errors"] = g["rpud_common.errors"] | {"rpud_common.cli"}     # closes a cycle
+    g["fem.modal"] = g["fem.modal"] | {"fem.modal_cli"}                          # library -> command
     found = problems(g)
     assert any(p.startswith("geometry.design imports results.pipeline") for p in found)
-    assert any(p.startswith("impact.model imports fem.modal") for p in found)
+    assert any(p.startswith("impact.model imports fem.modal:") for p in found)
     assert any("import cycle" in p and "rpud_common.errors" in p for p in found)
+    assert any(p.startswith("fem.modal imports fem.modal_cli: a library") for p in found)
+
+
+def test_commands_may_import_any_package_but_not_in_a_cycle():
+    g = import_graph()
+    g["impact.__main__"] = g["impact.__main__"] | {"results.pipeline"}            # a command: allowed
+    assert problems(g) == []
+    g["results.coupled_cli"] = g["results.coupled_cli"] | {"impact.__main__"}      # closes a cycle
+    assert any("import cycle" in p and "impact.__main__" in p for p in problems(g))
+
+
+def test_the_check_reads_string_imports_and_main_guards():
+    """Imports by a constant string are arrows, and a cross-package one is reported; the imports
+    under a ``__main__`` guard belong to the command layer."""
+    mods = _modules()
+    src = (
+        "import importlib\n"
+        "def f():\n"
+        "    return importlib.import_module('results.coupled_cli').main\n"
+        "if __name__ == '__main__':\n"
+        "    from rpud_common.launch import launch\n"
+        "    launch('impact.drilling_cli', prog='x')\n"
+    )
+    found = module_imports("impact.model", src, mods)
+    assert found["impact.model"]["string"] == {"results.coupled_cli"}
+    assert found["impact.model" + GUARD] == {"code": {"rpud_common.launch"}, "string": {"impact.drilling_cli"}}
+    assert string_imports_between_packages(found) == ["impact.model imports results.coupled_cli by a string"]
+    g = {m: k["code"] | k["string"] for m, k in found.items()}
+    assert problems(g) == ["impact.model imports results.coupled_cli: a library module may import no command"]
 
 
 @pytest.mark.parametrize("code", [
     "import impact",
     "import impact; impact.simulate; impact.ensemble_statistics; impact.sweep",
-    "from impact.stats import ensemble_statistics; from impact.cli import main",
+    "from impact.stats import ensemble_statistics; from impact.__main__ import main",
 ])
 def test_import_impact_loads_no_mesh_fe_or_rendering_package(code):
     probe = (f"{code}; import sys; "

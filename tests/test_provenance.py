@@ -22,7 +22,7 @@ def _mains():
     from fem.harmonic_cli import main as harmonic
     from fem.modal_cli import main as modal
     from geometry.__main__ import main as geometry
-    from impact.cli import main as impact
+    from impact.__main__ import main as impact
     from results.__main__ import main as results
 
     return {"geometry": geometry, "fem.modal": modal, "fem.harmonic": harmonic, "impact": impact,

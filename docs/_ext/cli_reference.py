@@ -5,7 +5,7 @@ Usage in MyST::
     ```{cli-reference} fem.modal_cli:build_parser
     ```
 
-    ```{cli-reference} impact.cli:_sweep
+    ```{cli-reference} impact.__main__:_sweep
     :argv: --help-is-not-needed
     ```
 
