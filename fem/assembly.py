@@ -59,8 +59,8 @@ Fast path
 local node pairs ``a <= b`` (the blocks are symmetric), summed per unordered node pair with
 ``np.bincount`` and written straight into the final CSR arrays; straight cells of a curved mesh
 skip the per-point quadrature (constant Jacobian). ``assemble(..., reference=True)`` builds the
-same matrices with plain scikit-fem ``BilinearForm``/``asm`` (the baseline of the tests and the
-benchmark); they agree to round-off.
+same matrices from the weak forms of :mod:`fem.forms` with scikit-fem's ``asm`` (the baseline of
+the tests and the benchmark); they agree to round-off.
 """
 
 from __future__ import annotations
@@ -142,14 +142,12 @@ class _Blocks:
     Lpp: sp.csr_matrix   # tan_delta-weighted Kpp
 
 
-def _voigt(Eps):
-    return np.array([Eps[0, 0], Eps[1, 1], Eps[2, 2], 2 * Eps[1, 2], 2 * Eps[0, 2], 2 * Eps[0, 1]])
-
-
 def _blocks_reference(mesh, elem, qk, qm, rdata, cell_region) -> _Blocks:
-    """The same blocks with plain scikit-fem BilinearForm assembly (baseline)."""
-    from skfem import Basis, BilinearForm, ElementVector, asm
-    from skfem.helpers import dot, grad, sym_grad
+    """The same blocks from the weak forms of :mod:`fem.forms`, assembled by :func:`skfem.asm`
+    region by region (the baseline the fast path is tested against)."""
+    from skfem import Basis, ElementVector, asm
+
+    from .forms import coupling, mass, permittivity, stiffness
 
     n = Basis(mesh, elem, intorder=1).N
     Kuu = sp.csr_matrix((3 * n, 3 * n))
@@ -163,35 +161,15 @@ def _blocks_reference(mesh, elem, qk, qm, rdata, cell_region) -> _Blocks:
             continue
         bu = Basis(mesh, ElementVector(elem), elements=cells, intorder=qk)
         bum = Basis(mesh, ElementVector(elem), elements=cells, intorder=qm)
-        C = rd.c
-
-        @BilinearForm
-        def kuu(u, v, w):
-            return np.einsum("i...,ij,j...->...", _voigt(sym_grad(v)), C, _voigt(sym_grad(u)))
-
-        @BilinearForm
-        def mass(u, v, w):
-            return rd.density * dot(u, v)
-
-        K = asm(kuu, bu)
+        K = asm(stiffness, bu, c=rd.c)
         Kuu = Kuu + K
         if np.isfinite(rd.q_mech):
             Luu = Luu + K / rd.q_mech
-        Muu = Muu + asm(mass, bum)
+        Muu = Muu + asm(mass, bum, rho=rd.density)
         if rd.piezo:
             bp = Basis(mesh, elem, elements=cells, intorder=qk)
-            eT, eps = rd.e.T, rd.eps
-
-            @BilinearForm
-            def kup(phi, v, w):
-                return np.einsum("i...,ij,j...->...", _voigt(sym_grad(v)), eT, grad(phi))
-
-            @BilinearForm
-            def kpp(phi, psi, w):
-                return np.einsum("i...,ij,j...->...", grad(psi), eps, grad(phi))
-
-            Kup = Kup + asm(kup, bp, bu)
-            Kp = asm(kpp, bp)
+            Kup = Kup + asm(coupling, bp, bu, e=rd.e)
+            Kp = asm(permittivity, bp, eps=rd.eps)
             Kpp = Kpp + Kp
             Lpp = Lpp + rd.tan_delta * Kp
     return _Blocks(Kuu.tocsr(), Luu.tocsr(), Muu.tocsr(), Kup.tocsr(), Kpp.tocsr(), Lpp.tocsr())
