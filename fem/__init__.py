@@ -6,8 +6,8 @@ Modules: ``fem.materials`` (constitutive matrices, poling rotation), ``fem.assem
 ``fem.matching`` (``match``), ``fem.harmonic`` (``harmonic_sweep``, ``working_point``),
 ``fem.transient`` (``ring_up``), ``fem.reduced`` (``reduce_transducer``), ``fem.modeshape`` (shares, labels, MAC, surface motion),
 ``fem.render``, ``fem.cyclic`` (``cyclic_modes``: the modes of one harmonic from one sector of a
-cyclically symmetric drill), ``fem.sector_system`` (``axial_sector``, ``sector_system``: the k = 0 sector
-system every driven analysis takes in place of the whole drill), ``fem.convergence`` (refinement studies), ``fem.errors`` (the estimated discretisation
+cyclically symmetric drill), ``fem.sector_system`` (``axial_sector``, ``default_system``: the k = 0 sector
+system every driven analysis takes in place of the whole drill, the default FE path of a design), ``fem.convergence`` (refinement studies), ``fem.errors`` (the estimated discretisation
 error every output states); stress and limits in ``fem.stress`` (recovery, peaks over a cycle),
 ``fem.stress_table`` (utilisation table, sweep), ``fem.preload`` (static solves, bolt preload),
 ``fem.stress_output`` (node fields, PNG, VTU); command lines in ``fem.modal_cli`` and ``fem.harmonic_cli``
@@ -33,6 +33,6 @@ _WHERE = {"assemble": "assembly", "PiezoSystem": "assembly", "factorize": "solve
           "static_solve": "preload", "traction_load": "preload", "render_stress": "stress_output",
           "write_stress_vtu": "stress_output", "stress_node_fields": "stress_output:node_fields",
           "cyclic_modes": "cyclic", "CyclicModes": "cyclic", "SectorSystem": "sector_system",
-          "sector_system": "sector_system", "axial_sector": "sector_system"}
+          "axial_sector": "sector_system", "default_system": "sector_system", "system_label": "sector_system"}
 __all__ = list(_WHERE)
 __getattr__, __dir__ = exports(__name__, _WHERE)

@@ -34,6 +34,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import time
+import weakref
 from dataclasses import dataclass, field
 from typing import Iterable
 
@@ -45,7 +46,8 @@ from rpud_common import ParameterError, check_choice
 
 from .assembly import PiezoSystem
 
-__all__ = ["SectorSystem", "sector_system", "axial_sector", "AXIS_MOTIONS"]
+__all__ = ["SectorSystem", "sector_system", "axial_sector", "AXIS_MOTIONS", "PATHS", "sweepable", "default_path",
+           "check_path", "path_label", "default_system", "system_label"]
 
 log = logging.getLogger(__name__)
 
@@ -221,7 +223,98 @@ def axial_sector(design, *, refine: float = 1.0, grade: bool = False, mesh_size:
     rule_refine, meshing = AXIAL_RULE
     mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=2, refine=rule_refine * refine, grade=grade,
                                mesher="revolve", sectors=sectors, sector_meshing=meshing.scaled(refine))
-    label = (f"swept sector 1/{sectors} (k = 0), refine {refine:g}"
-             + (", graded" if grade else "") + (f", mesh size {mesh_size:g} m" if mesh_size else ""))
-    return sector_system(assemble(mesh, order=2), sectors, label=label)
+    return sector_system(assemble(mesh, order=2), sectors,
+                         label=path_label(design, "sector", refine=refine, grade=grade, mesh_size=mesh_size))
 
+
+
+PATHS = ("sector", "whole")
+"""The FE paths: ``sector``, the ``k = 0`` swept sector (:func:`axial_sector`); ``whole``, the
+whole drill (swept (r, z) section where the design has one, else free), graded toward its
+re-entrant edges."""
+
+
+def sweepable(design) -> bool:
+    """The design can be swept as a sector: an RPUD with a stepped or conical horn, its coupler
+    and stack face to face and bored, its coupler at least 3-fold symmetric (or without slots
+    and teeth)."""
+    from geometry.design_rpud import RPUDDesign
+    from geometry.revolve import can_revolve
+    from geometry.sector import symmetry_order
+    from geometry.sector_sweep import check_sweepable
+
+    if not isinstance(design, RPUDDesign) or not can_revolve(design):
+        return False
+    try:
+        check_sweepable(design)
+    except ParameterError:
+        return False
+    order = symmetry_order(design)
+    return order == 0 or order >= 3
+
+
+def default_path(design, order: int = 2) -> str:
+    """The path every command and the library take for ``design`` by default: ``sector`` where
+    it can be swept (:func:`sweepable`, order 2), else ``whole``."""
+    return "sector" if order == 2 and sweepable(design) else "whole"
+
+
+def check_path(design, path: str | None, order: int = 2) -> str:
+    """``path`` resolved (None or ``auto``: :func:`default_path`), or a ParameterError naming
+    why the design cannot take it."""
+    if path in (None, "auto"):
+        return default_path(design, order)
+    check_choice("path", path, PATHS)
+    if path == "sector" and default_path(design, order) != "sector":
+        raise ParameterError("path", path, "needs an RPUD design that can be swept as a sector (stepped or conical "
+                             "horn, coupler and stack face to face, bored) and order 2; use the whole drill")
+    return path
+
+
+def path_label(design, path: str, *, refine: float = 1.0, grade: bool = False, mesh_size: float | None = None,
+               order: int = 2) -> str:
+    """The mesh a path runs, in words (what every output prints and writes as its ``mesh``)."""
+    from geometry.revolve import resolve_mesher
+    from geometry.sector import symmetry_order
+
+    size = f", mesh size {mesh_size:g} m" if mesh_size else ""
+    if path == "sector":
+        return (f"swept sector 1/{symmetry_order(design) or 6} (k = 0), refine {refine:g}"
+                + (", graded" if grade else "") + size)
+    mesher = resolve_mesher(design, "auto")
+    kind = "swept (r, z) section, coupler free" if mesher == "revolve" else "free"
+    return (f"whole drill, {kind}, order {order}, refine {refine:g}" + (", graded" if grade else ", ungraded")
+            + size)
+
+
+def default_system(design, *, refine: float = 1.0, grade: bool | None = None, mesh_size: float | None = None,
+                   order: int = 2, path: str | None = None) -> PiezoSystem:
+    """The system of ``design`` on its default path (:func:`default_path`; or ``path``): a
+    :class:`SectorSystem` on the sector path, else the whole drill, swept where it can be,
+    graded (``grade`` None: graded on the whole path, the sector's own rule on the sector path).
+    :func:`system_label` says which ran."""
+    import geometry
+    from geometry.revolve import resolve_mesher
+
+    from .assembly import assemble
+
+    path = check_path(design, path, order)
+    if path == "sector":
+        return axial_sector(design, refine=refine, grade=bool(grade), mesh_size=mesh_size)
+    grade = True if grade is None else bool(grade)
+    mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=order, refine=refine, grade=grade,
+                               mesher=resolve_mesher(design, "auto"))
+    system = assemble(mesh, order=order)
+    _LABELS[system] = path_label(design, "whole", refine=refine, grade=grade, mesh_size=mesh_size, order=order)
+    return system
+
+
+_LABELS: "weakref.WeakKeyDictionary[PiezoSystem, str]" = weakref.WeakKeyDictionary()
+
+
+def system_label(system: PiezoSystem) -> str:
+    """The mesh ``system`` was built on, in words (:func:`default_system`'s or a
+    :class:`SectorSystem`'s label; a system assembled elsewhere: its DOFs only)."""
+    if isinstance(system, SectorSystem):
+        return system.label
+    return _LABELS.get(system, f"whole drill, {system.ndof} DOFs")

@@ -140,3 +140,16 @@ def test_sector_system_refuses_what_it_cannot_restrict(pair):
         sector_system(s, N)
     with pytest.raises(ParameterError, match="sectors"):
         sector_system(s.sector, 1)
+
+
+def test_default_path_is_the_sector_where_the_design_can_be_swept():
+    from fem.sector_system import check_path, default_path, path_label
+
+    d = default_design()
+    assert default_path(d) == "sector" and default_path(d, order=1) == "whole"
+    horn = dataclasses.replace(d, horn=dataclasses.replace(d.horn, profile="exponential"))
+    assert default_path(horn) == "whole"
+    with pytest.raises(ParameterError, match="swept as a sector"):
+        check_path(horn, "sector")
+    assert path_label(d, "sector").startswith("swept sector 1/6 (k = 0)")
+    assert path_label(horn, "whole", grade=True).startswith("whole drill, free")
