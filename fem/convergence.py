@@ -46,6 +46,8 @@ import numpy as np
 
 from rpud_common import ParameterError, check_integer, check_range
 
+from .losses import ASSEMBLED_Q_MECH
+
 __all__ = ["Level", "ConvergenceStudy", "study", "two_level_error", "working_mode_level", "estimator_order",
            "ESTIMATOR_ORDER", "ESTIMATOR_ORDER_UNGRADED", "ESTIMATOR_RATIO", "ORDER_RANGE", "QUANTITIES"]
 
@@ -267,7 +269,7 @@ def two_level_error(fine: float, coarse: float, ratio: float = ESTIMATOR_RATIO,
 
 def working_mode_level(design, refine: float, *, mesh_size: float | None = None, order: int = 2,
                        near_hz: float | None = None, n_modes: int = 8, harmonic: bool = True,
-                       q_mech: float | None = 100.0, grade: bool = False, loss=None,
+                       q_mech: float | None = ASSEMBLED_Q_MECH, grade: bool = False, loss=None,
                        surfaces: tuple[str, ...] | None = None, select: Callable | None = None,
                        harmonic_method: str = "direct", mesher: str = "free") -> Level:
     """Mesh ``design`` at ``refine`` (graded with ``grade``, by ``mesher``: see

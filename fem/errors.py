@@ -54,6 +54,7 @@ from typing import Callable
 from rpud_common import ParameterError, check_range
 
 from .convergence import ESTIMATOR_RATIO, Level, estimator_order, two_level_error
+from .losses import ASSEMBLED_Q_MECH
 
 __all__ = ["QUANTITIES", "ErrorEstimate", "estimate", "estimate_from_levels", "has_reentrant_edges",
            "plus_minus", "annotate", "ESTIMATOR_RATIO"]
@@ -170,7 +171,7 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
 
 def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size: float | None = None,
              grade: bool = False, order: int = 2, near_hz: float | None = None, harmonic: bool = True,
-             loss=None, q_mech: float | None = 100.0, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
+             loss=None, q_mech: float | None = ASSEMBLED_Q_MECH, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
              select: Callable | None = None, mesher: str = "free") -> ErrorEstimate:
     """Estimate the discretisation error of ``values`` (computed on ``design`` meshed at ``refine``
     with ``ndof`` DOFs) from one solve at ``refine`` x :data:`ESTIMATOR_RATIO`.

@@ -10,7 +10,8 @@ import numpy as np
 from rpud_common import ParameterError, check_range, save_figure
 from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_inputs, mesh_text, quantity
 
-from .harmonic import LossModel, basis_reach, harmonic_sweep, modal_basis, working_point
+from .harmonic import basis_reach, harmonic_sweep, modal_basis, working_point
+from .losses import q_option_losses
 
 def build_parser():
     from rpud_common import CliParser
@@ -22,8 +23,9 @@ def build_parser():
     from geometry.options import add_design_options
 
     add_design_options(p, include=("design", "materials"))
-    p.add_argument("--voltage", type=float, default=225.0, metavar="V",
-                   help="drive voltage amplitude, V (default 225)")
+    from rpud_common.voltage import add_voltage_options
+
+    add_voltage_options(p)
     p.add_argument("--freq", type=float, metavar="HZ",
                    help="working frequency, Hz (default: the working mode's resonance near the design's "
                         "target frequency, i.e. the matched frequency of a matched design)")
@@ -31,7 +33,8 @@ def build_parser():
     p.add_argument("--points", type=int, default=None, metavar="N",
                    help=f"frequencies in the band (default {POINTS})")
     p.add_argument("--q-mech", type=float, metavar="Q",
-                   help="mechanical quality factor of every part (default: each material's datasheet value)")
+                   help="mechanical quality factor of every part (default: the assumed assembled-transducer Q "
+                        "of fem.losses, 100; 0: each material's datasheet value)")
     p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
@@ -83,7 +86,10 @@ def _check_options(args) -> None:
     from geometry.options import check_design_options, design_inputs
     from geometry.validate import FREQUENCY_BAND
 
-    check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
+    from rpud_common.voltage import drive_voltage
+
+    args.drive = drive_voltage(args)
+    args.voltage = args.drive.amplitude_v
     if args.freq is not None:
         check_range("--freq", args.freq, *FREQUENCY_BAND, "Hz")
     if args.points is not None:
@@ -92,7 +98,7 @@ def _check_options(args) -> None:
     if args.mode is not None:
         check_integer("--mode", args.mode, 1, args.modes)
     if args.q_mech is not None:
-        check_range("--q-mech", args.q_mech, 1.0, 1e6)
+        check_zero_or_range("--q-mech", args.q_mech, 1.0, 1e6, "", "datasheet values")
     if args.tan_delta is not None:
         check_range("--tan-delta", args.tan_delta, 0.0, 1.0)
     check_design_options(args)
@@ -147,13 +153,12 @@ def _inputs(args, design, band) -> dict:
     """The run's inputs for the inputs line."""
     from geometry.options import mesher_of
 
-    items = {"design": design.name, "voltage": quantity(args.voltage, "V"),
+    items = {"design": design.name, "voltage": args.drive.text(),
              "f": "the driven mode's resonance" if args.freq is None else quantity(args.freq, "Hz")}
     if args.converge is None:
         items["band"] = ("f_r - 3 % .. f_a + 3 %" if band is None else
                          f"{quantity(band[0], 'Hz')} .. {quantity(band[1], 'Hz')}") + f", {args.points} points"
-    items.update({"Q_mech": "datasheet" if args.q_mech is None else f"{args.q_mech:g}",
-                  "tan delta": "datasheet" if args.tan_delta is None else f"{args.tan_delta:g}",
+    items.update({"losses": args.losses.short(),
                   "modes": args.modes, "driven mode": "largest k_eff" if args.mode is None else args.mode,
                   "surfaces": ", ".join(args.surface) if args.surface else "horn_tip, teeth_tops",
                   "mesher": mesh_text(mesher_of(args, design), args.refine, args.grade, args.mesh_size)})
@@ -183,7 +188,8 @@ def main(argv=None) -> int:
     if band and args.freq is not None and not band[0] <= args.freq <= band[1]:
         raise ParameterError("--freq", args.freq, f"lies outside the band [{band[0]:g}, {band[1]:g}] Hz")
     args.points = POINTS if args.points is None else args.points
-    loss = LossModel(q_mech=args.q_mech, tan_delta=args.tan_delta)
+    args.losses = q_option_losses(args.q_mech, args.tan_delta)
+    loss = args.losses.loss_model()
     design = design_from_options(args)
     check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args, design))
     check_usual(parser.prog, "--voltage", args.voltage, "voltage")
@@ -254,8 +260,10 @@ def _print_response(args, modal, w, f_w, wp, res, band, ring, surfaces) -> None:
     drive = f"drive {f_w:.1f} Hz; " if args.freq is not None else ""
     print(f"{drive}working mode {w + 1} ({modal.labels[w]}): f_r {modal.f_r_hz[w]:.1f} Hz, f_a {f_a:.1f} Hz, "
           f"k_eff {modal.k_eff[w]:.3f}")
+    print(f"drive {args.drive.text()}; losses {args.losses.text()}")
     print(f"{surfaces[0]} axial amplitude: {wp.tip_per_volt_m * 1e9:.2f} nm/V, {wp.tip_amplitude_m * 1e6:.3f} um "
-          f"at {args.voltage:g} V; current {abs(wp.current_a):.3f} A, input power {wp.power_w:.2f} W")
+          f"at {args.voltage:.4g} V amplitude; current {abs(wp.current_a):.3f} A amplitude, input power "
+          f"{wp.power_w:.2f} W")
     if "teeth_tops" in wp.surfaces:
         print(f"teeth: tangential/axial {wp.teeth_ellipse_ratio:.3f}, phase {wp.teeth_phase_deg:.1f} deg")
     print(f"admittance: peak {res.f_r_hz:.1f} Hz, dip {res.f_a_hz:.1f} Hz (band {band[0]:.0f}-{band[1]:.0f} Hz, "
@@ -289,7 +297,8 @@ def _record(args, design, modal, w, f_w, wp, res, ring, system, est, stress) -> 
 
     return {"design": str(args.design or "default"), "working_mode": annotate({
         "index": w, "f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": float(modal.f_a_hz[w]), "k_eff": float(modal.k_eff[w]),
-        "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w,
+        "label": modal.labels[w]}, est, MODE_KEYS), "drive_hz": f_w, "drive_voltage": args.drive.record(),
+        "losses": args.losses.record(),
         "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
         "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
         "mesher": mesher_of(args, design),
@@ -331,4 +340,5 @@ def _converge(args, design, near: float, loss, surfaces) -> int:
 
     return run_study(args, design, near, level, describe,
                      {"design": str(args.design or "default"), "voltage_v": args.voltage,
-                      "q_mech": args.q_mech, "tan_delta": args.tan_delta, "surfaces": list(surfaces)})
+                      "drive_voltage": args.drive.record(), "losses": args.losses.record(),
+                      "surfaces": list(surfaces)})

@@ -14,7 +14,7 @@ from pathlib import Path
 
 from rpud_common import (CliParser, ParameterError, atomic_folder, check_integer, check_output_paths,
                              check_range, setup_logging)
-from rpud_common.cli import check_given, check_usual, echo_inputs, mesh_text, needs, quantity
+from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_inputs, mesh_text, needs, quantity
 
 WOB = 7.0
 """Default weight on bit of the drilling stage, N (the article's)."""
@@ -31,14 +31,16 @@ def build_parser() -> CliParser:
     from geometry.options import add_design_options
 
     add_design_options(p, include=("design", "materials"))
-    p.add_argument("--voltage", type=float, default=225.0, metavar="V",
-                   help="drive voltage amplitude on the hot electrodes, V (default 225, the article's)")
+    from rpud_common.voltage import add_voltage_options
+
+    add_voltage_options(p)
     p.add_argument("--out", metavar="DIR",
                    help="output folder (default results/default for the built-in design, else results/<name>)")
     # free by default: the minute that `make run` promises is set on the free mesh
     add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"), mesher_default="free")
-    p.add_argument("--q-mech", type=float, default=100.0, metavar="Q",
-                   help="mechanical quality factor of the assembled transducer (default 100); 0 = datasheet values")
+    p.add_argument("--q-mech", type=float, default=None, metavar="Q",
+                   help="mechanical quality factor of the assembled transducer (default: the assumed 100 of "
+                        "fem.losses, its source in the report); 0 = datasheet values")
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")
     p.add_argument("--no-couple", action="store_true", help="do not load the horn tip with the impacts (A0 unloaded)")
     p.add_argument("--rel-tol", type=float, default=0.03, metavar="R",
@@ -70,9 +72,11 @@ def check_options(args) -> None:
     if args.no_coupled_model and args.coupled_modes is not None:
         raise ParameterError("--coupled-modes", args.coupled_modes, "cannot be used with --no-coupled-model (it "
                                                                     "sets the modes of the coupled model it skips)")
-    check_range("--voltage", args.voltage, 1e-3, 1e4, "V")  # 1 mV: below it no drive is meant
-    if args.q_mech != 0:
-        check_range("--q-mech", args.q_mech, 1.0, 1e6, "(0 = datasheet values)")
+    from rpud_common.voltage import drive_voltage
+
+    args.drive = drive_voltage(args)
+    if args.q_mech is not None:
+        check_zero_or_range("--q-mech", args.q_mech, 1.0, 1e6, "", "datasheet values")
     from geometry.options import check_design_options
 
     check_design_options(args)
@@ -94,8 +98,7 @@ def _inputs(design, settings, out) -> dict:
     from geometry.revolve import resolve_mesher
 
     on = {True: "on", False: "off"}
-    items = {"design": design.name, "voltage": quantity(settings.voltage, "V"),
-             "Q_mech": "datasheet" if settings.q_mech is None else f"{settings.q_mech:g}",
+    items = {"design": design.name, "voltage": settings.drive().text(), "losses": settings.losses().short(),
              "mesher": mesh_text(resolve_mesher(design, settings.mesher), settings.refine, settings.grade,
                                  settings.mesh_size),
              "matching": on[settings.match], "impact load on the tip": on[settings.couple_impacts],
@@ -115,7 +118,11 @@ def _settings(args):
 
     from .pipeline import PipelineSettings
 
-    return PipelineSettings(voltage=args.voltage, q_mech=None if args.q_mech == 0 else args.q_mech,
+    from fem.losses import q_option_losses
+
+    losses = q_option_losses(args.q_mech)
+    return PipelineSettings(voltage=args.drive.amplitude_v, voltage_given_as=args.drive.convention,
+                            q_mech=losses.q_mech, losses_origin=losses.origin, losses_source=losses.source,
                             mesh_size=args.mesh_size, **mesh_options(args), match=not args.no_match,
                             couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                             impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from fem.losses import ASSEMBLED_Q_MECH
 from impact.horn import ModalHorn
 
 log = logging.getLogger(__name__)
@@ -95,7 +96,7 @@ class FeTransducer:
     info: dict = field(default_factory=dict)
 
 
-def build_transducer(design, *, voltage: float, q_mech: float | None = 100.0, freq_hz: float | None = None,
+def build_transducer(design, *, voltage: float, q_mech: float | None = ASSEMBLED_Q_MECH, freq_hz: float | None = None,
                      n_modes: int | None = None, match: bool = False, mesh_size: float | None = None,
                      progress=None, refine: float = 1.0, grade: bool = False) -> FeTransducer:
     """Mesh, (match,) modal analysis, harmonic basis and the reduced transducer of a design.

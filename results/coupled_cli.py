@@ -39,14 +39,17 @@ def _parser() -> CliParser:
     from geometry.options import add_design_options
 
     add_design_options(ap, include=("design", "materials"), metavar="TOML")
-    ap.add_argument("--voltage", type=real_number, default=225.0, metavar="V", help="drive amplitude, V (default 225)")
+    from rpud_common.voltage import add_voltage_options
+
+    add_voltage_options(ap, number_type=real_number)
     ap.add_argument("--series-resistance", dest="series_resistance", type=real_number, default=0.0, metavar="OHM",
                     help="source resistance in series with the electrodes, ohm (default 0: voltage drive; > 0: the "
                          "electrode voltage follows the charge, with the resistor's loss in the energy balance)")
     ap.add_argument("--freq", type=real_number, default=None, metavar="HZ",
                     help="drive frequency, Hz (default: the working mode's resonance)")
-    ap.add_argument("--q-mech", type=real_number, default=100.0, metavar="Q",
-                    help="assembled-transducer quality factor (default 100; 0 = datasheet losses)")
+    ap.add_argument("--q-mech", type=real_number, default=None, metavar="Q",
+                    help="assembled-transducer quality factor (default: the assumed 100 of fem.losses; 0 = "
+                         "datasheet losses)")
     ap.add_argument("--modes", type=int, default=None, metavar="N",
                     help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
     ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
@@ -76,10 +79,15 @@ def _check(ns):
 
     from impact.options import check_horn_mass, params_from_options, scenario_from_options, settings_from_options
 
-    check_range("--voltage", ns.voltage, 1e-3, 1e4, "V")
+    from fem.losses import q_option_losses
+    from rpud_common.voltage import drive_voltage
+
+    ns.drive = drive_voltage(ns)
+    ns.voltage = ns.drive.amplitude_v
     check_zero_or_range("--series-resistance", ns.series_resistance, 1e-3, 1e6, "ohm", "voltage drive")
-    if ns.q_mech != 0:
-        check_range("--q-mech", ns.q_mech, 1.0, 1e6, "(0 = datasheet values)")
+    if ns.q_mech is not None:
+        check_zero_or_range("--q-mech", ns.q_mech, 1.0, 1e6, "", "datasheet values")
+    ns.losses = q_option_losses(ns.q_mech)
     if ns.freq is not None:
         check_range("--freq", ns.freq, 1.0, 1e6, "Hz")
     if ns.modes is not None:
@@ -118,11 +126,11 @@ def _inputs(ns, design, p, sc, settings) -> dict:
     """The run's inputs for the inputs line."""
     from impact.options import param_items, scenario_items
 
-    items = {"design": design.name, "voltage": quantity(ns.voltage, "V")}
+    items = {"design": design.name, "voltage": ns.drive.text()}
     if ns.series_resistance > 0:
         items["behind"] = quantity(ns.series_resistance, "ohm")
     items.update({"f": "the working resonance" if ns.freq is None else quantity(ns.freq, "Hz"),
-                  "Q_mech": "datasheet" if ns.q_mech == 0 else f"{ns.q_mech:g}",
+                  "losses": ns.losses.short(),
                   "modes": "tip-participation rule" if ns.modes is None else ns.modes,
                   "matching": "on" if ns.match else "off",
                   "mesher": mesh_text("free", ns.refine, ns.grade, ns.mesh_size), "contact": ns.contact})
@@ -159,7 +167,7 @@ def main(argv=None) -> int:
     echo_inputs(_inputs(ns, design, p, sc, settings), is_quiet(ns))
     say = progress_printer(ns) or (lambda msg: None)
     say("[1/3] FE transducer")
-    fe = build_transducer(design, voltage=ns.voltage, q_mech=None if ns.q_mech == 0 else ns.q_mech,
+    fe = build_transducer(design, voltage=ns.voltage, q_mech=ns.losses.q_mech,
                           freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say,
                           **mesh_options(ns))
     p = p.with_(freq=fe.freq_hz)
@@ -181,6 +189,7 @@ def main(argv=None) -> int:
     st = coupled_batch([p], horn, sc, settings, progress=progress_printer(ns), contact=contact)[0]
     if st.failed:
         raise ParameterError("gap", p.gap, st.note)
+    print(f"drive {ns.drive.text()}; losses {ns.losses.text()}")
     print("\n".join(stats_lines(st)))
     for name, unit, text in COUPLED_QUANTITIES:
         scale, u = {"m": (1e6, "um"), "W": (1.0, "W")}[unit]
@@ -216,7 +225,8 @@ def _write_outputs(ns, fe, p, hist, st, unloaded, contact) -> None:
     from .coupled import history_csv
 
     if ns.json:
-        doc = {"reduced_transducer": fe.reduced.to_dict(), "fe": fe.info, "drive": {"voltage_v": ns.voltage,
+        doc = {"reduced_transducer": fe.reduced.to_dict(), "fe": fe.info, "losses": ns.losses.record(),
+               "drive": {"voltage_v": ns.voltage, "voltage": ns.drive.record(),
                "freq_hz": fe.freq_hz, "series_resistance_ohm": ns.series_resistance, "f_r_hz": fe.f_r_hz, "f_a_hz": fe.f_a_hz,
                "unloaded_tip_amplitude_m": unloaded["tip_amplitude_m"], "unloaded_power_w": unloaded["power_w"],
                "unloaded": unloaded},

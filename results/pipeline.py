@@ -50,6 +50,8 @@ from rpud_common import (ParameterError, check_choice, check_integer, check_posi
                          save_figure, write_json)
 from rpud_common.result import Result
 
+from fem.losses import ASSEMBLED_Q_MECH
+
 from .coupled import round_sig  # noqa: F401  (the hand-off rounding; results.explore imports it from here)
 
 log = logging.getLogger(__name__)
@@ -67,7 +69,11 @@ class PipelineSettings:
     Attributes
     ----------
     voltage : drive amplitude on the hot electrodes, V (the article's 225 V)
-    q_mech : quality factor of the assembled transducer applied to every part (None: datasheet)
+    voltage_given_as : "amplitude" or "rms": how the user gave the voltage (reported beside it)
+    q_mech : quality factor of the assembled transducer applied to every part (None: datasheet;
+        default :data:`fem.losses.ASSEMBLED_Q_MECH`, an assumption stated with its source)
+    tan_delta : dielectric loss tangent of the ceramics (None: datasheet)
+    losses_origin, losses_source : where q_mech and tan_delta come from (empty: derived from q_mech)
     mesh_size : mesh size override, m (None: the design's elements-per-wavelength rule)
     refine : mesh refinement factor scaling every size rule (geometry.sizing; < 1 refines)
     grade : grade the mesh toward the re-entrant edges (off: the 60 s budget is set on the ungraded mesh)
@@ -93,7 +99,11 @@ class PipelineSettings:
     """
 
     voltage: float = 225.0
-    q_mech: float | None = 100.0
+    voltage_given_as: str = "amplitude"
+    q_mech: float | None = ASSEMBLED_Q_MECH
+    tan_delta: float | None = None
+    losses_origin: str = ""
+    losses_source: str = ""
     mesh_size: float | None = None
     refine: float = 1.0
     grade: bool = False
@@ -119,6 +129,8 @@ class PipelineSettings:
         check_positive("voltage", self.voltage, "V")
         if self.q_mech is not None:
             check_positive("q_mech", self.q_mech)
+        self.losses()                                   # checks tan_delta and the source
+        self.drive()                                    # checks the convention
         if self.mesh_size is not None:
             check_positive("mesh_size", self.mesh_size, "m")
         from geometry.sizing import check_refine
@@ -144,6 +156,22 @@ class PipelineSettings:
         if self.load not in (None, "rock"):
             raise ParameterError("load", self.load, "must be None or 'rock'")
         check_range("wob", self.wob, 0.0, 1e4, "N")
+
+    def losses(self):
+        """The :class:`fem.losses.DriveLosses` of these settings (value, origin and source)."""
+        from fem.losses import DriveLosses, q_option_losses
+
+        if self.losses_source:
+            return DriveLosses(self.q_mech, self.tan_delta, self.losses_origin or "given", self.losses_source)
+        if self.q_mech == ASSEMBLED_Q_MECH:
+            return DriveLosses(tan_delta=self.tan_delta)
+        return q_option_losses(0.0 if self.q_mech is None else self.q_mech, self.tan_delta)
+
+    def drive(self):
+        """The :class:`rpud_common.voltage.DriveVoltage` of these settings."""
+        from rpud_common.voltage import DriveVoltage
+
+        return DriveVoltage(self.voltage, self.voltage_given_as)
 
     def impact_settings(self):
         """The ensemble rule of the impact statistics."""
@@ -348,7 +376,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     # 3. harmonic
     t0 = stage("harmonic response", 3)
     surfaces = tuple(s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
-    loss = LossModel(q_mech=settings.q_mech)
+    loss = settings.losses().loss_model()
     basis = modal_basis(system, f_w, loss=loss, modes=modal)
     lo = f_w * (1 - settings.band)
     hi = (f_a if np.isfinite(f_a) else f_w) * (1 + settings.band)
@@ -419,6 +447,12 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
             n_modes=settings.coupled_modes, history_s=settings.coupled_history_s,
             reference_m_free=settings.reference_m_free, say=say)
     timings["coupled_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    from .operating_point import operating_point_stage
+
+    operating = operating_point_stage(settings, system, modal, basis, f_w, surfaces, base, stats_settings, wp,
+                                      ref, sweeps["device_fe"], coupled_amplitudes, say=say)
+    timings["operating_point_s"] = time.perf_counter() - t0
     drilling = None
     if settings.load == "rock":                # opt-in: drilling under load
         from .drilling import drilling_stage
@@ -485,7 +519,8 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
         "working_mode": {"index": w, "f_r_hz": f_w, "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
                          "label": modal.labels[w], "modal_loss_factor": eta_w},
         "harmonic": {
-            "voltage_v": settings.voltage, "q_mech": settings.q_mech,
+            "voltage_v": settings.voltage, "voltage": settings.drive().record(), "q_mech": settings.q_mech,
+            "losses": settings.losses().record(),
             "tip_per_volt_m": wp.tip_per_volt_m, "tip_amplitude_m": wp.tip_amplitude_m,
             "tip_per_volt_datasheet_losses_m": wp_ds.tip_per_volt_m,
             "tip_amplitude_datasheet_losses_m": wp_ds.tip_amplitude_m,
@@ -513,6 +548,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
         "coupled_model": coupled_model["json"] if coupled_model is not None else None,
         **({"drilling": drilling["json"]} if drilling is not None else {}),
         "stress": stress,
+        "operating_point": operating,
         "files": {"figures": {k: str(Path(v).relative_to(out)) for k, v in figs.items()},
                   "renders": [str(Path(p).relative_to(out)) for p in renders],
                   "vtu": str(Path(vtu).relative_to(out)) if vtu else None},

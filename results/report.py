@@ -154,6 +154,9 @@ def report_lines(s: dict) -> list[str]:
     if head:
         name, _, rest = head.partition(": ")
         lines += [f"**{name}:** {rest}", ""]
+    from .operating_point import report_lines as operating_point_lines
+
+    lines += operating_point_lines(s)
     m = s["matching"]
     if m:
         tuned = ", ".join(f"`{k}` {v * 1e3:.3f} mm (start {m['start'][k] * 1e3:.3f})" for k, v in m["tuned"].items())
@@ -167,10 +170,10 @@ def report_lines(s: dict) -> list[str]:
         f"({'stack, flange and horn swept' if s['mesh'].get('mesher') == 'revolve' else 'free'}) |",
         f"| working mode | #{wm['index'] + 1} {wm['label']}: f_r {_pm(wm['f_r_hz'], wm.get('f_r_hz_error'), 'Hz')}, "
         f"f_a {_pm(wm['f_a_hz'], wm.get('f_a_hz_error'), 'Hz')}, k_eff {_pm(wm['k_eff'], wm.get('k_eff_error'))} |",
-        f"| tip amplitude per volt (Q_m {h['q_mech']}) | {_pm(h['tip_per_volt_m'], h.get('tip_per_volt_m_error'), 'nm/V', 1e9)} |",
+        f"| tip amplitude per volt (Q_m {h['q_mech']}, {h.get('losses', {}).get('origin', 'given')}) | {_pm(h['tip_per_volt_m'], h.get('tip_per_volt_m_error'), 'nm/V', 1e9)} |",
         f"| tip amplitude per volt (datasheet losses, unloaded) | "
         f"{_pm(h['tip_per_volt_datasheet_losses_m'], h.get('tip_per_volt_datasheet_losses_m_error'), 'nm/V', 1e9)} |",
-        f"| drive | {h['voltage_v']:g} V at {wm['f_r_hz'] / 1e3:.3f} kHz: {h['current_a']:.2f} A, {h['power_w']:.1f} W |",
+        f"| drive | {h['voltage_v']:g} V amplitude at {wm['f_r_hz'] / 1e3:.3f} kHz: {h['current_a']:.2f} A, {h['power_w']:.1f} W |",
         f"| teeth ellipse (tangential/axial, phase) | {_pm(h['teeth_ellipse_ratio'], h.get('teeth_ellipse_ratio_error'))}, "
         f"{_f(h['teeth_phase_deg'], 1, '.1f', 'deg')} |",
         f"| admittance peak / dip | {_f(h['admittance_f_r_hz'], 1e-3, '.3f', 'kHz')} / {_f(h['admittance_f_a_hz'], 1e-3, '.3f', 'kHz')} |",

@@ -52,6 +52,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from rpud_common import ParameterError, check_choice, check_finite, check_integer, check_range, load_toml
+from fem.losses import ASSEMBLED_Q_MECH
 
 __all__ = ["Study", "StudyParameter", "StudySettings", "load_study", "STAGES", "SAMPLINGS", "OUTPUTS"]
 
@@ -124,7 +125,7 @@ class StudySettings:
     """Fixed settings of every point (SI units; see :class:`results.pipeline.PipelineSettings`)."""
 
     voltage: float = 225.0
-    q_mech: float = 100.0
+    q_mech: float = ASSEMBLED_Q_MECH
     mesh_size: float = 0.0
     match: bool = True
     scenario: str = "device"
