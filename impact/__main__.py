@@ -1,5 +1,6 @@
 """``python -m impact``: converged statistics of one case; ``sweep``: against free mass;
-``article``: the article's figures; ``--load rock``: drilling under load (:mod:`impact.drilling_cli`);
+``article``: the article's figures; ``rotor``: the rotary unit (:mod:`impact.rotor_cli`);
+``--load rock``: drilling under load (:mod:`impact.drilling_cli`);
 ``--horn fem``: the FE transducer in the loop (:mod:`results.coupled_cli`).
 
 All options in SI units. Bad input: one line on stderr, exit code 2, no output file.
@@ -31,7 +32,7 @@ from .params import ImpactParams
 def _run(argv):
     ap = CliParser(prog="python -m impact", description="Impact model of the RPUD percussive system (horn -> free "
                    "mass -> drill tool), reported as ensemble means with 95 % confidence intervals. "
-                   "Subcommands: 'sweep', 'article' (see their --help).")
+                   "Subcommands: 'sweep', 'article', 'rotor' (see their --help).")
     add_model_options(ap)
     ap.add_argument("--horn", choices=["kinematic", "fem"], default="kinematic",
                     help="kinematic: the tip moves as A0 cos(2 pi f t) whatever the impacts (default); fem: the "
@@ -207,6 +208,10 @@ def _refuse_foreign(argv, names, requirement: str) -> None:
 
 def main(argv=None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
+    if argv and argv[0] == "rotor":
+        from .rotor_cli import main as rotor_main
+
+        return rotor_main(argv[1:])
     loaded = any(a == "--load" or a.startswith("--load=") for a in argv)
     fem = bool(argv) and argv[0] not in ("sweep", "article") and _wants_fem_horn(argv)
     if not loaded:

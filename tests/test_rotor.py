@@ -1,0 +1,230 @@
+"""The rotary unit's friction drive (impact.rotor) against independent references.
+
+References and tolerances:
+- no-load speed, rigid-contact limit: the tooth's mean tangential velocity over the contact
+  window divided by the contact radius (analytic, ``U omega |sin phi| sin(tc)/tc``). The model's
+  exact no-load condition weighs the velocity by the normal force; the two differ by the window's
+  width, at most ``tc^2/6`` relative, and by the slider's elastic travel; the cases keep both
+  below 1e-3 (asserted), so the analytic value is good to ~1e-3 and the test allows the 1 % the
+  rigid-contact formula is quoted to;
+- stall torque: at most ``mu F r`` (Coulomb bound, exact); equal to it to 1e-9 relative when the
+  tooth slides one way over the whole window (the window solve and the quadrature are exact to
+  round-off, so 1e-9 leaves five orders for the root finders);
+- energy per cycle: teeth work = friction loss + rotor work + change of the stored tangential
+  energy, each integral computed from its own integrand, 1e-9 relative (every term is a
+  Gauss-Legendre quadrature of a smooth phase-wise solution, exact to ~1e-14);
+- a second method: the same contact law marched by a first-order return mapping on N and 2N
+  steps; the event-driven mean force lies within twice the Richardson error estimate |T_N - T_2N|
+  of T_2N (first order: the error of T_2N is about |T_N - T_2N|, doubled for the estimate's own
+  uncertainty);
+- the flat-punch stiffnesses against Johnson's closed forms for one rigid body (E2 -> inf), 1e-12;
+- bad input: one line, exit 2, nothing written.
+
+A published ultrasonic-motor case is not reproduced here: no case with its dimensions, preload,
+friction and vibration amplitudes and a model result was reachable.
+"""
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from rpud_common import ParameterError
+from impact.rotor import (RotorParams, TeethMotion, bit_friction_torque, contact_stiffness, rotor_performance,
+                          solve_cycle)
+
+
+def _teeth(phase=171.2, axial=5e-6, ratio=0.2):
+    return TeethMotion(freq=20e3, axial=axial, tangential=ratio * axial, phase_deg=phase)
+
+
+@pytest.mark.parametrize("phase", [171.2, 100.0, 60.0, -120.0])
+def test_no_load_speed_rigid_contact_limit(phase):
+    tm = _teeth(phase)
+    p = RotorParams(k_normal=1e11, k_tangential=1e15)
+    res = rotor_performance(tm, p, 0.0, points=3)
+    tc = res.load_cycle.window[1]
+    kn, kt = p.stiffness
+    assert tc ** 2 / 6 < 1e-3                                       # window-width term of the reference
+    slider = p.mu * kn * tm.axial * math.sin(tc) / kt               # elastic travel of the slider per rad
+    assert slider < 1e-3 * tm.crest_speed / tm.omega                # against the tooth's drive travel per rad
+    mean_v = tm.crest_speed * math.sin(tc) / tc
+    assert res.no_load_speed == pytest.approx(mean_v / p.radius, rel=0.01)
+    assert res.teeth.sense == (1 if -math.sin(math.radians(phase)) >= 0 else -1)
+
+
+@pytest.mark.parametrize("case", [dict(), dict(mu=0.5), dict(k_normal=1e8, k_tangential=2e7), dict(preload=60.0)])
+def test_stall_torque_below_coulomb_bound(case):
+    p = RotorParams(**case)
+    for phase in (171.2, 120.0, 178.0):
+        res = rotor_performance(_teeth(phase, axial=2e-6), p, 0.0, points=3)
+        assert 0.0 < res.stall_torque <= p.mu * p.preload * p.radius * (1 + 1e-12)
+
+
+def test_stall_torque_equals_bound_when_sliding_one_way():
+    tm = _teeth(90.0)                       # tangential velocity U omega cos(theta) > 0 over the window
+    p = RotorParams(k_tangential=1e15)      # no elastic stick at the window's start
+    cyc = solve_cycle(tm, p, 0.0)
+    assert [k for _, _, k in cyc.phases] == ["slip+"]
+    res = rotor_performance(tm, p, 0.0, points=3)
+    assert res.stall_torque == pytest.approx(p.mu * p.preload * p.radius, rel=1e-9)
+
+
+@pytest.mark.parametrize("case", [
+    (dict(), 171.2, 5e-6, [0.0, 0.3, 0.6, 0.9, 1.2]),                          # stiff metal contact
+    (dict(k_normal=2e7, k_tangential=1e7), 120.0, 3e-6, [0.0, 0.005, 0.02, 0.05]),  # compliant layer
+    (dict(k_normal=1e6, k_tangential=5e5, preload=40.0), 100.0, 1e-6, [0.0, 0.004, 0.01]),  # never lifts off
+])
+def test_energy_balance_per_cycle(case):
+    params, phase, axial, fractions = case
+    tm = _teeth(phase, axial)
+    p = RotorParams(**params)
+    top = tm.tangential * tm.omega
+    for f in fractions:
+        cyc = solve_cycle(tm, p, f * top)
+        parts = cyc.friction_loss + cyc.rotor_work + cyc.elastic_change
+        # the largest tangential force over the tooth's stroke: the work scale even when the net is ~0
+        scale = max(abs(cyc.teeth_work), np.abs(cyc.force_samples[2]).max() * 4 * tm.tangential)
+        assert abs(cyc.teeth_work - parts) <= 1e-9 * scale
+        assert abs(cyc.normal_work) <= 1e-9 * scale           # elastic normal contact, rotor held: no net work
+        assert cyc.friction_loss >= 0.0
+    full = solve_cycle(tm, p, 0.0)
+    if params.get("preload") == 40.0:
+        assert full.fraction("contact") == pytest.approx(1.0)
+
+
+def _marched_force(tm, p, speed, n):
+    """Mean tangential force of one tooth by a return mapping on n steps across the contact
+    window (trapezoidal mean): an independent integration of the same contact law. The window's
+    half-width tc solves W (sin tc - tc cos tc) / pi = F / (n_teeth k_n) (mean force = preload)."""
+    from scipy.optimize import brentq
+
+    kn, kt = p.stiffness
+    tc = brentq(lambda x: tm.axial * (math.sin(x) - x * math.cos(x)) / math.pi - p.preload / (p.n_teeth * kn),
+                1e-9, math.pi, xtol=1e-15)
+    phi = math.radians(tm.phase_deg) + (0.0 if tm.sense > 0 else math.pi)
+    th = np.linspace(-tc, tc, n + 1)
+    g = tm.tangential * np.cos(th + phi) - speed / tm.omega * th
+    lim = p.mu * kn * tm.axial * (np.cos(th) - math.cos(tc)) / kt
+    q, delta = np.zeros(n + 1), 0.0
+    for i in range(n):
+        trial = delta + g[i + 1] - g[i]
+        delta = trial if abs(trial) <= lim[i + 1] else math.copysign(lim[i + 1], trial)
+        q[i + 1] = kt * delta
+    return float(np.sum(0.5 * (q[1:] + q[:-1]) * np.diff(th))) / (2 * math.pi)
+
+
+def test_second_method_return_mapping():
+    tm = _teeth(120.0, 3e-6)
+    p = RotorParams(k_normal=2e7, k_tangential=1e7)
+    for speed in (0.0, 0.3 * tm.crest_speed, 1.5 * tm.crest_speed):
+        exact = solve_cycle(tm, p, speed).mean_force
+        t1, t2 = _marched_force(tm, p, speed, 2000), _marched_force(tm, p, speed, 4000)
+        assert abs(exact - t2) <= 2 * abs(t1 - t2) + 1e-12 * abs(exact)
+
+
+def test_flat_punch_stiffness_closed_forms():
+    p = RotorParams(e_rotor=2e12 * 0.999999999999, nu_rotor=0.3)     # near-rigid rotor
+    kn, kt = contact_stiffness(p)
+    a = math.sqrt(p.tooth_area / math.pi)
+    e, nu = p.e_tooth, p.nu_tooth
+    g = e / (2 * (1 + nu))
+    # rigid flat punch on one elastic half-space: P = 2 a E delta / (1 - nu^2), Q = 8 a G delta / (2 - nu)
+    assert kn == pytest.approx(2 * a * e / (1 - nu ** 2), rel=0.1)
+    assert kt == pytest.approx(8 * a * g / (2 - nu), rel=0.1)
+    same = RotorParams(e_rotor=p.e_tooth, nu_rotor=p.nu_tooth)
+    kn2, kt2 = contact_stiffness(same)
+    assert kn2 == pytest.approx(a * e / (1 - nu ** 2), rel=1e-12)             # two equal bodies halve it
+    assert kt2 == pytest.approx(4 * a * g / (2 - nu), rel=1e-12)
+
+
+def test_torque_speed_curve_and_load_point():
+    tm = _teeth(171.2, 3e-6)
+    res = rotor_performance(tm, RotorParams(), 2.8e-3, points=21)
+    c = res.curve
+    assert np.all(np.diff(c["torque_n_m"]) <= 1e-12)                  # torque falls with speed
+    assert c["torque_n_m"][-1] == pytest.approx(0.0, abs=1e-9 * res.stall_torque)
+    assert 0 < res.load_speed < res.no_load_speed
+    assert res.load_power == pytest.approx(2.8e-3 * res.load_speed)
+    assert 0 < res.load_efficiency < 1
+    stalled = rotor_performance(tm, RotorParams(), 1.0, points=3)
+    assert stalled.stalled and stalled.load_speed == 0.0
+    d = res.to_dict()
+    json.dumps(d)
+    assert d["load"]["speed_rpm"] == pytest.approx(res.load_speed * 30 / math.pi)
+
+
+def test_straight_stroke_rigid_tangential_gives_no_drive():
+    # stroke odd about the crest, force even: the Coulomb sign integral vanishes. A stiff slider
+    # still sticks where the stroke turns, over theta_s ~ sqrt(4 mu p_max / (k_t U)), while its
+    # force swings from +mu p to -mu p: the torque departs from 0 by at most N r 2 mu p_max theta_s / 2 pi
+    tm = _teeth(180.0)
+    p = RotorParams(k_tangential=1e16)
+    kn, kt = p.stiffness
+    res = rotor_performance(tm, p, 0.0, points=3)
+    p_max = res.peak_penetration * kn
+    theta_s = math.sqrt(4 * p.mu * p_max / (kt * tm.tangential))
+    assert abs(res.curve["torque_n_m"][0]) <= p.n_teeth * p.radius * 2 * p.mu * p_max * theta_s / (2 * math.pi)
+    assert res.no_load_speed * p.radius <= tm.tangential * tm.omega * theta_s
+
+
+def test_straight_stroke_full_stick_pushes_elastically():
+    # an oblique straight stroke (tangential = -rho * axial) in full stick at rest: q = k_t rho d and
+    # p = k_n d at every instant, so the mean torque is r F k_t rho / k_n (exact while k_t rho <= mu k_n)
+    rho = 0.158
+    tm = _teeth(180.0, ratio=rho)
+    p = RotorParams()
+    kn, kt = p.stiffness
+    assert kt * rho <= p.mu * kn
+    res = rotor_performance(tm, p, 0.0, points=3)
+    cyc = solve_cycle(tm, p, 0.0)
+    assert cyc.fraction("stick") >= (1 - 1e-9) * cyc.fraction("contact")   # round-off slip as p -> 0
+    assert res.stall_torque == pytest.approx(p.radius * p.preload * kt * rho / kn, rel=1e-9)
+
+
+def test_params_toml_round_trip(tmp_path):
+    p = RotorParams(preload=20.0, mu=0.3, n_teeth=4)
+    path = tmp_path / "rotor.toml"
+    path.write_text(p.to_toml())
+    assert RotorParams.from_toml(path) == p
+
+
+def test_bad_input_is_refused():
+    with pytest.raises(ParameterError, match="mu"):
+        RotorParams(mu=0.0)
+    with pytest.raises(ParameterError, match="preload"):
+        RotorParams(preload=-1.0)
+    with pytest.raises(ParameterError, match="axial"):
+        TeethMotion(freq=20e3, axial=0.0, tangential=1e-7, phase_deg=90.0)
+    with pytest.raises(ParameterError, match="load_torque"):
+        rotor_performance(_teeth(), RotorParams(), -1.0)
+    assert bit_friction_torque(7.0, 3e-3, 0.4) == pytest.approx(2 / 3 * 0.4 * 7.0 * 1.5e-3)
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "impact", "rotor", *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_cli_runs_and_writes(tmp_path):
+    out, plots = tmp_path / "r.json", tmp_path / "plots"
+    r = _cli("--axial", "3e-6", "--json", str(out), "--plots", str(plots))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.startswith("inputs:") and "preload 18 N" in r.stdout
+    d = json.loads(out.read_text())
+    assert d["stall_torque_n_m"] <= d["torque_bound_mu_f_r_n_m"] * (1 + 1e-12)
+    assert (plots / "torque_speed.png").is_file() and (plots / "contact_phases.png").is_file()
+
+
+@pytest.mark.parametrize("args,word", [(["--axial", "3e-6", "--mu", "-1"], "mu"),
+                                       (["--axial", "3e-6", "--load-torque", "0.01", "--wob", "5"], "--wob"),
+                                       (["--axial", "abc"], "--axial")])
+def test_cli_bad_input_is_one_line_exit_2(tmp_path, args, word):
+    out = tmp_path / "r.json"
+    r = _cli(*args, "--json", str(out))
+    assert r.returncode == 2
+    assert len(r.stderr.strip().splitlines()) == 1 and word in r.stderr
+    assert not out.exists()
