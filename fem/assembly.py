@@ -201,7 +201,7 @@ class Split:
         return out if np.iscomplexobj(out) and np.any(np.imag(out)) else np.real(out)
 
 
-@dataclass(eq=False)
+@dataclass(eq=False, repr=False)
 class PiezoSystem:
     """The assembled coupled system (see the module docstring for layout and conventions)."""
 
@@ -229,6 +229,13 @@ class PiezoSystem:
     part_mass: dict | None = None
     """part -> scalar ``n x n`` mass (kg) of that part's cells, from the same element masses as
     ``M`` (fast path only; :func:`fem.modeshape.mass_matrix` builds it otherwise)."""
+
+    def __repr__(self) -> str:
+        # the sizes and the regions: the generated repr would print every matrix and array
+        regions = ", ".join(f"{r.name} ({r.material})" for r in self.regions)
+        phi = f"{self.n_phi} phi" + (" + V_hot" if self.hot_dof is not None else "")
+        return (f"PiezoSystem({self.ndof} DOFs: {self.n_u} u, {phi}; P{self.order} fields on "
+                f"{len(self.mesh.cells)} cells; regions {regions}; phi_scale {self.phi_scale:g} V/m)")
 
     def materials_block(self) -> dict:
         """``{name: record}`` of the constants assembled (layout of ``materials.toml``)."""
@@ -409,6 +416,60 @@ def _electrode_nodes(tm: TaggedMesh, basis, skmesh, role) -> np.ndarray:
     return np.unique(np.concatenate(out))
 
 
+def _potential_nodes(mesh: TaggedMesh, bk, skmesh, rdata) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(hot, ground, interior)`` scalar nodes of the ceramic: those on hot electrodes (tied
+    into one unknown), on ground electrodes (0 V, eliminated) and the rest (free potential)."""
+    piezo_regions = [i for i, r in enumerate(rdata) if r.piezo]
+    if not piezo_regions:
+        empty = np.zeros(0, dtype=np.int64)
+        return empty, empty, empty
+    pcells = np.flatnonzero(np.isin(mesh.cell_region, piezo_regions))
+    pnodes = np.unique(bk.element_dofs[:, pcells])
+    hot = np.intersect1d(_electrode_nodes(mesh, bk, skmesh, "hot"), pnodes)
+    ground = np.intersect1d(_electrode_nodes(mesh, bk, skmesh, "ground"), pnodes)
+    if len(ground) == 0:
+        raise ParameterError("electrodes", [e.name for e in mesh.electrodes],
+                             "a mesh with piezoceramic needs a ground electrode touching it")
+    both = np.intersect1d(hot, ground)
+    if len(both):
+        raise ParameterError("electrodes", f"{len(both)} shared nodes",
+                             "hot and ground electrodes must not touch")
+    return hot, ground, np.setdiff1d(pnodes, np.union1d(hot, ground))
+
+
+def _compose(blocks: _Blocks, n: int, interior: np.ndarray, hot: np.ndarray):
+    """``(K, M, K_loss, phi_scale)``: the blocks on the unknowns ``[u | phi~ interior | V~_hot]``
+    with the potential scaled (module docstring)."""
+    n_phi = len(interior)
+    nr = n_phi + int(len(hot) > 0)
+    rows = np.concatenate([interior, hot])
+    cols = np.concatenate([np.arange(n_phi), np.full(len(hot), n_phi)])
+    T = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, nr))
+    if nr:
+        scaled = interior if n_phi else hot
+        dk = blocks.Kuu.diagonal().reshape(n, 3)[scaled].mean()
+        dp = blocks.Kpp.diagonal()[scaled].mean()
+        phi_scale = float(10.0 ** np.round(np.log10(np.sqrt(dk / dp))))
+    else:
+        phi_scale = 1.0
+    s = phi_scale
+    Kup = (blocks.Kup @ T) * s
+    Kpp = (T.T @ blocks.Kpp @ T) * (s * s)
+    Lpp = (T.T @ blocks.Lpp @ T) * (s * s)
+    if nr:
+        # the u-u blocks, padded without a copy, plus the (ceramic-only, small) potential blocks
+        K = _pad(blocks.Kuu, nr) + sp.bmat([[None, Kup], [Kup.T, -Kpp]], format="csr")
+        M = _pad(blocks.Muu, nr)
+        L = _stack_diagonal(blocks.Luu, Lpp)
+    else:
+        # the fast path's Kuu and Luu share their index arrays: give L its own
+        K, M, L = blocks.Kuu.tocsr(), blocks.Muu.tocsr(), blocks.Luu.tocsr().copy()
+    for A in (K, M, L):
+        A.sum_duplicates()
+        A.sort_indices()
+    return K, M, L, phi_scale
+
+
 def _default_intorder(p: int, curved: bool) -> tuple[int, int]:
     if curved:
         return (2 * p, 2 * p + 1)
@@ -430,7 +491,32 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     intorder : (stiffness, mass) quadrature orders, optional
         ``"skfem"`` (with ``reference=True``): scikit-fem's own default rules.
     reference : bool
-        Use plain scikit-fem ``BilinearForm`` assembly (slow baseline) instead of the fast path.
+        Assemble the weak forms of :mod:`fem.forms` with scikit-fem's ``asm`` (slow baseline)
+        instead of the fast path (:mod:`fem.fastasm`); both give the same matrices to round-off.
+
+    Returns
+    -------
+    PiezoSystem
+        ``K`` (N/m; potential rows scaled by ``phi_scale``), ``M`` (kg), ``K_loss`` and the DOF
+        layout ``[u | phi~ interior | V~_hot]``.
+
+    Examples
+    --------
+    A PZT-4 rod poled along its length, electrodes on both ends:
+
+    >>> from geometry import build_mesh
+    >>> from geometry.examples import k33_rod
+    >>> system = assemble(build_mesh(k33_rod(), mesh_size=0.01, order=1))
+    >>> system
+    PiezoSystem(12895 DOFs: 9726 u, 3168 phi + V_hot; P2 fields on 1507 cells; regions rod (PZT-4); phi_scale 1e+10 V/m)
+
+    Its blocked capacitance is the parallel-plate value ``eps33^S A / L`` of the meshed section
+    (the mass gives the volume; the faceted section varies along the rod by ~1e-5):
+
+    >>> area = system.M.sum() / 3 / 7500.0 / 0.04          # m^2 (density 7500 kg/m^3, L = 40 mm)
+    >>> eps33 = system.regions[0].eps[2, 2]                 # F/m, poled along z
+    >>> round(float(system.capacitance_static() / (eps33 * area / 0.04)), 4)
+    1.0
     """
     from skfem import CellBasis, ElementTetP1, ElementTetP2
 
@@ -463,51 +549,10 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     n = bk.N
     n_u = 3 * n
 
-    piezo_regions = [i for i, r in enumerate(rdata) if r.piezo]
-    if piezo_regions:
-        pcells = np.flatnonzero(np.isin(mesh.cell_region, piezo_regions))
-        pnodes = np.unique(bk.element_dofs[:, pcells])
-        hot = np.intersect1d(_electrode_nodes(mesh, bk, skmesh, "hot"), pnodes)
-        ground = np.intersect1d(_electrode_nodes(mesh, bk, skmesh, "ground"), pnodes)
-        if len(ground) == 0:
-            raise ParameterError("electrodes", [e.name for e in mesh.electrodes],
-                                 "a mesh with piezoceramic needs a ground electrode touching it")
-        both = np.intersect1d(hot, ground)
-        if len(both):
-            raise ParameterError("electrodes", f"{len(both)} shared nodes",
-                                 "hot and ground electrodes must not touch")
-        interior = np.setdiff1d(pnodes, np.union1d(hot, ground))
-    else:
-        hot = ground = interior = np.zeros(0, dtype=np.int64)
+    hot, ground, interior = _potential_nodes(mesh, bk, skmesh, rdata)
     n_phi = len(interior)
     has_hot = len(hot) > 0
-    nr = n_phi + int(has_hot)
-    rows = np.concatenate([interior, hot])
-    cols = np.concatenate([np.arange(n_phi), np.full(len(hot), n_phi)])
-    T = sp.csr_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, nr))
-
-    if nr:
-        scaled = interior if n_phi else hot
-        dk = blocks.Kuu.diagonal().reshape(n, 3)[scaled].mean()
-        dp = blocks.Kpp.diagonal()[scaled].mean()
-        phi_scale = float(10.0 ** np.round(np.log10(np.sqrt(dk / dp))))
-    else:
-        phi_scale = 1.0
-    s = phi_scale
-    Kup = (blocks.Kup @ T) * s
-    Kpp = (T.T @ blocks.Kpp @ T) * (s * s)
-    Lpp = (T.T @ blocks.Lpp @ T) * (s * s)
-    if nr:
-        # the u-u blocks, padded without a copy, plus the (ceramic-only, small) potential blocks
-        K = _pad(blocks.Kuu, nr) + sp.bmat([[None, Kup], [Kup.T, -Kpp]], format="csr")
-        M = _pad(blocks.Muu, nr)
-        L = _stack_diagonal(blocks.Luu, Lpp)
-    else:
-        # the fast path's Kuu and Luu share their index arrays: give L its own
-        K, M, L = blocks.Kuu.tocsr(), blocks.Muu.tocsr(), blocks.Luu.tocsr().copy()
-    for A in (K, M, L):
-        A.sum_duplicates()
-        A.sort_indices()
+    K, M, L, phi_scale = _compose(blocks, n, interior, hot)
     t3 = time.perf_counter()
     timings = {"setup_s": t1 - t0, "element_matrices_s": t2 - t1, "reduction_s": t3 - t2,
                "assembly_s": t3 - t0}

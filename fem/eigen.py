@@ -254,31 +254,17 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
         ``converged_open`` (False when a thick restart would have dropped ``z``).
     """
     start = np.asarray(start, dtype=float)
-    if start.ndim != 2 or start.shape[0] != M.shape[0]:
-        raise ParameterError("start", start.shape, f"must be ({M.shape[0]}, b)")
-    if (n_wanted is None) == (targets is None):
-        raise ParameterError("n_wanted", n_wanted, "give exactly one of n_wanted and targets")
+    n_want, max_dim = _check_block(start, M, n_wanted, targets, max_dim)
     n, b = start.shape
-    n_want = n_wanted if targets is None else targets.shape[1]
-    if n_want < 1:
-        raise ParameterError("n_wanted", n_want, "must be >= 1")
-    if max_dim is None:
-        max_dim = max(160, 8 * b + 2 * n_want)
     gap_floor = _GAP_FLOOR if targets is not None else np.inf
-    max_dim = min(max_dim, n)
     basis = _Basis(M, n, max_dim + b, locked)
-    MT = None if targets is None else M @ targets
-    tnorm2 = None if targets is None else np.abs(np.einsum("ij,ij->j", targets, MT))
-
+    tnorm2 = None if targets is None else np.abs(np.einsum("ij,ij->j", targets, M @ targets))
     if border is not None:
-        a_b, alpha_b, z_b = np.asarray(border[0], float), float(border[1]), np.asarray(border[2], float)
-        delta_b = alpha_b - a_b @ z_b                 # Schur complement of the border
-        Mz_b = M @ z_b
         if targets is not None:
             raise ParameterError("border", "targets", "the joint open-circuit solve needs n_wanted")
+        border = _Border(M, *border)
         # the basis must not be restarted (z would leave it): room for the whole run
         max_dim = max(max_dim, min(n, b * 12 + 2 * n_want))
-    joint_ok = border is not None
     n_solves = n_vectors = restarts = 0
     T = np.zeros((0, 0))
     Qb, MQb, _ = basis.orthonormalise(basis.project(start))
@@ -293,38 +279,20 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
         n_solves += 1
         n_vectors += Qb.shape[1]
         basis.SQ[:, blk] = Y
-        m = basis.m
-        col = basis.MQ[:, :m].T @ Y                       # T[:, new]
-        m_old = T.shape[0]
-        Tn = np.empty((m, m))
-        Tn[:m_old, :m_old] = T
-        Tn[:, m_old:] = col
-        Tn[m_old:, :m_old] = col[:m_old].T
-        T = 0.5 * (Tn + Tn.T)
+        m, m_old = basis.m, T.shape[0]
+        T, col = _extend(T, basis.MQ[:, :m], Y)
         theta_all, C_all = np.linalg.eigh(T)
         # ---- the next block; its coefficients B also give the residuals (S y - theta y =
         # W_orth c_last: the earlier blocks' images already lie in the basis)
         basis.floor = (_DROP * float(np.max(np.abs(theta_all)))) ** 2
-        W0 = basis.project(Y - basis.Q[:, :m] @ col, passes=1)
-        Qn, MQn, B = basis.orthonormalise(W0)
-        if targets is None:
-            pick = np.argsort(-np.abs(theta_all))[:n_want]
-        else:
-            G = basis.MQ[:, :m].T @ targets                # Q^T M t
-            pick = _hungarian_pick((G.T @ C_all) ** 2 / tnorm2[:, None])
+        Qn, MQn, B = basis.orthonormalise(basis.project(Y - basis.Q[:, :m] @ col, passes=1))
+        pick = _wanted(theta_all, C_all, n_want, basis.MQ[:, :m], targets, tnorm2)
         theta, C = theta_all[pick], C_all[:, pick]
         R_all = np.zeros((0, m)) if B is None else B @ C_all[m_old:, :]
         rho = np.linalg.norm(R_all[:, pick], axis=0) / np.abs(theta)
         est = _error_estimate(pick, theta_all, R_all, sigma, tol, gap_floor)
-        if joint_ok:
-            # open circuit in the same basis: Q^T M S_open Q = T + g g^T / delta (g = Q^T M z);
-            # z lies in span Q, so the residual of a bordered Ritz pair is again Q_next B c_last
-            g_b = basis.Q[:, :m].T @ Mz_b
-            theta_o_all, C_o_all = np.linalg.eigh(T + np.outer(g_b, g_b) / delta_b)
-            pick_o = _hungarian_pick((C.T @ C_o_all) ** 2)
-            R_o_all = np.zeros((0, m)) if B is None else B @ C_o_all[m_old:, :]
-            rho_o = np.linalg.norm(R_o_all[:, pick_o], axis=0) / np.abs(theta_o_all[pick_o])
-            est = np.concatenate([est, _error_estimate(pick_o, theta_o_all, R_o_all, sigma, tol, _GAP_FLOOR)])
+        if border is not None:
+            est = np.concatenate([est, border.ritz(basis, T, C, B, m_old, sigma, tol)])
         log.debug("block eigs: dim %d, %d solves, max residual %.2e, max error estimate %.2e",
                   m, n_solves, rho.max(), est.max())
         if est.max() <= tol or Qn is None:
@@ -335,41 +303,112 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
                                       and history[-1] > 0.5 * history[-5]):
             break                                       # budget spent, or stagnating at round-off
         Qb, MQb = Qn, MQn
-        if m + Qb.shape[1] > max_dim and joint_ok:
-            joint_ok = False                            # z would leave the basis: give up the border
+        if m + Qb.shape[1] > max_dim and border is not None:
+            border = None                               # z would leave the basis: give up the border
             log.info("block eigs: basis full, the bordered pairs are dropped")
         if m + Qb.shape[1] > max_dim:
-            # thick restart: keep the wanted Ritz vectors and the best others (largest |theta|)
-            keep_n = min(max(n_want + b, m // 2), max_dim - Qb.shape[1])
-            rest = np.setdiff1d(np.argsort(-np.abs(theta_all)), pick, assume_unique=True)
-            keep = np.concatenate([pick, rest[: max(keep_n - len(pick), 0)]])
-            basis.rotate(C_all[:, keep])
-            T = np.diag(theta_all[keep])
+            T = _thick_restart(basis, theta_all, C_all, pick, min(max(n_want + b, m // 2), max_dim - Qb.shape[1]))
             restarts += 1
-    V = (basis.SQ[:, :basis.m] @ C) / theta
-    MV = M @ V
-    mn = np.sqrt(np.abs(np.einsum("ij,ij->j", V, MV)))
-    V = V / mn
-    lam = np.einsum("ij,ij->j", V, K @ V)            # Rayleigh quotients (V^T M V = 1)
-    order = np.argsort(lam)
-    out = {}
-    if joint_ok:
-        theta_o, C_o = theta_o_all[pick_o], C_o_all[:, pick_o]
-        # S_open Q c = S Q c + z (g^T c) / delta; border unknown -(g^T c) / delta
-        s_o = (g_b @ C_o) / delta_b
-        U = (basis.SQ[:, :basis.m] @ C_o + np.outer(z_b, s_o)) / theta_o
-        h = -s_o / theta_o
-        mn_o = np.sqrt(np.abs(np.einsum("ij,ij->j", U, M @ U)))
-        U, h = U / mn_o, h / mn_o
-        lam_o = np.einsum("ij,ij->j", U, K @ U) + 2 * h * (a_b @ U) + alpha_b * h * h
-        oo = np.argsort(lam_o)
-        out = dict(lam_open=lam_o[oo], vectors_open=np.vstack([U, h[None, :]])[:, oo],
-                   residual_open=rho_o[oo], converged_open=converged)
+    lam, V, order = _ritz_vectors(basis.SQ[:, :basis.m] @ C, theta, K, M)
+    out = {} if border is None else border.pairs(basis, K, M, converged)
     if not converged:
         log.warning("block eigs: not converged after %d block solves (error estimate %.1e > %.1e)",
                     n_solves, est.max(), tol)
     return BlockEigs(lam=lam[order], vectors=V[:, order], residual=rho[order], n_solves=n_solves,
                      n_vectors=n_vectors, dim=basis.m, converged=converged, restarts=restarts, **out)
+
+
+def _check_block(start, M, n_wanted, targets, max_dim) -> tuple[int, int]:
+    """``(n_want, max_dim)`` of a :func:`block_eigs` call, its arguments checked."""
+    if start.ndim != 2 or start.shape[0] != M.shape[0]:
+        raise ParameterError("start", start.shape, f"must be ({M.shape[0]}, b)")
+    if (n_wanted is None) == (targets is None):
+        raise ParameterError("n_wanted", n_wanted, "give exactly one of n_wanted and targets")
+    n, b = start.shape
+    n_want = n_wanted if targets is None else targets.shape[1]
+    if n_want < 1:
+        raise ParameterError("n_wanted", n_want, "must be >= 1")
+    if max_dim is None:
+        max_dim = max(160, 8 * b + 2 * n_want)
+    return n_want, min(max_dim, n)
+
+
+def _wanted(theta_all, C_all, n_want, MQ, targets, tnorm2) -> np.ndarray:
+    """The wanted Ritz pairs: the ``n_want`` largest ``|theta|`` (nearest the shift), or one per
+    target by the mass-weighted MAC (``MQ``: ``M Q``; ``tnorm2``: the targets' M-norms^2)."""
+    if targets is None:
+        return np.argsort(-np.abs(theta_all))[:n_want]
+    G = MQ.T @ targets                                 # Q^T M t
+    return _hungarian_pick((G.T @ C_all) ** 2 / tnorm2[:, None])
+
+
+def _extend(T, MQ, Y):
+    """The projected operator ``Q^T M S Q`` grown by the new block's images ``Y``, and its new
+    columns (``MQ``: ``M Q`` of the grown basis)."""
+    m, m_old = MQ.shape[1], T.shape[0]
+    col = MQ.T @ Y                                     # T[:, new]
+    Tn = np.empty((m, m))
+    Tn[:m_old, :m_old] = T
+    Tn[:, m_old:] = col
+    Tn[m_old:, :m_old] = col[:m_old].T
+    return 0.5 * (Tn + Tn.T), col
+
+
+def _thick_restart(basis, theta_all, C_all, pick, keep_n):
+    """Keep the wanted Ritz vectors and the best others (largest ``|theta|``), ``keep_n`` in
+    all; returns the projected operator of the kept basis (diagonal)."""
+    rest = np.setdiff1d(np.argsort(-np.abs(theta_all)), pick, assume_unique=True)
+    keep = np.concatenate([pick, rest[: max(keep_n - len(pick), 0)]])
+    basis.rotate(C_all[:, keep])
+    return np.diag(theta_all[keep])
+
+
+def _ritz_vectors(SQC, theta, K, M):
+    """``(lam, V, order)``: M-normalised Ritz vectors ``S Q c / theta``, their Rayleigh quotients
+    and the order of increasing ``lam``."""
+    V = SQC / theta
+    MV = M @ V
+    mn = np.sqrt(np.abs(np.einsum("ij,ij->j", V, MV)))
+    V = V / mn
+    lam = np.einsum("ij,ij->j", V, K @ V)            # Rayleigh quotients (V^T M V = 1)
+    return lam, V, np.argsort(lam)
+
+
+class _Border:
+    """The open-circuit pencil ``([[K, a], [a^T, alpha]], diag(M, 0))`` solved in the basis of
+    the short-circuit one (the joint Rayleigh-Ritz of the module docstring); ``z = (K - sigma
+    M)^-1 a`` lies in that basis."""
+
+    def __init__(self, M, a, alpha, z):
+        self.a, self.alpha, self.z = np.asarray(a, float), float(alpha), np.asarray(z, float)
+        self.delta = self.alpha - self.a @ self.z     # Schur complement of the border
+        self.Mz = M @ self.z
+
+    def ritz(self, basis, T, C, B, m_old, sigma, tol) -> np.ndarray:
+        """Error estimates of the bordered pairs matched to the wanted ones (columns ``C``)."""
+        # open circuit in the same basis: Q^T M S_open Q = T + g g^T / delta (g = Q^T M z);
+        # z lies in span Q, so the residual of a bordered Ritz pair is again Q_next B c_last
+        m = basis.m
+        self.g = basis.Q[:, :m].T @ self.Mz
+        self.theta_all, self.C_all = np.linalg.eigh(T + np.outer(self.g, self.g) / self.delta)
+        self.pick = _hungarian_pick((C.T @ self.C_all) ** 2)
+        R_o_all = np.zeros((0, m)) if B is None else B @ self.C_all[m_old:, :]
+        self.rho = np.linalg.norm(R_o_all[:, self.pick], axis=0) / np.abs(self.theta_all[self.pick])
+        return _error_estimate(self.pick, self.theta_all, R_o_all, sigma, tol, _GAP_FLOOR)
+
+    def pairs(self, basis, K, M, converged) -> dict:
+        """The bordered eigenpairs of the last :meth:`ritz`, as :class:`BlockEigs` fields."""
+        theta_o, C_o = self.theta_all[self.pick], self.C_all[:, self.pick]
+        # S_open Q c = S Q c + z (g^T c) / delta; border unknown -(g^T c) / delta
+        s_o = (self.g @ C_o) / self.delta
+        U = (basis.SQ[:, :basis.m] @ C_o + np.outer(self.z, s_o)) / theta_o
+        h = -s_o / theta_o
+        mn_o = np.sqrt(np.abs(np.einsum("ij,ij->j", U, M @ U)))
+        U, h = U / mn_o, h / mn_o
+        lam_o = np.einsum("ij,ij->j", U, K @ U) + 2 * h * (self.a @ U) + self.alpha * h * h
+        oo = np.argsort(lam_o)
+        return dict(lam_open=lam_o[oo], vectors_open=np.vstack([U, h[None, :]])[:, oo],
+                    residual_open=self.rho[oo], converged_open=converged)
 
 
 def smooth_start(nodes: np.ndarray, free: np.ndarray, ndof: int, b: int, n_random: int,

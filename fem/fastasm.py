@@ -376,11 +376,32 @@ def assemble_blocks(basis, qk, qm, regions, cell_region):
     key = np.stack([cell_region[order], curved[order]])
     runs = np.concatenate([[0], np.flatnonzero(np.any(np.diff(key, axis=1), axis=0)) + 1, [nel]])
 
+    ev = _element_values(kern, regions, cell_region, order, runs, curved, pair, flip, int(piezo.sum()))
+    return pairs, _pair_sums(ev, pairs.n_pairs, npl, inv_q[order], cell_region[order])
+
+
+@dataclass
+class _ElementValues:
+    """Element-matrix entries of the local pairs ``a <= b``, in the sorted cell order: ``ke``
+    (9, m) the stiffness blocks, ``me`` (m,) masses, ``pe`` (m,) the global pair of each entry;
+    over the ceramic prefix ``kupe`` (6, mp) the coupling (up, down), ``kppe`` (mp,) the
+    permittivity and ``tand`` (mp,) its loss tangent."""
+
+    ke: np.ndarray
+    me: np.ndarray
+    pe: np.ndarray
+    kupe: np.ndarray
+    kppe: np.ndarray
+    tand: np.ndarray
+
+
+def _element_values(kern, regions, cell_region, order, runs, curved, pair, flip, n_piezo) -> _ElementValues:
+    """The forms' element values, chunk by chunk of one region and one geometry kind."""
+    nel, npl = len(order), len(kern.ia)
     m = nel * npl
     ke = np.empty((9, m))
     me = np.empty(m)
     pe = np.empty(m, dtype=np.int64)          # pair of each entry
-    n_piezo = int(piezo.sum())
     mp = n_piezo * npl
     kupe = np.empty((6, mp))
     kppe = np.empty(mp)
@@ -409,15 +430,21 @@ def assemble_blocks(basis, qk, qm, regions, cell_region):
                 np.matmul(E3, S.T, out=kupe[:3, r])
                 np.matmul(E3t, S.T, out=kupe[3:, r])
                 kppe[r] = S @ eps
+    return _ElementValues(ke, me, pe, kupe, kppe, tand)
 
-    P = pairs.n_pairs
+
+def _pair_sums(ev: _ElementValues, P: int, npl: int, iq: np.ndarray, reg: np.ndarray) -> dict:
+    """The element values summed per global node pair (the ``sums`` of :func:`assemble_blocks`);
+    ``iq`` and ``reg``: 1/Q and the region of each cell in the sorted order."""
+    ke, me, pe, kupe, kppe, tand = ev.ke, ev.me, ev.pe, ev.kupe, ev.kppe, ev.tand
+    ev.ke = None                      # the largest array: freed once summed (below)
+    nel, mp = len(iq), len(kppe)
 
     def total(w, idx=pe):
         return np.bincount(idx, weights=w, minlength=P)
 
     # K_uu and K_loss = sum over loss levels of K_uu(level) / Q(level), from one pass
     kuu, luu = np.zeros((P, 9)), np.zeros((P, 9))
-    iq = inv_q[order]
     levels = np.concatenate([[0], np.flatnonzero(np.diff(iq)) + 1, [nel]])
     part = np.empty((P, 9))
     for a, b in zip(levels[:-1], levels[1:]):
@@ -429,11 +456,10 @@ def assemble_blocks(basis, qk, qm, regions, cell_region):
     del ke
     pp = pe[:mp]
     # the cells of one region are one contiguous run of the sorted order
-    reg = cell_region[order]
     starts = np.append(np.flatnonzero(np.concatenate([[True], reg[1:] != reg[:-1]])), nel)
     muu_region = {int(reg[a]): total(me[a * npl:b * npl], pe[a * npl:b * npl])
                   for a, b in zip(starts[:-1], starts[1:])}
-    return pairs, {
+    return {
         "muu_region": muu_region,
         "kuu": kuu.reshape(P, 3, 3), "luu": luu.reshape(P, 3, 3), "muu": total(me),
         "kup_up": np.stack([total(kupe[c], pp) for c in range(3)], axis=1),
