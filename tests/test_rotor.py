@@ -228,3 +228,40 @@ def test_cli_bad_input_is_one_line_exit_2(tmp_path, args, word):
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and word in r.stderr
     assert not out.exists()
+
+
+# --------------------------------------------------------------------------- the pipeline stage
+
+
+def test_stage_params_follow_the_design():
+    from geometry import default_design
+    from results.rotor_stage import rotor_params_from_design
+
+    d = default_design()
+    p = rotor_params_from_design(d)
+    c = d.coupler
+    ro, ri = c.outer_diameter / 2, d.coupler_bore / 2
+    assert p.n_teeth == c.n_teeth
+    assert p.tooth_area == pytest.approx(c.tooth_width / ro * (ro ** 2 - ri ** 2) / 2, rel=1e-12)
+    assert p.radius == pytest.approx((ro + ri) / 2)
+    assert (p.e_tooth, p.nu_tooth) == (113.8e9, 0.342)           # Ti-6Al-4V, the default coupler's
+
+
+def test_stage_carries_the_teeth_error_into_speed_and_torque():
+    from results.rotor_stage import OUTPUTS, TeethReport, rotor_stage
+
+    exact = TeethReport(20e3, 5e-6, 0.0, 0.2, 0.0, 150.0, 0.0)
+    out = rotor_stage(exact, RotorParams(), 2e-3, 100.0, points=5)["json"]
+    assert all(out[f"{k}_error"] == 0.0 for k, _, _ in OUTPUTS)    # no input error, no output error
+    # a small axial error alone: the corner spread is the linear sensitivity times the error (central
+    # difference over +-h, h = 1e-3 W, equals the one-sided departures to O(h^2): 2 % allowed)
+    h = 5e-9
+    small = rotor_stage(TeethReport(20e3, 5e-6, h, 0.2, 0.0, 150.0, 0.0), RotorParams(), 2e-3, 100.0, points=5)["json"]
+    up = rotor_performance(TeethMotion.from_ellipse(20e3, 5e-6 + h, 0.2, 150.0), RotorParams(), 2e-3, points=3)
+    dn = rotor_performance(TeethMotion.from_ellipse(20e3, 5e-6 - h, 0.2, 150.0), RotorParams(), 2e-3, points=3)
+    slope = abs(up.no_load_speed - dn.no_load_speed) / 2 * 30 / math.pi
+    assert small["no_load_speed_rpm_error"] == pytest.approx(slope, rel=0.02)
+    lo, hi = small["electric_efficiency_bounds"]
+    assert 0 < lo < hi == pytest.approx(small["contact_efficiency"])
+    with pytest.raises(ParameterError, match="axial_error_m"):
+        TeethReport(20e3, 5e-6, 6e-6, 0.2, 0.0, 150.0, 0.0)

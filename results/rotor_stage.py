@@ -1,0 +1,167 @@
+"""The pipeline's rotary-unit stage: the teeth motion the harmonic response reports, with its
+error, turned into the rotor's speed, torque, power and efficiency, each with its error.
+
+:func:`rotor_params_from_design` takes the contact geometry (teeth, their top area, the contact
+radius) and the coupler's moduli from the design, so a study that varies the coupler's
+dimensions moves the rotor's results with them. :func:`rotor_stage` runs
+:func:`impact.rotor.rotor_performance` at the reported teeth motion and at the eight corners of
+its error box (axial amplitude, ellipse ratio, phase, each at value +- error); the error of every
+output is its largest departure over the corners (the outputs are monotone in each input over
+such boxes in the cases tried; a bound then, not a statistical interval).
+
+The efficiency's electrical input is the teeth's power into the contact plus the rotary side's
+own loss without the rotor, which the pipeline does not separate from the percussive side's:
+it is bounded by 0 and the whole unloaded electrical power, and the efficiency printed is the
+midpoint of the two bounds with half their spread as its model-form error.
+"""
+
+from __future__ import annotations
+
+import itertools
+import logging
+import math
+from dataclasses import dataclass
+
+from impact.rotor import RotorParams, TeethMotion, rotor_performance
+from rpud_common import ParameterError, check_nonnegative, check_range
+
+log = logging.getLogger(__name__)
+
+__all__ = ["TeethReport", "rotor_params_from_design", "rotor_stage", "OUTPUTS"]
+
+_RPM = 30.0 / math.pi
+
+OUTPUTS = (
+    ("no_load_speed_rpm", "rpm", "rotor speed without load"),
+    ("stall_torque_n_m", "N m", "mean driving torque at rest"),
+    ("load_speed_rpm", "rpm", "rotor speed under the load torque"),
+    ("load_power_w", "W", "mechanical power under the load torque"),
+    ("max_power_w", "W", "largest mechanical power on the torque-speed curve"),
+    ("teeth_power_w", "W", "power the teeth put into the contact under the load torque"),
+    ("contact_efficiency", "-", "mechanical power / teeth power under the load torque"),
+)
+"""(key, unit, meaning) of the stage's outputs, each reported with ``<key>_error``."""
+
+
+@dataclass(frozen=True)
+class TeethReport:
+    """The teeth motion as the harmonic response reports it, with its errors (SI; degrees).
+
+    Parameters
+    ----------
+    freq_hz : float
+        Drive frequency, Hz.
+    axial_m, axial_error_m : float
+        Axial amplitude of the teeth tops and its error, m.
+    ratio, ratio_error : float
+        Ellipse ratio (tangential / axial amplitude) and its error.
+    phase_deg, phase_error_deg : float
+        Phase of the tangential relative to the axial motion and its error, degrees.
+    """
+
+    freq_hz: float
+    axial_m: float
+    axial_error_m: float
+    ratio: float
+    ratio_error: float
+    phase_deg: float
+    phase_error_deg: float
+
+    def __post_init__(self):
+        for name in ("axial_error_m", "ratio_error", "phase_error_deg"):
+            check_nonnegative(name, getattr(self, name))
+        check_range("axial_error_m", self.axial_error_m, 0.0, 0.99 * self.axial_m, "m")
+        TeethMotion.from_ellipse(self.freq_hz, self.axial_m, self.ratio, self.phase_deg)
+
+    def corners(self):
+        """The teeth motions at the corners of the error box (ratio kept >= 0)."""
+        for sa, sr, sp in itertools.product((-1, 1), repeat=3):
+            yield TeethMotion.from_ellipse(self.freq_hz, self.axial_m + sa * self.axial_error_m,
+                                           max(0.0, self.ratio + sr * self.ratio_error),
+                                           self.phase_deg + sp * self.phase_error_deg)
+
+
+def rotor_params_from_design(design, base: RotorParams = RotorParams(), library=None) -> RotorParams:
+    """``base`` with the contact geometry and the coupler's moduli of ``design``
+    (:class:`geometry.RPUDDesign`): ``n_teeth``, ``tooth_area`` (the annular sector of a tooth top:
+    arc ``tooth_width`` at the outer radius, from the bore to the outer surface), ``radius`` (the
+    mean of the bore and outer radii) and ``e_tooth``, ``nu_tooth``."""
+    from geometry.materials import get_material
+
+    c = design.coupler
+    if not c.n_teeth:
+        raise ParameterError("coupler.n_teeth", c.n_teeth, "must be >= 1: the rotor is driven by the teeth")
+    ro, ri = c.outer_diameter / 2, design.coupler_bore / 2
+    angle = c.tooth_width / ro
+    mat = get_material(c.material, library)
+    return base.with_(n_teeth=c.n_teeth, tooth_area=0.5 * angle * (ro ** 2 - ri ** 2), radius=0.5 * (ro + ri),
+                      e_tooth=float(mat.youngs_modulus), nu_tooth=float(mat.poisson_ratio))
+
+
+def _outputs(res) -> dict:
+    pmax, _ = res.max_power
+    return {"no_load_speed_rpm": res.no_load_speed * _RPM, "stall_torque_n_m": res.stall_torque,
+            "load_speed_rpm": res.load_speed * _RPM, "load_power_w": res.load_power, "max_power_w": pmax,
+            "teeth_power_w": res.load_teeth_power,
+            "contact_efficiency": res.load_power / res.load_teeth_power if res.load_teeth_power > 0 else 0.0}
+
+
+def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, electric_power_w: float, *,
+                points: int = 41, say=None) -> dict:
+    """The rotor's results at the reported teeth motion, with errors from its error box.
+
+    Parameters
+    ----------
+    teeth : TeethReport
+        Teeth motion and its errors.
+    params : RotorParams
+        Rotor, spring, contact and friction data (:func:`rotor_params_from_design` for the design's).
+    load_torque : float
+        Resisting torque, N m (the drill tool's friction in rock).
+    electric_power_w : float
+        The transducer's unloaded electrical power, W: the upper bound of the rotary side's own loss.
+    points : int
+        Speeds on the torque-speed curve.
+    say : callable, optional
+        Progress lines.
+
+    Returns
+    -------
+    dict
+        ``"result"``: the nominal :class:`impact.rotor.RotorResult`; ``"json"``: the summary block
+        (every output of :data:`OUTPUTS` with ``_error``, the efficiency with its model-form
+        error, the inputs, the nominal result's record and its notes).
+    """
+    check_nonnegative("electric_power_w", electric_power_w, "W")
+    nominal = rotor_performance(TeethMotion.from_ellipse(teeth.freq_hz, teeth.axial_m, teeth.ratio, teeth.phase_deg),
+                                params, load_torque, points=points)
+    values = _outputs(nominal)
+    spread = {k: 0.0 for k in values}
+    for tm in teeth.corners():
+        corner = _outputs(rotor_performance(tm, params, load_torque, points=points))
+        for k, v in corner.items():
+            spread[k] = max(spread[k], abs(v - values[k]))
+    out = {}
+    for key, _, _ in OUTPUTS:
+        out[key], out[f"{key}_error"] = values[key], spread[key]
+    # efficiency against the electrical input: bounds 0 and the whole unloaded power as the idle loss
+    hi = nominal.load_power / nominal.load_teeth_power if nominal.load_teeth_power > 0 else 0.0
+    den = nominal.load_teeth_power + electric_power_w
+    lo = nominal.load_power / den if den > 0 else 0.0
+    out["electric_efficiency"], out["electric_efficiency_error"] = 0.5 * (hi + lo), 0.5 * (hi - lo)
+    out["electric_efficiency_bounds"] = [lo, hi]
+    out["electric_efficiency_note"] = ("mechanical power / (teeth power + the rotary side's own loss); that loss is "
+                                       "bounded by 0 and the unloaded electrical power "
+                                       f"{electric_power_w:.4g} W: midpoint +- half the spread (model form)")
+    out["errors_from"] = "largest departure over the 8 corners of the teeth motion's error box"
+    out["teeth"] = {"freq_hz": teeth.freq_hz, "axial_m": teeth.axial_m, "axial_m_error": teeth.axial_error_m,
+                    "ellipse_ratio": teeth.ratio, "ellipse_ratio_error": teeth.ratio_error,
+                    "phase_deg": teeth.phase_deg, "phase_deg_error": teeth.phase_error_deg}
+    out["load_torque_n_m"] = load_torque
+    out["nominal"] = nominal.to_dict()
+    out["notes"] = list(nominal.notes)
+    if say:
+        say(f"      rotor: no-load {values['no_load_speed_rpm']:.3g} ± {spread['no_load_speed_rpm']:.2g} rpm, stall "
+            f"{values['stall_torque_n_m'] * 1e3:.3g} ± {spread['stall_torque_n_m'] * 1e3:.2g} mN m, under "
+            f"{load_torque * 1e3:.3g} mN m {values['load_speed_rpm']:.3g} ± {spread['load_speed_rpm']:.2g} rpm")
+    return {"result": nominal, "json": out}
