@@ -40,7 +40,8 @@ __all__ = ["HuntCrossley", "chi_for_restitution", "restitution_of", "hertz_stiff
 
 
 def hertz_stiffness(E1: float, nu1: float, E2: float, nu2: float, radius: float) -> float:
-    """Hertz contact stiffness ``k = (4/3) E* sqrt(R)`` of a sphere of radius R on a flat, N/m^1.5.
+    """Hertz contact stiffness ``k = (4/3) E* sqrt(R)`` of a sphere of radius R on a flat, N/m^1.5
+    (:func:`impact.hertz.hertz_stiffness` of a crowned face).
 
     Parameters
     ----------
@@ -49,12 +50,10 @@ def hertz_stiffness(E1: float, nu1: float, E2: float, nu2: float, radius: float)
     radius : float
         Sphere radius, m.
     """
-    for name, v in (("E1", E1), ("E2", E2), ("radius", radius)):
-        check_positive(name, v)
-    check_range("nu1", nu1, -1.0, 0.5)
-    check_range("nu2", nu2, -1.0, 0.5)
-    e_star = 1.0 / ((1 - nu1 ** 2) / E1 + (1 - nu2 ** 2) / E2)
-    return 4.0 / 3.0 * e_star * math.sqrt(radius)
+    from .hertz import ContactGeometry, effective_modulus, hertz_stiffness as stiffness
+
+    check_positive("radius", radius, "m")
+    return stiffness(effective_modulus(E1, nu1, E2, nu2), ContactGeometry.crowned(radius))
 
 
 def hertz_contact_time(mass: float, k: float, v_in: float) -> float:
