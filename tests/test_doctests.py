@@ -6,7 +6,7 @@ import importlib
 
 import pytest
 
-MODULES = ["fem.forms", "fem.assembly"]
+MODULES = ["geometry", "fem.forms", "fem.assembly"]
 
 
 @pytest.mark.parametrize("name", MODULES)

@@ -119,6 +119,39 @@ def module_imports(name: str, source: str, mods) -> dict[str, dict[str, set[str]
     return {k: v for k, v in out.items() if k == name or v["code"] or v["string"]}
 
 
+def private_imports(name: str, source: str, mods) -> list[str]:
+    """The names with a leading underscore that module ``name`` takes from another project module:
+    ``from other import _name``, or ``other._name`` on a module it imported. What more than one
+    module uses is public (named without the underscore, in ``__all__``)."""
+    tree = ast.parse(source)
+    here = name if mods.get(name, Path()).name == "__init__.py" else name.rpartition(".")[0]
+    out, aliases = [], {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            for a in node.names:
+                if (r := _resolve(a.name, mods)) is not None:
+                    aliases[a.asname or a.name.split(".")[0]] = r if a.asname else _resolve(a.name.split(".")[0], mods)
+        elif isinstance(node, ast.ImportFrom):
+            stem, names = _imported_names(node, here)
+            src = _resolve(stem, mods)
+            if src is None:
+                continue
+            for a in node.names:
+                if f"{stem}.{a.name}" in mods:
+                    aliases[a.asname or a.name] = f"{stem}.{a.name}"
+                elif _is_private(a.name) and src != name:
+                    out.append(f"{name} imports {a.name} from {src}")
+    for node in ast.walk(tree):
+        if (isinstance(node, ast.Attribute) and _is_private(node.attr) and isinstance(node.value, ast.Name)
+                and aliases.get(node.value.id) not in (None, name)):
+            out.append(f"{name} uses {aliases[node.value.id]}.{node.attr}")
+    return sorted(set(out))
+
+
+def _is_private(attr: str) -> bool:
+    return attr.startswith("_") and not attr.startswith("__")
+
+
 def _all_imports() -> dict[str, dict[str, set[str]]]:
     mods = _modules()
     out = {}
@@ -223,6 +256,21 @@ def test_commands_may_import_any_package_but_not_in_a_cycle():
     assert problems(g) == []
     g["results.coupled_cli"] = g["results.coupled_cli"] | {"impact.__main__"}      # closes a cycle
     assert any("import cycle" in p and "impact.__main__" in p for p in problems(g))
+
+
+def test_the_private_import_check_catches_both_forms():
+    mods = _modules()
+    src = ("from .kernel import _grid_step, plan\n"
+           "from impact import stats\n"
+           "import impact.model as model\n"
+           "from . import params\n"
+           "x = stats._estimates(model._series, params.ImpactParams)\n"
+           "from ._private_helpers import thing\n")
+    assert private_imports("impact.coupled", src, mods) == [
+        "impact.coupled imports _grid_step from impact.kernel",
+        "impact.coupled uses impact.model._series",
+        "impact.coupled uses impact.stats._estimates",
+    ]
 
 
 def test_the_check_reads_string_imports_and_main_guards():
