@@ -49,7 +49,7 @@ from rpud_common import ParameterError, check_integer, check_range
 from .losses import ASSEMBLED_Q_MECH
 
 __all__ = ["Level", "ConvergenceStudy", "study", "two_level_error", "working_mode_level", "estimator_order",
-           "ESTIMATOR_ORDER", "ESTIMATOR_ORDER_UNGRADED", "ESTIMATOR_RATIO", "ORDER_RANGE", "QUANTITIES"]
+           "ESTIMATOR_ORDER", "ESTIMATOR_ORDER_UNGRADED", "NOTCH_ORDER", "ESTIMATOR_RATIO", "ORDER_RANGE", "QUANTITIES"]
 
 log = logging.getLogger(__name__)
 
@@ -80,6 +80,12 @@ def estimator_order(grade: bool, corners: bool = True) -> float:
     ungraded mesh of a design with major re-entrant edges (``corners``,
     :func:`geometry.sizing.graded_edges` not empty), else :data:`ESTIMATOR_ORDER`."""
     return ESTIMATOR_ORDER if grade or not corners else ESTIMATOR_ORDER_UNGRADED
+
+NOTCH_ORDER = 0.7
+"""Order in h assumed by the two-level estimate on the sector path (:mod:`fem.sector_system`) of a
+design with slots: the graded notch edges of the coupler converge slowest, h^0.7 to h^1 measured
+(:data:`geometry.sector.AXIAL_RULE`); the lower end, so the estimate errs on the large side. A
+design without slots and teeth has only the swept parts' graded corners: :data:`ESTIMATOR_ORDER`."""
 
 ESTIMATOR_RATIO = 1.4
 """Refine factor of the extra, coarser solve of the two-level estimator (~1/2.4 of the DOFs on the default design)."""
@@ -271,7 +277,7 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
                        near_hz: float | None = None, n_modes: int = 8, harmonic: bool = True,
                        q_mech: float | None = ASSEMBLED_Q_MECH, grade: bool = False, loss=None,
                        surfaces: tuple[str, ...] | None = None, select: Callable | None = None,
-                       harmonic_method: str = "direct", mesher: str = "free") -> Level:
+                       harmonic_method: str = "direct", mesher: str = "free", path: str = "whole") -> Level:
     """Mesh ``design`` at ``refine`` (graded with ``grade``, by ``mesher``: see
     :func:`geometry.builder.build`) and compute the working mode's
     quantities (one Level): ``f_r_hz``, ``f_a_hz``, ``k_eff``; with ``harmonic`` the direct
@@ -281,7 +287,9 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
     shape (as the resonance matching reports it). ``select(modal, near_hz) -> index`` picks the
     mode (default :func:`fem.modal.working_mode`, the largest axial share). ``harmonic_method``
     ``"modal"`` solves the harmonic response on these modes + residual (:func:`fem.harmonic.modal_basis`,
-    as the pipeline and ``python -m fem.harmonic`` do; 1.7x cheaper, within 2e-6 of direct here)."""
+    as the pipeline and ``python -m fem.harmonic`` do; 1.7x cheaper, within 2e-6 of direct here).
+    ``path``: ``"whole"`` (the whole drill by ``mesher``) or ``"sector"`` (the ``k = 0`` swept sector
+    of :func:`fem.sector_system.axial_sector` at ``refine``; ``mesher`` is not used)."""
     import geometry
 
     from .assembly import assemble
@@ -289,8 +297,15 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
 
     t0 = time.perf_counter()
     near = float(near_hz if near_hz is not None else getattr(design, "target_frequency", 20e3))
-    mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=order, refine=refine, grade=grade, mesher=mesher)
-    system = assemble(mesh, order=order)
+    if path == "sector":
+        from .sector_system import axial_sector
+
+        system = axial_sector(design, refine=refine, grade=grade, mesh_size=mesh_size)
+        mesh = system.mesh
+    else:
+        mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=order, refine=refine, grade=grade,
+                                   mesher=mesher)
+        system = assemble(mesh, order=order)
     res = modal_analysis(system, near, n_modes)
     w = select(res, near) if select is not None else working_mode(system, res.f_r_hz, res.vectors, near)
     values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w]), "k_eff": float(res.k_eff[w])}

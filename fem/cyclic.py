@@ -34,7 +34,7 @@ from rpud_common import ParameterError, check_choice
 
 from .assembly import PiezoSystem
 from .eigen import block_eigs, smooth_start
-from .modal import BLOCK_MIN, _freq
+from .modal import BLOCK_MIN, _freq, own_anti_resonance
 from .solvers import blas_threads, factorize
 
 __all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "multiplicity", "nearest_modes",
@@ -283,7 +283,7 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
             opened = run("open")[0]
         f_o, x_o = opened
         keep = np.abs(f_o) >= rigid_hz
-        f_open = _pair_open(system, x_r, x_o[:, keep], f_o[keep])
+        f_open = own_anti_resonance(f_r, _pair_open(system, x_r, x_o[:, keep], f_o[keep]))
     else:
         f_open = f_r.copy()
     t2 = time.perf_counter()

@@ -15,7 +15,7 @@ import numpy as np
 
 from rpud_common import ParameterError
 
-__all__ = ["sectors_for", "parse_harmonics", "run", "format_rows", "CYCLIC_NOTE", "HARMONICS"]
+__all__ = ["sectors_for", "parse_harmonics", "run", "format_rows", "own_note", "CYCLIC_NOTE", "HARMONICS"]
 
 HARMONICS = "0,1"
 """Default ``--harmonics``: the longitudinal, torsional and driven modes (0) and the bending pairs (1)."""
@@ -36,19 +36,9 @@ working mode."""
 
 
 def _eligible(design) -> bool:
-    from geometry.design_rpud import RPUDDesign
-    from geometry.revolve import can_revolve
-    from geometry.sector import symmetry_order
-    from geometry.sector_sweep import check_sweepable
+    from .sector_system import sweepable
 
-    if not isinstance(design, RPUDDesign):
-        return False
-    try:
-        check_sweepable(design)
-    except ParameterError:
-        return False
-    order = symmetry_order(design)
-    return can_revolve(design) and (order == 0 or order >= 3)
+    return sweepable(design)
 
 
 def sectors_for(args, design) -> int | None:
@@ -56,7 +46,8 @@ def sectors_for(args, design) -> int | None:
 
     ``auto``: the coupler's symmetry order (6 for a body of revolution) when the run is a plain
     modal analysis of a design that can be swept as a sector, else the whole drill; ``off``: the
-    whole drill; ``N``: N sectors (refused where they cannot be used).
+    whole drill; ``N``: N sectors (refused where they cannot be used). ``--error`` and
+    ``--converge`` run on the sectors too (the ``k = 0`` sector of the working mode).
     """
     from geometry.options import mesher_of
     from geometry.sector import check_sectors, symmetry_order
@@ -64,8 +55,7 @@ def sectors_for(args, design) -> int | None:
     value = str(getattr(args, "sectors", "off"))
     if value == "off":
         return None
-    clash = [o for o, on in (("--match", args.match), ("--converge", args.converge is not None),
-                             ("--error", args.error)) if on]
+    clash = ["--match"] if args.match else []
     if value == "auto":
         if clash or args.mesher == "free" or args.order != 2 or not _eligible(design):
             return None
@@ -157,6 +147,14 @@ def _describe(rule) -> str:
             + (f", notch edges graded to {m.notch_fraction:g} of the slot zone's size" if m.notch_fraction else ""))
 
 
+def own_note(f_a, driven: bool) -> list[str]:
+    """The table's footnote on modes without an anti-resonance of their own (a ``-`` in f_a)."""
+    if driven and not np.all(np.isfinite(np.asarray(f_a, float))):
+        return ["f_a -: no anti-resonance of its own (its open-circuit partner lies below it: the admittance zero "
+                "between it and a more strongly coupled mode below, whose anti-resonance passes above it)"]
+    return []
+
+
 def format_rows(rows) -> str:
     """The table of every computed mode (rows: dicts of :func:`run`)."""
     lines = [f"{'#':>3} {'k':>2} {'f_r kHz':>10} {'f_a kHz':>10} {'k_eff':>7}  {'ax/tan/rad':>12}  motion"]
@@ -200,15 +198,24 @@ def run(args, design, near: float, sectors: int) -> int:
     checked = (mesher_of(args, design) == "revolve" and args.refine == 1 and args.mesh_size is None
                and args.order == 2 and not args.clamp and not (args.render or args.vtu) and not args.grade
                and _default_geometry(design))
-    _attach_errors(rows, near, checked)
+    est = None
+    if args.error or (not checked and not args.clamp and mesher_of(args, design) == "revolve"
+                      and any(r["harmonic"] == 0 and r["label"].startswith("longitudinal") for r in rows)):
+        est = _estimate(args, design, rows, near, meshes)
+    _attach_errors(rows, near, checked, est)
     print(format_rows(rows))
+    for line in own_note([np.nan if r["harmonic"] == 0 and r["f_a_hz"] is None else 0.0 for r in rows],
+                         meshes[min(ks)][0].hot_dof is not None and 0 in ks):
+        print(line)
     ndofs = {k: results[k].ndof for k in ks}
     print(f"{sectors} sectors, harmonics {', '.join(map(str, ks))}: reduced unknowns "
           + ", ".join(f"k={k} {n}" for k, n in ndofs.items()) + f"; {time.perf_counter() - t0:.1f} s")
+    how = ("the two-level estimate on the k = 0 sector, refine x 1.4: " + est.method if est is not None
+           else "the rule's measured discretisation error on this design, upper side")
     for r in rows:
         if r["f_r_hz_error"] is not None:
-            print(f"working mode: f_r {r['f_r_hz']:.1f} +- {r['f_r_hz_error']:.1f} Hz, f_a {r['f_a_hz']:.1f} +- "
-                  f"{r['f_a_hz_error']:.1f} Hz (the rule's measured discretisation error, upper side)")
+            print(f"working mode: f_r {r['f_r_hz']:.1f} +- {r['f_r_hz_error']:.2g} Hz, f_a {r['f_a_hz']:.1f} +- "
+                  f"{r['f_a_hz_error']:.2g} Hz ({how})")
     swept = mesher_of(args, design) == "revolve"
     if swept:
         note = CYCLIC_NOTE.format(n=sectors, plain=CYCLIC_PLAIN)
@@ -226,7 +233,10 @@ def run(args, design, near: float, sectors: int) -> int:
             "meshes": {str(k): {"ndof_sector": int(meshes[k][0].ndof), "rule": _describe(meshes[k][2])} for k in ks},
             "mesher": "revolve" if swept else "free", "mesh_size": args.mesh_size, "refine": args.refine,
             "clamp": list(args.clamp), "timings": {str(k): results[k].timings for k in ks},
-            "discretisation_error": {"note": CYCLIC_NOTE.format(n=sectors, plain=CYCLIC_PLAIN) if swept else None},
+            "mesh": "; ".join(f"k = {k}: {_describe(meshes[k][2])}" for k in ks),
+            "discretisation_error": ({"method": "measured rule error (this design)", "note": CYCLIC_NOTE.format(
+                n=sectors, plain=CYCLIC_PLAIN), **({"errors": RULE_ERRORS} if checked else {})}
+                if est is None else est.to_dict()),
         }, nonfinite="null")
     if args.render or args.vtu:
         _pictures(args, meshes, results, rows, sectors, near)
@@ -235,16 +245,42 @@ def run(args, design, near: float, sectors: int) -> int:
     return 0
 
 
-def _attach_errors(rows, near: float, checked: bool) -> None:
-    """``f_r_hz_error`` / ``f_a_hz_error`` (Hz, the fem.errors convention) of the working mode (the
-    longitudinal k = 0 mode nearest the target) from the checked rule's measured error
-    (:data:`RULE_ERRORS`); None for the other modes and off that rule (the note states them)."""
+def _working_row(rows, near: float):
+    """The working mode's row: the longitudinal k = 0 mode nearest the target (None: none)."""
     axial = [r for r in rows if r["harmonic"] == 0 and r["label"].startswith("longitudinal")]
-    work = min(axial, key=lambda r: abs(r["f_r_hz"] - near)) if axial else None
+    return min(axial, key=lambda r: abs(r["f_r_hz"] - near)) if axial else None
+
+
+def _estimate(args, design, rows, near, meshes):
+    """The two-level estimate (:func:`fem.errors.estimate`) of the working mode on the ``k = 0``
+    sector, one solve at ``--refine`` x 1.4 (None without a working mode)."""
+    from .errors import estimate
+
+    work = _working_row(rows, near)
+    if work is None or 0 not in meshes:
+        return None
+    values = {"f_r_hz": work["f_r_hz"], "f_a_hz": work["f_a_hz"], "k_eff": work["k_eff"]}
+    values = {k: v for k, v in values.items() if v is not None}
+    return estimate(design, values, meshes[0][0].ndof, refine=args.refine, mesh_size=args.mesh_size,
+                    grade=args.grade, near_hz=near, harmonic=False, n_modes=8, path="sector")
+
+
+def _attach_errors(rows, near: float, checked: bool, est=None) -> None:
+    """``f_r_hz_error`` / ``f_a_hz_error`` / ``k_eff_error`` (the fem.errors convention) of the
+    working mode: the two-level estimate ``est`` when given, else the checked rule's error
+    measured on this design (:data:`RULE_ERRORS`); None for the other modes."""
+    work = _working_row(rows, near)
     for r in rows:
-        on = checked and r is work
-        r["f_r_hz_error"] = RULE_ERRORS["f_r"] * r["f_r_hz"] if on else None
-        r["f_a_hz_error"] = RULE_ERRORS["f_a"] * r["f_a_hz"] if on and r["f_a_hz"] is not None else None
+        r["f_r_hz_error"] = r["f_a_hz_error"] = r["k_eff_error"] = None
+        if r is not work:
+            continue
+        if est is not None:
+            r["f_r_hz_error"] = est.error("f_r_hz")
+            r["f_a_hz_error"] = est.error("f_a_hz") if r["f_a_hz"] is not None else None
+            r["k_eff_error"] = est.error("k_eff") if r["k_eff"] is not None else None
+        elif checked:
+            r["f_r_hz_error"] = RULE_ERRORS["f_r"] * r["f_r_hz"]
+            r["f_a_hz_error"] = RULE_ERRORS["f_a"] * r["f_a_hz"] if r["f_a_hz"] is not None else None
 
 
 def _default_geometry(design) -> bool:

@@ -172,7 +172,7 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
 def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size: float | None = None,
              grade: bool = False, order: int = 2, near_hz: float | None = None, harmonic: bool = True,
              loss=None, q_mech: float | None = ASSEMBLED_Q_MECH, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
-             select: Callable | None = None, mesher: str = "free") -> ErrorEstimate:
+             select: Callable | None = None, mesher: str = "free", path: str = "whole") -> ErrorEstimate:
     """Estimate the discretisation error of ``values`` (computed on ``design`` meshed at ``refine``
     with ``ndof`` DOFs) from one solve at ``refine`` x :data:`ESTIMATOR_RATIO`.
 
@@ -190,6 +190,8 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
     n_modes : modes of the coarse modal solve
     select : ``select(modal, near_hz) -> index`` picks the coarse mode as the fine one was picked
         (default :func:`fem.modal.working_mode`)
+    path : ``"whole"`` or ``"sector"`` (:mod:`fem.sector_system`): the path the fine values ran on,
+        the coarse solve runs on the same
     """
     from .convergence import working_mode_level
 
@@ -198,13 +200,19 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
     coarse_refine = refine * ESTIMATOR_RATIO
     lev = working_mode_level(design, coarse_refine, mesh_size=mesh_size, order=order, near_hz=near_hz,
                              n_modes=n_modes, harmonic=harmonic, q_mech=q_mech, grade=grade, loss=loss,
-                             surfaces=surfaces, select=select, harmonic_method="modal", mesher=mesher)
+                             surfaces=surfaces, select=select, harmonic_method="modal", mesher=mesher, path=path)
     fine = Level(float(refine), int(ndof), {q: float(v) for q, v in values.items() if q in QUANTITIES})
     coarse = Level(lev.refine, lev.ndof, lev.values, time.perf_counter() - t0)
     from geometry.revolve import resolve_mesher
 
-    graded = grade or resolve_mesher(design, mesher) == "revolve"
-    return estimate_from_levels(fine, coarse, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine))
+    graded = grade or path == "sector" or resolve_mesher(design, mesher) == "revolve"
+    p = None
+    if path == "sector":
+        from .convergence import NOTCH_ORDER
+
+        p = NOTCH_ORDER if getattr(getattr(design, "coupler", None), "n_slots", 0) else None
+    return estimate_from_levels(fine, coarse, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine),
+                                order=p)
 
 
 def annotate(record: dict, est: ErrorEstimate | None, keys: dict[str, str]) -> dict:

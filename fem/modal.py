@@ -33,7 +33,8 @@ backend=None, tol=1e-10, open_circuit=True, eigen="block", factor=None) -> Modal
 * Modes are paired by the mass-weighted MAC of their displacement parts (``fem.modeshape.mac``
   on the system's mass; Hungarian assignment),
   not by index (a pair needs MAC >= ``mac_min``, default 0.5, else ``f_a`` is NaN; the
-  open-circuit window is widened until every mode has a partner); ``k_eff = sqrt(1 - (f_r / f_a)^2)`` (0 where ``f_a <= f_r`` to round-off).
+  open-circuit window is widened until every mode has a partner); ``k_eff = sqrt(1 - (f_r / f_a)^2)`` (0 where ``f_a = f_r`` to round-off; a partner below
+  ``f_r`` is not the mode's own anti-resonance: NaN, see :func:`own_anti_resonance`).
 * ``sigma`` defaults to ``(2 pi near_hz)^2``; ``near_hz <= 0`` means the bottom of the spectrum
   with the negative shift ``-(2 pi 1 kHz)^2`` (shift-invert exactly at 0 meets the rigid modes).
   In a free (unclamped) body up to six extra modes are computed; modes below ``rigid_hz``
@@ -92,7 +93,7 @@ from .eigen import (arpack_eigs as _eig, block_eigs, bordered_mass as _bordered_
 from .modeshape import ModeShares, classify, energy_shares, mac
 from .solvers import blas_threads, factorize
 
-__all__ = ["modal_analysis", "ModalResult", "working_mode"]
+__all__ = ["modal_analysis", "ModalResult", "working_mode", "own_anti_resonance"]
 
 log = logging.getLogger(__name__)
 
@@ -197,6 +198,27 @@ def working_mode(system: PiezoSystem, f_hz: np.ndarray, vectors: np.ndarray, nea
     else:
         score = energy_shares(system, shapes).axial
     return int(np.argmax(np.where(ok, score, -1.0)))
+
+
+ROUND_OFF = 1e-9
+"""Relative distance below which an anti-resonance equals its resonance (the eigen-solvers'
+frequencies are good to 5e-11, fem.eigen)."""
+
+
+def own_anti_resonance(f_r: np.ndarray, f_a: np.ndarray) -> np.ndarray:
+    """``f_a`` with NaN where the paired open-circuit mode lies below its resonance beyond
+    :data:`ROUND_OFF`. Charge coupling only raises a mode (the open circuit adds a positive
+    rank-one stiffness); a partner below it is the admittance zero that interlacing puts between
+    it and a lower, more strongly coupled mode whose own anti-resonance passes above it (a
+    torsion beside the working mode): the mode has no anti-resonance of its own. Within round-off
+    it is the mode's own (an uncoupled mode: ``f_a = f_r``, ``k_eff = 0``)."""
+    f_r, f_a = np.asarray(f_r, float), np.asarray(f_a, float).copy()
+    with np.errstate(invalid="ignore"):
+        below = f_a < f_r * (1 - ROUND_OFF)
+        f_a[below] = np.nan
+        near = np.isfinite(f_a) & (f_a < f_r)
+    f_a[near] = f_r[near]
+    return f_a
 
 
 def _freq(lam):
@@ -374,6 +396,7 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     elif system.hot_dof is None:
         f_a = f_r.copy()
         pair_mac = np.ones(n_found)
+    f_a = own_anti_resonance(f_r, f_a)
     with np.errstate(invalid="ignore"):
         ratio = np.where(np.isfinite(f_a), f_r / f_a, np.nan)
         k_eff = np.sqrt(np.clip(1 - ratio ** 2, 0.0, None))

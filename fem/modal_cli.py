@@ -33,6 +33,9 @@ def format_table(res: ModalResult, errors: dict | None = None) -> str:
         err = errors.get(i)
         tail = (f"   f_r +- {err['f_r_err_hz']:.2g} Hz, f_a +- {err['f_a_err_hz']:.2g} Hz" if err else "")
         lines.append(f"{i + 1:3d} {res.f_r_hz[i] / 1e3:10.4f} {fa} {ke} {mc}  {sh:>14}  {res.labels[i]}{tail}")
+    from .cyclic_cli import own_note
+
+    lines.extend(own_note(res.f_a_hz, res.system is not None and res.system.hot_dof is not None))
     t = res.timings
     lines.append(f"{res.ndof} DOFs, {res.backend}; assembly {t['assembly_s']:.2f} s, "
                  f"factorisation {t['factorisation_s']:.2f} s, eigen {t['eigen_s']:.2f} s"
@@ -268,7 +271,8 @@ def main(argv=None) -> int:
     bracket = _factors(args.bracket or BRACKET, "--bracket") if args.match else None
     design = design_from_options(args)
     sectors = _sectors(args, design)
-    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large, **mesh_options(args, design))
+    check_budget(design, args.mesh_size, args.order, allow_large=args.allow_large, sectors=sectors,
+                 **mesh_options(args, design))
     if args.match:
         settings, out_design = _match_settings(args, design, bracket, outputs)
         echo_inputs(_inputs(args, design, None, settings), args.quiet)
@@ -328,7 +332,7 @@ def _run_modal(args, design, sectors) -> int:
 
     near = float(args.near if args.near is not None else getattr(design, "target_frequency", 20e3))
     if args.converge is not None:
-        return _converge(args, design, near)
+        return _converge(args, design, near, sectors)
     if sectors is not None:
         from .cyclic_cli import run as run_cyclic
 
@@ -399,31 +403,41 @@ def _mesh_note(args, design) -> str:
     return "mesh: free; --error estimates the working mode's discretisation error"
 
 
-def _converge(args, design, near) -> int:
-    """``--converge TOL``: the refinement study of the working mode (fem.convergence)."""
+def _converge(args, design, near, sectors=None) -> int:
+    """``--converge TOL``: the refinement study of the working mode (fem.convergence), on the
+    ``k = 0`` sector with ``sectors``, else on the whole drill."""
     from rpud_common import atomic_write_text, json_text
-    from geometry.guard import MAX_DOFS, estimate
+    from geometry.guard import MAX_DOFS, estimate, sector_estimate
 
     from .convergence import study, working_mode_level
+    from .sector_system import path_label
 
     mesher = mesher_of(args, design)
+    path = "sector" if sectors else "whole"
+    print(f"mesh: {path_label(design, path, refine=args.refine, grade=args.grade, mesh_size=args.mesh_size, order=args.order)}"
+          ", refined by 0.8 per level", flush=True)
+
+    def size(F):
+        if sectors:
+            return sector_estimate(design, sectors, args.mesh_size, F).dofs
+        return estimate(design, args.mesh_size, args.order, refine=F, grade=args.grade, mesher=mesher).dofs
 
     def level(refine):
         lev = working_mode_level(design, refine, mesh_size=args.mesh_size, order=args.order, near_hz=near,
-                                 n_modes=8 if args.modes is None else args.modes, grade=args.grade, mesher=mesher)
+                                 n_modes=8 if args.modes is None else args.modes, grade=args.grade, mesher=mesher,
+                                 path=path)
         print(f"  refine {refine:.4f}: {lev.ndof} DOFs, f_r {lev.values['f_r_hz']:.2f} Hz, "
               f"f_a {lev.values['f_a_hz']:.2f} Hz ({lev.seconds:.1f} s)", flush=True)
         return lev
 
     with _solver(args.solver):
         st = study(level, tol=args.converge, start=args.refine,
-                   estimate_dofs=lambda F: estimate(design, args.mesh_size, args.order, refine=F,
-                                                    grade=args.grade, mesher=mesher).dofs,
-                   max_dofs=None if args.allow_large else MAX_DOFS)
+                   estimate_dofs=size, max_dofs=None if args.allow_large else MAX_DOFS)
     print(st.table())
     if args.json:
         atomic_write_text(args.json, json_text({"design": str(args.design), "mesh_size": args.mesh_size,
-                                                "grade": args.grade, "mesher": mesher, "convergence": st.to_dict()},
+                                                "grade": args.grade, "mesher": mesher, "path": path,
+                                                "convergence": st.to_dict()},
                                                nonfinite="null"))
     return 0 if st.converged else 1
 

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 from rpud_common import ParameterError
 
-__all__ = ["Estimate", "estimate", "check_budget", "MAX_ELEMENTS", "MAX_DOFS", "TETS_PER_CUBE"]
+__all__ = ["Estimate", "estimate", "sector_estimate", "check_budget", "MAX_ELEMENTS", "MAX_DOFS", "TETS_PER_CUBE"]
 
 log = logging.getLogger(__name__)
 
@@ -50,6 +50,16 @@ def _curvature_fraction(refine: float) -> float:
 REVOLVE_FACTOR = 1.7
 """DOFs of ``mesher="revolve"`` over those of the free mesh (default design: 111 619 vs 68 561,
 1.63x; the swept section's graded edges cost about the same at every ``refine``)."""
+
+
+SECTOR_FACTOR = 1.21
+"""DOFs of the ``k = 0`` swept sector (:data:`geometry.sector.AXIAL_RULE`) over the whole drill's
+swept, graded estimate at the rule's refine divided by the sector count (default design at
+``--refine 1``: 80 162 DOFs against 399 048 / 6)."""
+
+SECTOR_EXPONENT = 2.3
+"""Growth of the sector's DOFs as ``refine^-SECTOR_EXPONENT`` (default design: 80 162 DOFs at
+``--refine 1``, 259 000 at 0.6; the notch grading and the layer rule grow slower than h^-3)."""
 
 
 @dataclass(frozen=True)
@@ -210,10 +220,23 @@ def estimate(design, mesh_size: float | None = None, order: int = 2,
     return est
 
 
+def sector_estimate(design, sectors: int, mesh_size: float | None = None, refine: float = 1.0) -> Estimate:
+    """Predict the ``k = 0`` swept sector's FE size (:func:`fem.sector_system.axial_sector`: the
+    largest system a sector run factorises) at the command line's ``refine``: the whole drill's
+    swept, graded estimate at the rule's refine over ``sectors``, scaled by
+    :data:`SECTOR_FACTOR` and grown as ``refine^-``:data:`SECTOR_EXPONENT`."""
+    from .sector import AXIAL_RULE
+
+    whole = estimate(design, mesh_size, 2, None, AXIAL_RULE[0], True, "revolve")
+    dofs = int(whole.dofs * SECTOR_FACTOR / sectors * refine ** -SECTOR_EXPONENT)
+    return Estimate(elements=int(whole.elements * dofs / max(whole.dofs, 1)), nodes=dofs // 4, dofs=dofs,
+                    memory_bytes=_memory(dofs), smallest_size=whole.smallest_size * refine)
+
+
 def check_budget(design, mesh_size: float | None = None, order: int = 2,
                  elements_per_wavelength: float | None = None, *, solve: bool = True,
                  allow_large: bool = False, option: str = "--allow-large", refine: float = 1.0,
-                 grade: bool = False, mesher: str = "free") -> Estimate:
+                 grade: bool = False, mesher: str = "free", sectors: int | None = None) -> Estimate:
     """Refuse a build/solve whose estimate exceeds the budget, before anything runs.
 
     Parameters
@@ -226,13 +249,18 @@ def check_budget(design, mesh_size: float | None = None, order: int = 2,
         Name of the override option, quoted in the message.
     refine, grade, mesher
         The builder's refinement factor, edge grading and mesher (as :func:`estimate`).
+    sectors : int, optional
+        The run solves swept sectors of this count (:func:`sector_estimate`), not the whole drill.
 
     Raises
     ------
     ParameterError
         Naming ``--mesh-size`` (with the smallest size that fits) or the design.
     """
-    est = estimate(design, mesh_size, order, elements_per_wavelength, refine, grade, mesher)
+    if sectors:
+        est, growth = sector_estimate(design, sectors, mesh_size, refine), SECTOR_EXPONENT
+    else:
+        est, growth = estimate(design, mesh_size, order, elements_per_wavelength, refine, grade, mesher), 3.0
     value, budget, what = ((est.dofs, MAX_DOFS, "DOFs") if solve else (est.elements, MAX_ELEMENTS, "tetrahedra"))
     if value <= budget:
         log.debug("resource estimate: %s", est.describe())
@@ -242,7 +270,7 @@ def check_budget(design, mesh_size: float | None = None, order: int = 2,
         return est
     # the count grows as size^-3: the size that would fit, for the message
     if refine < 1:
-        fit = refine * (value / budget) ** (1 / 3)
+        fit = refine * (value / budget) ** (1 / growth)
         raise ParameterError("--refine", refine, f"gives {est.describe()}, above the budget of {budget:,} "
                                                  f"{what}: use --refine >= {fit:.3g} or {option}")
     if mesh_size is not None:

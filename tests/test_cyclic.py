@@ -135,11 +135,11 @@ def test_harmonics_equal_the_whole_drill(sector, full):
     for f_r, f_a in zip(res.f_r_hz, res.f_a_hz):
         err, k, j = min((abs(c - f_r) / f_r, k, j) for k, m in modes.items() for j, c in enumerate(m.f_hz))
         assert err < TOL_EXACT
-        assert modes[k].f_open_hz[j] == pytest.approx(f_a, rel=TOL_EXACT)
+        assert modes[k].f_open_hz[j] == pytest.approx(f_a, rel=TOL_EXACT, nan_ok=True)
         count[k] += 1
     # the working mode and the torsion are k = 0 and single; bending pairs are k = 1, twice
     assert count[0] >= 3 and count[1] >= 4 and count[1] % 2 == 0
-    assert modes[0].f_open_hz.max() > modes[0].f_hz.max()          # k = 0 is driven: f_a > f_r there
+    assert np.nanmax(modes[0].f_open_hz) > modes[0].f_hz.max()      # k = 0 is driven: f_a > f_r there
     assert np.array_equal(modes[1].f_open_hz, modes[1].f_hz)        # k > 0: no net charge
     assert modes[1].ndof > 1.9 * modes[0].ndof                      # complex phase: the doubled pencil
     # the free body's rigid motions of k = 0 (axial translation, spin) are found and set apart
@@ -246,7 +246,8 @@ def test_command_line_solves_the_default_design_by_harmonics(tmp_path):
     assert all(m["label"] == "bending" for m in modes if m["harmonic"] == 1)
     work = [m for m in modes if m["label"] == "longitudinal" and m["harmonic"] == 0]
     assert work and work[0]["f_a_hz"] > work[0]["f_r_hz"] and 0.3 < work[0]["k_eff"] < 0.5
-    assert work[0]["f_r_hz_error"] is None            # refine 2 is off the checked rule: no number claimed
+    # refine 2 is off the checked rule: its own two-level estimate on the k = 0 sector
+    assert work[0]["f_r_hz_error"] > 0 and data["discretisation_error"]["method"].startswith("two-level")
     refine, meshing = AXIAL_RULE
     tm, _ = build(default_design(), mesher="revolve", sectors=N, refine=refine * 2, sector_meshing=meshing.scaled(2))
     m = cyclic_modes(assemble(tm), N, 0, 20000.0, 4)
