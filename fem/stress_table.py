@@ -10,12 +10,19 @@ optional static state (bolt preload), see :mod:`fem.stress`:
   principal stress (compression) against ``compressive_strength``, peak ``|E|`` against
   ``depolarisation_field``.
 
-Each peak is also given away from the bonded free edges (:func:`bonded_edge_nodes`: the cells
-touching them left out), where the elastic solution is singular; that value converges with the
-mesh, the peak itself need not. A limit the material record does not give is ``None`` (``n/a``). Each row has the
-location of its peak and an estimate of its discretisation error (:mod:`fem.stress`): peaks are
-taken on the recovered field (per region, the element-node values averaged at each node), the
-estimate is the difference to the raw element values at that node.
+Each peak is also given away from the singular edges (:func:`bonded_edge_nodes`: the cells
+touching them left out), where the elastic solution is singular: a bonded interface of two
+different materials (or polings) meeting the free surface (a ring's rim or bore on an electrode
+plane, the rings on the flange), and a sharp corner where two regions meet (an unfilleted
+flange/horn edge). That value converges with the mesh, the peak itself need not. A row whose
+peak lies on such an edge is marked ``singular`` and its headline (:attr:`StressRow.headline`,
+the utilisation, the worst row) is the off-edge value. A filleted corner
+(:mod:`geometry.fillets`) is not singular: its peak is the headline. A limit the material record
+does not give is ``None`` (``n/a``). Each row has the location of its peak and an estimate of its
+discretisation error (:mod:`fem.stress`): peaks are taken on the recovered field (per region, the
+element-node values averaged at each node), the estimate is the difference to the raw element
+values at that node; :func:`converged_table` replaces it by the two-mesh (Richardson) estimate
+from a coarser mesh's table.
 
 :func:`stress_sweep` repeats the peaks along a harmonic sweep (modal superposition basis).
 """
@@ -33,7 +40,19 @@ from .stress import (StressField, StressRecovery, efield_cycle_peak, principal_c
                      principal_values, quadratic_peak, vm_cycle_peak)
 
 __all__ = ["StressRow", "StressTable", "stress_table", "StressSweep", "stress_sweep", "QUANTITIES",
-           "bonded_edge_nodes"]
+           "bonded_edge_nodes", "converged_table", "STRESS_ORDER", "CORNER_ANGLE_DEG"]
+
+STRESS_ORDER = 2.0
+"""Convergence order of a recovered stress peak at a smooth point with P2 elements (the
+displacement's h^3 less one derivative): the order of the two-mesh estimate of
+:func:`converged_table`. Observed on the fillets of the (r, z) reference: 2.6-2.9
+(tests/test_fillets.py)."""
+
+CORNER_ANGLE_DEG = 60.0
+"""Two regions of one material meeting on the surface make a singular edge when their boundary
+facets' mean normals at the shared node differ by more than this (a sharp corner turns by 90
+degrees; a filleted junction, whose arc the two regions share, by the arc's turn over about one
+element: at most 45 degrees with the free mesh's two elements per quarter arc)."""
 
 QUANTITIES = {
     # key: (label, unit for display, display scale, limit field)
@@ -61,13 +80,19 @@ class StressRow:
     error_estimate: float
     value_off_edges: float | None = None
     location_off_edges: tuple | None = None
+    singular: bool = False
+
+    @property
+    def headline(self) -> float:
+        """The value to read: the off-edge peak if the peak lies on a singular edge, else the peak."""
+        return self.value_off_edges if self.singular and self.value_off_edges is not None else self.value
 
     @property
     def utilisation(self) -> float | None:
-        """Peak / limit (a compressive peak by its magnitude, a tension peak only if > 0)."""
+        """Headline / limit (a compressive peak by its magnitude, a tension peak only if > 0)."""
         if self.limit is None:
             return None
-        v = -self.value if self.quantity == "principal_min" else self.value
+        v = -self.headline if self.quantity == "principal_min" else self.headline
         return max(v, 0.0) / self.limit
 
     @property
@@ -85,7 +110,8 @@ class StressRow:
                 "limit_field": QUANTITIES[self.quantity][3], "utilisation": self.utilisation,
                 "peak_off_edges": self.value_off_edges,
                 "location_off_edges_m": None if self.location_off_edges is None else list(self.location_off_edges),
-                "utilisation_off_edges": self.utilisation_off_edges}
+                "utilisation_off_edges": self.utilisation_off_edges, "singular": self.singular,
+                "headline": self.headline}
 
 
 @dataclass(repr=False)
@@ -114,7 +140,8 @@ class StressTable(Result):
         if w is None:
             return f"{state}: {len(self.rows)} peaks, no limits given"
         return (f"{state}: worst {w.region} {QUANTITIES[w.quantity][0]} "
-                f"{_show(w.quantity, w.value)} = {100 * w.utilisation:.1f} % of its limit")
+                f"{_show(w.quantity, w.headline)}{' off a singular edge' if w.singular else ''} = "
+                f"{100 * w.utilisation:.1f} % of its limit")
 
     def _record(self) -> dict:
         return {"freq_hz": self.freq_hz, "voltage_v": self.voltage, "preload_n": self.preload_n,
@@ -122,8 +149,9 @@ class StressTable(Result):
                 "method": "recovered field (element-node values of P2 tetrahedra averaged per region at each "
                           "node); peak over the cycle (von Mises, |E|: exact; principal stresses: 72 phases + "
                           "parabolic refinement); error estimate = difference between recovered and raw element "
-                          "values around the peak (ZZ); singular at re-entrant corners and bonded free edges "
-                          "(peak_off_edges leaves the cells touching those edges out)"}
+                          "values around the peak (ZZ), or the two-mesh Richardson estimate (converged tables); singular at "
+                          "bonded bimaterial free edges and sharp region junctions (peak_off_edges leaves the cells "
+                          "touching them out; a singular row's headline and utilisation are its off-edge values)"}
 
     def text(self) -> str:
         """The table as plain text (units in the header, location in mm)."""
@@ -135,9 +163,13 @@ class StressTable(Result):
             loc = ", ".join(f"{1e3 * c:.1f}" for c in r.location)
             lim = "n/a" if r.limit is None else f"{r.limit * scale:.4g}"
             off = "-" if r.value_off_edges is None else f"{r.value_off_edges * scale:.4g}"
+            label = label + (" *" if r.singular else "")
             lines.append(f"{f'{r.region} ({r.part}, {r.material})':34s} {label:28s} {r.value * scale:9.4g} "
                          f"{r.error_estimate * scale:8.2g} {unit:6s} {loc:22s} {off:>9s} {lim:>7s} "
                          f"{_pct(r.utilisation):>11s} {_pct(r.utilisation_off_edges):>9s}")
+        if any(r.singular for r in self.rows):
+            lines.append("* peak on a singular edge (bonded bimaterial edge or sharp corner): the utilisation is "
+                         "the off-edge value's")
         return "\n".join(lines)
 
     def markdown(self) -> str:
@@ -149,6 +181,7 @@ class StressTable(Result):
             loc = ", ".join(f"{1e3 * c:.1f}" for c in r.location)
             lim = "n/a" if r.limit is None else f"{r.limit * scale:.4g} {unit}"
             off = "-" if r.value_off_edges is None else f"{r.value_off_edges * scale:.4g} {unit}"
+            label = label + (" (singular edge: utilisation off it)" if r.singular else "")
             lines.append(f"| {r.region} ({r.part}, {r.material}) | {label} | {r.value * scale:.4g} {unit} "
                          f"| {r.error_estimate * scale:.2g} | {loc} | {off} | {lim} | {_pct(r.utilisation)} "
                          f"| {_pct(r.utilisation_off_edges)} |")
@@ -190,25 +223,68 @@ def _principal_peak(hat, s0, sign: float):
 
 
 def bonded_edge_nodes(system) -> np.ndarray:
-    """(n_nodes,) bool: nodes on the outer surface shared by cells of two or more regions.
-
-    These are the lines where a bonded interface meets a free surface (ring bores and rims at the
-    electrode planes, the flange/horn corner): in the elastic solution the stress there is
-    singular (a re-entrant corner or a bi-material edge). Re-entrant corners inside one region
-    (the horn's step, slot roots) are not among them."""
+    """(n_nodes,) bool: the singular edges, nodes on the outer surface shared by cells of two or
+    more regions that either differ in material or poling (a bonded bimaterial edge: ring bores
+    and rims at the electrode planes, the rings on the flange) or meet at a sharp corner (their
+    boundary facets' mean normals there differ by more than :data:`CORNER_ANGLE_DEG`: an
+    unfilleted flange/horn edge). In the elastic solution the stress there is singular. Two
+    regions of one material meeting on a smooth surface (a filleted flange/horn edge) are not
+    singular; nor are re-entrant corners inside one region (an unfilleted horn step, slot roots)
+    among them."""
     n = system.n_nodes
-    surf = np.zeros(n, bool)
-    bf = system.skmesh.boundary_facets()
-    if len(bf):
-        surf[np.unique(np.asarray(system.basis.get_dofs(facets=bf).all()))] = True
-    count = np.zeros(n, np.int64)
-    edofs = np.asarray(system.basis.element_dofs)
+    skm = system.skmesh
+    bf = np.asarray(skm.boundary_facets())
     cell_region = np.asarray(system.mesh.cell_region)
-    for r in range(len(system.regions)):
+    edofs = np.asarray(system.basis.element_dofs)
+    regions = system.mesh.regions
+    if not len(bf):     # pragma: no cover - a mesh has a surface
+        return np.zeros(n, bool)
+    # outward unit normals of the boundary facets (their corners), and each facet's region
+    p = np.asarray(skm.p).T
+    f = np.asarray(skm.facets)[:, bf]
+    nrm = np.cross(p[f[1]] - p[f[0]], p[f[2]] - p[f[0]])
+    cell = np.asarray(skm.f2t)[0, bf]
+    out = p[f].mean(axis=0) - p[np.asarray(skm.t)[:, cell]].mean(axis=0)
+    nrm *= np.sign(np.einsum("ij,ij->i", nrm, out))[:, None]
+    nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
+    # a sector's cut faces (planes through the axis) are no surface: the whole drill continues there
+    centre = p[f].mean(axis=0)
+    cut = (np.abs(nrm[:, 2]) < 1e-6) & (np.abs(np.einsum("ij,ij->i", nrm[:, :2], centre[:, :2]))
+                                         < 1e-6 * np.linalg.norm(centre[:, :2], axis=1) + 1e-12)
+    bf, f, nrm, cell = bf[~cut], f[:, ~cut], nrm[~cut], cell[~cut]
+    # the nodes of each boundary facet: its corners, and its edges' mid nodes (P2)
+    basis = system.basis
+    fdofs = [np.asarray(basis.nodal_dofs)[0, f]]
+    if np.asarray(basis.edge_dofs).size:
+        fdofs.append(np.asarray(basis.edge_dofs)[0, np.asarray(skm.f2e)[:, bf]])
+    fdofs = np.concatenate(fdofs)
+    # per region: the summed normals of its boundary facets at each surface node
+    present, sums = [], []
+    for r in range(len(regions)):
         mark = np.zeros(n, bool)
         mark[np.unique(edofs[:, cell_region == r])] = True
-        count += mark
-    return surf & (count >= 2)
+        sel = cell_region[cell] == r
+        acc = np.zeros((n, 3))
+        for row in fdofs[:, sel]:
+            np.add.at(acc, row, nrm[sel])
+        present.append(mark & (np.linalg.norm(acc, axis=1) > 0))
+        sums.append(acc)
+    out_mask = np.zeros(n, bool)
+    cos_max = np.cos(np.radians(CORNER_ANGLE_DEG))
+    for a in range(len(regions)):
+        for b in range(a + 1, len(regions)):
+            both = present[a] & present[b]
+            if not both.any():
+                continue
+            ra, rb = regions[a], regions[b]
+            if (ra.material, ra.poling) != (rb.material, rb.poling):
+                out_mask |= both
+                continue
+            na, nb = sums[a][both], sums[b][both]
+            cos = np.einsum("ij,ij->i", na, nb) / (np.linalg.norm(na, axis=1) * np.linalg.norm(nb, axis=1))
+            idx = np.flatnonzero(both)
+            out_mask[idx[cos < cos_max]] = True
+    return out_mask
 
 
 def _region_limits(system):
@@ -295,7 +371,8 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
                 i_off, v_off = peak(*(a[off] for a in rec))
                 loc_off = tuple(float(c) for c in pts[off[i_off]])
             rows.append(StressRow(rd.name, part, rd.material, q, float(value), tuple(float(c) for c in pts[i]),
-                                  lim.get(QUANTITIES[q][3]), float(est), v_off, loc_off))
+                                  lim.get(QUANTITIES[q][3]), float(est), v_off, loc_off,
+                                  bool(detail and edge[nodes_r.ravel()[i]])))
 
         if not rd.piezo:
             row("von_mises", lambda h, s: quadratic_peak("von_mises", h, s),
@@ -310,6 +387,47 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
         row("efield", lambda h, s: quadratic_peak("efield", h, s),
             lambda h, s: efield_cycle_peak(h, s)[0], (he, e0r), (ahe, ae0))
     return StressTable(tuple(rows), freq_hz, voltage, float(preload_n))
+
+
+def converged_table(coarse: StressTable, fine: StressTable, ratio: float, order: float = STRESS_ORDER) -> StressTable:
+    """The fine mesh's table with each row's error estimate from the coarse mesh's (Richardson).
+
+    Parameters
+    ----------
+    coarse, fine : StressTable
+        The same state on two meshes whose element sizes differ by ``ratio`` (coarse / fine > 1,
+        e.g. the ratio of their ``refine`` factors).
+    ratio : float
+        Element-size ratio, dimensionless.
+    order : float
+        Convergence order of the peaks (:data:`STRESS_ORDER`).
+
+    Returns
+    -------
+    StressTable
+        Rows of ``fine``, ``error_estimate = |fine - coarse| / (ratio^order - 1)`` on the
+        headline values (a singular row's off-edge peaks), SI. A row absent from the coarse table
+        keeps its own estimate.
+    """
+    import dataclasses
+
+    if not (isinstance(ratio, (int, float)) and ratio > 1.0):
+        raise ParameterError("ratio", ratio, "must be the element-size ratio coarse / fine, > 1")
+    if not (isinstance(order, (int, float)) and order > 0):
+        raise ParameterError("order", order, "must be > 0")
+    old = {(r.region, r.quantity): r for r in coarse.rows}
+    rows = []
+    for r in fine.rows:
+        c = old.get((r.region, r.quantity))
+        if c is None:
+            rows.append(r)
+            continue
+        head_c = c.value_off_edges if r.singular and c.value_off_edges is not None else c.value
+        est = abs(r.headline - head_c) / (ratio ** order - 1.0)
+        rows.append(dataclasses.replace(r, error_estimate=float(est)))
+    note = (f"error estimates: two meshes (element sizes {ratio:g}:1), Richardson at order {order:g}"
+            + (f"; {fine.note}" if fine.note else ""))
+    return StressTable(tuple(rows), fine.freq_hz, fine.voltage, fine.preload_n, note)
 
 
 # --------------------------------------------------------------------------- along a sweep

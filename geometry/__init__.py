@@ -11,11 +11,11 @@ from rpud_common.lazy import exports
 __all__ = ["ParameterError", "TaggedMesh", "Region", "Electrode",
            "RPUDDesign", "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign",
            "StackDesign", "Segment", "ElectrodeSpec", "DesignBase", "CadDesign",
-           "default_design", "load_design", "design_from_mapping", "build_mesh", "build"]
+           "default_design", "filleted", "HORN_MAKER_FILLET", "load_design", "design_from_mapping", "build_mesh", "build"]
 
 _LAZY = {"ParameterError": "rpud_common.errors",
          **{name: "design_rpud" for name in ("CouplerDesign", "FlangeDesign", "HornDesign", "RPUDDesign",
-                                             "StackRings", "default_design")},
+                                             "StackRings", "default_design", "filleted", "HORN_MAKER_FILLET")},
          **{name: "design_stack" for name in ("ElectrodeSpec", "Segment", "StackDesign")},
          "CadDesign": "design_cad", "DesignBase": "design_base",
          **{name: "design" for name in ("design_from_mapping", "load_design")},

@@ -32,6 +32,7 @@ import numpy as np
 from rpud_common import ParameterError, check_choice
 
 from .design_rpud import RPUDDesign
+from .fillets import flange_horn_outlines
 
 __all__ = ["can_revolve", "resolve_mesher", "MESHERS", "sectors_per_quarter", "revolved_parts", "stack_regions", "section_outlines", "quad_triangles", "split_to_tets", "place_midnodes",
            "swept_quality", "jacobian_ratio", "straighten", "SECTORS_PER_QUARTER", "STRAIGHTEN_BELOW",
@@ -87,8 +88,18 @@ def sectors_per_quarter(refine: float) -> int:
 
 
 def _face(occ, outline):
+    """A plane face in y = 0 (x = r) of an (r, z) outline; its ``arcs`` (edge index -> centre,
+    :class:`geometry.fillets.Outline`) as circular arcs."""
     pts = [occ.addPoint(r, 0.0, z) for r, z in outline]
-    lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+    arcs = getattr(outline, "arcs", {})
+    lines = []
+    for i in range(len(pts)):
+        j = (i + 1) % len(pts)
+        if i in arcs:
+            c = occ.addPoint(arcs[i][0], 0.0, arcs[i][1])
+            lines.append(occ.addCircleArc(pts[i], c, pts[j]))
+        else:
+            lines.append(occ.addLine(pts[i], pts[j]))
     return occ.addPlaneSurface([occ.addCurveLoop(lines)])
 
 
@@ -110,20 +121,14 @@ def stack_regions(d: RPUDDesign) -> list[tuple[str, str, str, object, float, flo
 
 def section_outlines(d: RPUDDesign) -> list[tuple[str, str, str, object, tuple]]:
     """(region, part, material, poling, outline) of the stack, flange and horn: (r, z) polygons
-    (m), counter-clockwise, in the order of :func:`geometry.solids.make_rpud`."""
+    (m), counter-clockwise, in the order of :func:`geometry.solids.make_rpud`; the flange's and
+    the horn's with their fillet arcs (:func:`geometry.fillets.flange_horn_outlines`; a stepped or
+    conical horn)."""
     s, f, h = d.stack, d.flange, d.horn
     ri, ro = s.inner_diameter / 2, s.outer_diameter / 2
     out = [(*meta, ((ri, z0), (ro, z0), (ro, z1), (ri, z1))) for *meta, z0, z1 in stack_regions(d)]
-    b = d.bore_diameter / 2
-    zf = s.length
-    out.append(("flange_disc", "flange", f.material, None,
-                ((b, zf), (f.outer_diameter / 2, zf), (f.outer_diameter / 2, zf + f.thickness), (b, zf + f.thickness))))
-    z0, L, R0, Rt = zf + f.thickness, h.length, h.back_diameter / 2, h.tip_diameter / 2
-    if h.profile == "stepped":
-        l1 = h.step_fraction * L
-        horn = ((b, z0), (R0, z0), (R0, z0 + l1), (Rt, z0 + l1), (Rt, z0 + L), (b, z0 + L))
-    else:
-        horn = ((b, z0), (R0, z0), (Rt, z0 + L), (b, z0 + L))
+    flange, horn = flange_horn_outlines(d)
+    out.append(("flange_disc", "flange", f.material, None, flange))
     out.append(("horn", "horn", h.material, None, horn))
     return out
 

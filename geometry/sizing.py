@@ -51,7 +51,8 @@ from .notches import add_notch_field
 
 __all__ = ["region_sizes", "mesh_layers", "feature_caps", "shear_wavelength", "graded_edges", "GradedEdge", "apply_fields",
            "REFINE_RANGE", "CURVATURE_ELEMENTS", "EDGE_FRACTION", "GROWTH", "MAJOR_STEP",
-           "check_refine", "revolve_sizes", "REVOLVE_EDGE_FRACTION", "REVOLVE_GROWTH"]
+           "check_refine", "revolve_sizes", "REVOLVE_EDGE_FRACTION", "REVOLVE_GROWTH", "fillet_sizes",
+           "FILLET_ELEMENTS", "REVOLVE_FILLET_ELEMENTS"]
 
 REFINE_RANGE = (0.2, 5.0)
 """Accepted refinement factors: 0.2 is ~125x the default element count (far above any
@@ -331,7 +332,34 @@ def graded_edges(design: DesignBase, sizes: dict[str, float], refine: float = 1.
             # the wider bore's edge is re-entrant unless the other part ends outside it
             if r < min(a.r1, b.r0) - _TOL:
                 edges.append(GradedEdge(a.z1, r, bore_frac * h_min, growth * refine, (a.region, b.region)))
-    return edges
+    # a filleted corner is not re-entrant: its arc gets its own size (fillet_sizes)
+    corners = {(round(a.corner[0], 9), round(a.corner[1], 9)) for a in _fillets(design)}
+    return [e for e in edges if (round(e.r, 9), round(e.z, 9)) not in corners]
+
+
+FILLET_ELEMENTS = 2.0
+"""Elements along a quarter turn of a fillet arc at ``refine = 1`` in the free mesh (size
+``refine pi r / (2 FILLET_ELEMENTS)`` on the arc); a swept section, where the size costs only
+2-D elements, takes :data:`REVOLVE_FILLET_ELEMENTS`."""
+
+REVOLVE_FILLET_ELEMENTS = 16.0
+"""Elements along a quarter turn of a fillet arc in a swept (r, z) section at ``refine = 1``."""
+
+
+def _fillets(design) -> list:
+    return list(design.fillets().values()) if isinstance(design, RPUDDesign) else []
+
+
+def fillet_sizes(design: DesignBase, sizes: dict[str, float], refine: float = 1.0,
+                 revolve: bool = False) -> list[tuple[float, float, float, float]]:
+    """``(h_arc, growth, r_centre, z_centre, radius)`` (m) of each fillet arc of the design: the
+    element size is ``h_arc`` on the arc and grows by ``growth`` per m away from it."""
+    n = REVOLVE_FILLET_ELEMENTS if revolve else FILLET_ELEMENTS
+    out = []
+    for a in _fillets(design):
+        h = min(refine * a.radius * (math.pi / 2) / n, sizes.get("horn", math.inf))
+        out.append((h, (REVOLVE_GROWTH if revolve else GROWTH) * refine, a.centre[0], a.centre[1], a.radius))
+    return out
 
 
 # ============================================================================ Gmsh fields
@@ -396,6 +424,11 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
         fid = field.add("MathEval")
         field.setString(fid, "F", f"{e.h_edge!r} + {e.growth!r} * Sqrt((Sqrt(x*x + y*y) - {e.r!r})^2 "
                                   f"+ (z - {e.z!r})^2)")
+        fields.append(fid)
+    for h, g, rc, zc, rad in fillet_sizes(design, sizes, refine, revolve):
+        # the distance to the arc's centre circle is at least the radius in the metal
+        fid = field.add("MathEval")
+        field.setString(fid, "F", f"{h!r} + {g!r} * Max(0, Sqrt((Sqrt(x*x + y*y) - {rc!r})^2 + (z - {zc!r})^2) - {rad!r})")
         fields.append(fid)
     notch = add_notch_field(gmsh, design, sizes, region_vols, refine, notch_fraction) if grade else None
     if notch is not None:

@@ -16,7 +16,8 @@ import numpy as np
 from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .layers import Layer, make_layer
-from .revolve import revolved_parts, stack_regions
+from .fillets import exponential_base, flange_horn_outlines
+from .revolve import _face, revolved_parts, stack_regions
 
 __all__ = ["make_rpud", "make_coupler", "make_stack"]
 
@@ -165,10 +166,44 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None, sectors: int | Non
     for *meta, z0, z1 in stack_regions(d):
         pieces.append((*meta, _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)))
     zf = s.length
+    if d.fillets():
+        pieces += _filleted_flange_horn(occ, d)
+        return _sector(occ, d, pieces, sectors)
     pieces.append(("flange_disc", "flange", f.material, None,
                    _annular_cylinder(occ, zf, f.thickness, f.outer_diameter / 2, d.bore_diameter / 2)))
     pieces.append(("horn", "horn", d.horn.material, None, _horn(occ, d.horn, zf + f.thickness, d.bore_diameter)))
     return _sector(occ, d, pieces, sectors)
+
+
+def _revolved(occ, outline):
+    """The solid of revolution (a full turn about z) of an (r, z) outline with arcs."""
+    face = _face(occ, outline)
+    return [dt for dt in occ.revolve([(2, face)], 0, 0, 0, 0, 0, 1, 2 * math.pi) if dt[0] == 3]
+
+
+def _filleted_flange_horn(occ, d: RPUDDesign):
+    """The flange and the horn with their fillets, revolved from their (r, z) outlines
+    (:mod:`geometry.fillets`); an exponential horn is its loft from the flange fillet's tangent
+    point on, fused to the revolved base that carries the fillet."""
+    f, h = d.flange, d.horn
+    flange, horn = flange_horn_outlines(d)
+    out = [("flange_disc", "flange", f.material, None, _revolved(occ, flange))]
+    if horn is not None:
+        return out + [("horn", "horn", h.material, None, _revolved(occ, horn))]
+    base = exponential_base(d)
+    z0 = d.stack.length + f.thickness
+    s0 = base[3][1] - z0
+    n = 13
+    wires = []
+    for i in range(n):
+        s = s0 + (h.length - s0) * i / (n - 1)
+        wires.append(occ.addCurveLoop([occ.addCircle(0, 0, z0 + s, float(h.diameter_at(s)) / 2)]))
+    vols = occ.addThruSections(wires, makeSolid=True, makeRuled=False)
+    if d.bore_diameter > 0:
+        hole = occ.addCylinder(0, 0, z0 - 1e-3, 0, 0, h.length + 2e-3, d.bore_diameter / 2)
+        vols, _ = occ.cut(vols, [(3, hole)])
+    vols, _ = occ.fuse(_revolved(occ, base), vols)
+    return out + [("horn", "horn", h.material, None, vols)]
 
 
 def _sector(occ, d: RPUDDesign, pieces, sectors):

@@ -17,17 +17,23 @@ log = logging.getLogger(__name__)
 __all__ = ["stress_stage", "report_lines"]
 
 
-def stress_stage(system, wp, out: Path, *, render: bool = True, say=None) -> dict:
+def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None) -> dict:
     """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its full
     solution ``wp.x``) of ``system``; writes ``renders/stress_von_mises.png`` and ``stress.vtu``
-    into ``out`` when ``render``. Returns the JSON record (``summary.json["stress"]``)."""
+    into ``out`` when ``render``. ``coarse``: ``(system, working point, size ratio)`` of the same
+    state on a coarser mesh, for the two-mesh error estimates of
+    :func:`fem.stress_table.converged_table`. Returns the JSON record (``summary.json["stress"]``)."""
     from fem.stress import StressRecovery
     from fem.stress_output import node_fields, peak_title, render_stress, write_stress_vtu
-    from fem.stress_table import stress_table
+    from fem.stress_table import converged_table, stress_table
 
     t0 = time.perf_counter()
     fld = StressRecovery(system).field(wp.x)
     table = stress_table(fld, freq_hz=wp.freq_hz, voltage=wp.voltage)
+    if coarse is not None:
+        c_system, c_wp, ratio = coarse
+        c_table = stress_table(StressRecovery(c_system).field(c_wp.x), freq_hz=c_wp.freq_hz, voltage=c_wp.voltage)
+        table = converged_table(c_table, table, ratio)
     files = {"png": None, "vtu": None}
     if render:
         fields = node_fields(fld)
@@ -39,7 +45,8 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None) -> dic
     w = table.worst()
     if say is not None and w is not None:
         say(f"      stress: highest utilisation {100 * w.utilisation:.0f} % ({w.region}, {w.quantity}, "
-            f"{w.value * 1e-6:.1f} {'MPa' if w.quantity != 'efield' else 'kV/mm'})")
+            f"{w.headline * 1e-6:.1f} ± {w.error_estimate * 1e-6:.2g} {'MPa' if w.quantity != 'efield' else 'kV/mm'}"
+            f"{', off a singular edge' if w.singular else ''})")
     return {"utilisation": table.to_dict(), "markdown": table.markdown(), "files": files,
             "state": "harmonic working point at the drive voltage, unloaded tip, no bolt preload",
             "seconds": time.perf_counter() - t0}
@@ -56,9 +63,12 @@ def report_lines(stress: dict | None) -> list[str]:
              "principal stress and |E| per ceramic ring against the material's ratings (`geometry/materials.toml`, "
              "sources there; n/a: the record gives no limit). Peaks are taken on the recovered field (element "
              "values averaged per region at each node); '± est.' is their difference to the raw element values "
-             "around the peak. Peaks at re-entrant corners and bonded-interface edges (the ring bores and rims at "
-             "the electrode planes, the flange/horn edge) are singular in the elastic solution: they grow with "
-             "mesh refinement, so read them as mesh-dependent hot spots, not as converged values.", "",
+             "around the peak, or the two-mesh (Richardson) estimate when a coarser mesh ran too. Peaks on "
+             "singular edges (bonded bimaterial edges: the ring bores and rims at the electrode planes and on the "
+             "flange; sharp corners: an unfilleted flange/horn edge) grow with mesh refinement: such a row is "
+             "marked singular and its utilisation is that of the peak off the edge. Sharp re-entrant corners "
+             "inside one part (an unfilleted horn step) are singular too: give the design fillet radii "
+             "(horn.flange_fillet, horn.step_fillet) for converged peaks there.", "",
              stress["markdown"], ""]
     if stress["files"].get("png"):
         lines += [f"![stress]({stress['files']['png']})", ""]

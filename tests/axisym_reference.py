@@ -35,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as sla
-from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, MeshTri, asm
+from skfem import Basis, BilinearForm, ElementTriP2, ElementVector, MeshTri, MeshTri2, asm
 
 from geometry.design import RPUDDesign, StackDesign
 from geometry.materials import EPS0, get_material
@@ -51,12 +51,20 @@ BETA = 0.75
 
 @dataclass(frozen=True)
 class Block:
-    """One region of the (r, z) cross-section: a polygon (m, counter-clockwise)."""
+    """One region of the (r, z) cross-section: a polygon (m, counter-clockwise); ``arcs`` gives
+    ``(i, r_c, z_c)``: edge i (vertex i to i + 1) is the circular arc about (r_c, z_c)."""
 
     name: str
     material: str
     poling: int                                  # +1 (+z), -1 (-z), 0 passive
     outline: tuple[tuple[float, float], ...]
+    arcs: tuple[tuple[int, float, float], ...] = ()
+
+    def arc_centre(self, i: int):
+        for k, rc, zc in self.arcs:
+            if k == i % len(self.outline):
+                return np.array([rc, zc])
+        return None
 
 
 @dataclass(frozen=True)
@@ -118,9 +126,38 @@ def _rpud_section(d: RPUDDesign) -> Section:
             z += s.ring_thickness
             if not s.electrode_shims:
                 electrodes.append(ElectrodeLine(roles[k + 1], z, ri, ro))
-    blocks.append(_rect("flange", f.material, 0, bore, f.outer_diameter / 2, z, z + f.thickness))
+    zf = z
     z += f.thickness
     L, R0, Rt = h.length, h.back_diameter / 2, h.tip_diameter / 2
+    rf, rs = h.flange_fillet, h.step_fillet
+    if rf and h.profile != "stepped":
+        raise ParameterError("horn.flange_fillet", rf, "fillets are modelled here on stepped horns only")
+    Rf = f.outer_diameter / 2
+    if h.profile == "stepped" and (rf or rs):
+        # quarter-circle fillets tangent to a plane and a cylinder: centre one radius from each;
+        # the flange fillet's metal is split along the 45-degree line from the sharp corner to
+        # the centre (lower half flange, upper half horn), where the arc's point is
+        # corner + (1 - 1/sqrt 2) r (1, 1)
+        l1 = h.step_fraction * L
+        m = (1 - 1 / math.sqrt(2)) * rf
+        if rf:
+            blocks.append(Block("flange", f.material, 0, ((bore, zf), (Rf, zf), (Rf, z), (R0 + rf, z), (R0 + m, z + m),
+                                                            (R0, z), (bore, z)), ((3, R0 + rf, z + rf),)))
+            horn = [(bore, z), (R0, z), (R0 + m, z + m), (R0, z + rf)]
+            arcs = [(2, R0 + rf, z + rf)]
+        else:
+            blocks.append(_rect("flange", f.material, 0, bore, Rf, zf, z))
+            horn, arcs = [(bore, z), (R0, z)], []
+        horn.append((R0, z + l1))
+        if rs:
+            horn += [(Rt + rs, z + l1), (Rt, z + l1 + rs)]
+            arcs.append((len(horn) - 2, Rt + rs, z + l1 + rs))
+        else:
+            horn.append((Rt, z + l1))
+        horn += [(Rt, z + L), (bore, z + L)]
+        blocks.append(Block("horn", h.material, 0, tuple(horn), tuple(arcs)))
+        return Section(tuple(blocks), tuple(electrodes))
+    blocks.append(_rect("flange", f.material, 0, bore, Rf, zf, z))
     if h.profile == "stepped":
         l1 = h.step_fraction * L
         outline = ((bore, z), (R0, z), (R0, z + l1), (Rt, z + l1), (Rt, z + L), (bore, z + L))
@@ -161,13 +198,28 @@ def _stack_section(d: StackDesign) -> Section:
 # ============================================================================ graded mesh
 
 
-def _angle_at(outline, p, tol):
-    """Interior angle (rad) of a polygon at point p: vertex angle, pi on an edge, 2 pi inside, 0 outside."""
-    pts = np.asarray(outline)
+def _leaving(block, i, j):
+    """Direction in which the edge between neighbouring vertices i and j leaves vertex i (its
+    tangent there if the edge is an arc)."""
+    n = len(block.outline)
+    pts = np.asarray(block.outline)
+    d = pts[j] - pts[i]
+    c = block.arc_centre(i if j == (i + 1) % n else j)
+    if c is None:
+        return d
+    t = np.array([-(pts[i] - c)[1], (pts[i] - c)[0]])
+    return t if t @ d > 0 else -t
+
+
+def _angle_at(block, p, tol):
+    """Interior angle (rad) of a block at point p: vertex angle (between the edges' tangents),
+    pi on an edge, 2 pi inside, 0 outside (arcs taken as their chords for the last two: no other
+    block's vertex lies between a fillet's arc and its chord)."""
+    pts = np.asarray(block.outline)
     n = len(pts)
     for i in range(n):
         if np.hypot(*(pts[i] - p)) < tol:
-            a, b = pts[i - 1] - pts[i], pts[(i + 1) % n] - pts[i]
+            a, b = _leaving(block, i, (i - 1) % n), _leaving(block, i, (i + 1) % n)
             # counter-clockwise outline: the interior lies left of each edge
             return (math.atan2(a[1], a[0]) - math.atan2(b[1], b[0])) % TWO_PI
     for i in range(n):
@@ -194,7 +246,7 @@ def singular_points(sec: Section, tol: float = 1e-9) -> np.ndarray:
         if p[0] < tol:
             continue
         p = np.array(p)
-        angles = [(_angle_at(b.outline, p, tol), (b.material, b.poling)) for b in sec.blocks]
+        angles = [(_angle_at(b, p, tol), (b.material, b.poling)) for b in sec.blocks]
         total = sum(a for a, _ in angles)
         kinds = {k for a, k in angles if a > 0}
         if (math.pi + 0.1 < total < TWO_PI - 0.1) or len(kinds) > 1:
@@ -202,7 +254,7 @@ def singular_points(sec: Section, tol: float = 1e-9) -> np.ndarray:
     return np.array(out).reshape(-1, 2)
 
 
-def mesh_section(sec: Section, h: float, grade_radius: float) -> tuple[MeshTri, np.ndarray]:
+def mesh_section(sec: Section, h: float, grade_radius: float, splits: int = 0) -> tuple[MeshTri, np.ndarray]:
     """Triangles of the cross-section, graded toward :func:`singular_points`.
 
     Parameters
@@ -211,7 +263,13 @@ def mesh_section(sec: Section, h: float, grade_radius: float) -> tuple[MeshTri, 
         Bulk element size, m.
     grade_radius : float
         l, m: the size is ``h (d / l)^BETA`` within ``d < l`` of a singular point, floored where
-        it reaches d, and ``<= t h / l`` in a block of thickness t.
+        it reaches d, ``<= t h / l`` in a block of thickness t, and ``<= h c / l`` at a distance
+        c from a fillet arc's centre (``h rho / l`` on an arc of radius rho).
+
+    splits : int
+        Then split every triangle into four this many times (Gmsh's uniform refinement, new
+        boundary nodes on the curves): nested meshes, whose errors follow the asymptotic rate
+        more closely than independent meshes at h / 2^k.
 
     Returns
     -------
@@ -229,7 +287,12 @@ def mesh_section(sec: Section, h: float, grade_radius: float) -> tuple[MeshTri, 
         surfaces = []
         for b in sec.blocks:
             pts = [occ.addPoint(r, z, 0.0) for r, z in b.outline]
-            lines = [occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+            lines = []
+            for i in range(len(pts)):
+                c = b.arc_centre(i)
+                j = (i + 1) % len(pts)
+                lines.append(occ.addLine(pts[i], pts[j]) if c is None
+                             else occ.addCircleArc(pts[i], occ.addPoint(c[0], c[1], 0.0), pts[j]))
             surfaces.append(occ.addPlaneSurface([occ.addCurveLoop(lines)]))
         if len(surfaces) > 1:
             _, pieces = occ.fragment([(2, s) for s in surfaces], [])
@@ -247,6 +310,11 @@ def mesh_section(sec: Section, h: float, grade_radius: float) -> tuple[MeshTri, 
             graded = field.add("MathEval")
             field.setString(graded, "F", f"{h!r} * (F{dist} / {grade_radius!r})^{BETA!r}")
             sizes.append(graded)
+        for b in sec.blocks:    # fillets: h rho / l on the arc, growing as h / l per m away from it
+            for _i, rc, zc in b.arcs:
+                arc = field.add("MathEval")
+                field.setString(arc, "F", f"{h / grade_radius!r} * Sqrt((x - {rc!r})^2 + (y - {zc!r})^2)")
+                sizes.append(arc)
         for b in sec.blocks:    # thin blocks: at most t h / l
             o = np.asarray(b.outline)
             lo, hi = o.min(axis=0), o.max(axis=0)
@@ -266,6 +334,14 @@ def mesh_section(sec: Section, h: float, grade_radius: float) -> tuple[MeshTri, 
                             ("MeshSizeMin", floor), ("MeshSizeMax", h)):
             gmsh.option.setNumber(f"Mesh.{name}", value)
         gmsh.model.mesh.generate(2)
+        for _ in range(splits):
+            gmsh.model.mesh.refine()
+        # arcs: 6-node triangles with their mid-edge nodes on the arcs (isoparametric P2): on
+        # straight chords every node of the boundary would be a small re-entrant corner
+        curved = any(b.arcs for b in sec.blocks)
+        if curved:
+            gmsh.model.mesh.setOrder(2)
+        npe = 6 if curved else 3
         tags, coords, _ = gmsh.model.mesh.getNodes()
         index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
         index[tags.astype(np.int64)] = np.arange(len(tags))
@@ -273,7 +349,7 @@ def mesh_section(sec: Section, h: float, grade_radius: float) -> tuple[MeshTri, 
         for k, dimtags in enumerate(pieces):
             for _, tag in dimtags:
                 _, _, nodes = gmsh.model.mesh.getElements(2, tag)
-                t = index[np.asarray(nodes[0], dtype=np.int64)].reshape(-1, 3)
+                t = index[np.asarray(nodes[0], dtype=np.int64)].reshape(-1, npe)
                 tris.append(t)
                 owner.append(np.full(len(t), k))
     finally:
@@ -283,6 +359,8 @@ def mesh_section(sec: Section, h: float, grade_radius: float) -> tuple[MeshTri, 
     used = np.unique(t)                       # drop geometry-only nodes
     renum = np.full(len(p), -1)
     renum[used] = np.arange(len(used))
+    if curved:
+        return MeshTri2(p[used].T.copy(), renum[t].T.copy()), np.concatenate(owner)
     return MeshTri(p[used].T.copy(), renum[t].T.copy()), np.concatenate(owner)
 
 
@@ -412,13 +490,13 @@ def _potential_scale(stiffness_diag_mean: float, permittivity_diag_mean: float) 
     return 10.0 ** round(math.log10(math.sqrt(stiffness_diag_mean / permittivity_diag_mean)))
 
 
-def assemble(sec: Section, h: float, grade_radius: float, fixed=()) -> Model:
+def assemble(sec: Section, h: float, grade_radius: float, fixed=(), splits: int = 0) -> Model:
     """Mesh the section and assemble the axisymmetric piezo-elastic matrices (P2, P2).
 
     ``fixed``: extra displacement constraints ``(component "r"/"z", line "r"/"z", value m)``,
     e.g. ``("z", "z", 0.0)``: u_z = 0 on the plane z = 0 (u_r stays free: a sliding end).
     """
-    mesh, owner = mesh_section(sec, h, grade_radius)
+    mesh, owner = mesh_section(sec, h, grade_radius, splits)
     ub = Basis(mesh, ElementVector(ElementTriP2()), intorder=6)
     pb = Basis(mesh, ElementTriP2(), intorder=6)
     Kuu, Kpp, Kup, M = [], [], 0, 0
@@ -812,3 +890,102 @@ def harmonic_modes(sec: Section, h: float, grade_radius: float, n: int, near_hz:
     lam = lam[lam > 1e-4 * sigma]
     f = np.sqrt(lam) / TWO_PI
     return np.sort(f[np.argsort(np.abs(f - near_hz))][:n_modes]), A.shape[0]
+
+
+# ============================================================================ stress at the fillets
+#
+# The working mode's stress: the P2 displacement's gradient evaluated in every triangle at its six
+# nodes, the Voigt stress (rr, tt, zz, rz) = c S of a metal there, averaged over the triangles of one
+# block sharing a node, and the von Mises value sqrt(((s_rr - s_tt)^2 + (s_tt - s_zz)^2 +
+# (s_zz - s_rr)^2) / 2 + 3 s_rz^2). The peak over the nodes on each fillet arc, per unit axial
+# displacement of the tip on the axis (the mode's scale drops out).
+
+
+def working_shape(model: Model, near_hz: float, n_modes: int = 3):
+    """(f_r Hz, displacement on the full P2 vector basis) of the working mode (largest k_eff),
+    scaled to a unit axial displacement of the tip's centre (r = 0, top plane)."""
+    sigma = (TWO_PI * near_hz) ** 2
+    pairs, Muu = _eigenpairs(model, sigma, n_modes + 1)
+    (ls, vs), (lo, vo) = [(lam[lam > 0.01 * sigma], vec[:, lam > 0.01 * sigma]) for lam, vec in pairs]
+    ls, vs = ls[:n_modes], vs[:, :n_modes]
+    mac = (vs.T @ (Muu @ vo)) ** 2
+    f_r, f_a = np.sqrt(ls) / TWO_PI, np.sqrt(lo[np.argmax(mac, axis=1)]) / TWO_PI
+    w = int(np.argmax(1 - (f_r / f_a) ** 2))
+    ub = Basis(model.mesh, ElementVector(ElementTriP2()), intorder=6)
+    u = np.zeros(ub.N)
+    u[model.u_free] = vs[:, w]
+    p = model.mesh.p[:, :ub.nodal_dofs.shape[1]]          # the vertices (a curved mesh lists them first)
+    top = np.flatnonzero((np.abs(p[0]) < 1e-12) & (np.abs(p[1] - p[1].max()) < 1e-12))
+    uz_tip = u[ub.nodal_dofs[1, top[0]]]
+    return float(f_r[w]), u / uz_tip
+
+
+def von_mises_rz(s):
+    """Von Mises stress of axisymmetric Voigt stresses (..., 4) in (rr, tt, zz, rz), Pa."""
+    rr, tt, zz, rz = np.moveaxis(np.asarray(s), -1, 0)
+    return np.sqrt(0.5 * ((rr - tt) ** 2 + (tt - zz) ** 2 + (zz - rr) ** 2) + 3 * rz ** 2)
+
+
+def nodal_stress(model: Model, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per block: (P2 node positions (2, n), node-averaged Voigt stress (n, 4) Pa of the metal
+    blocks, NaN at nodes outside the block) as ``(positions, stress (n_blocks, n, 4))`` and the
+    scalar P2 basis' element nodes."""
+    mesh = model.mesh
+    elem = ElementTriP2()
+    X = np.asarray(elem.doflocs, float).T
+    qb = Basis(mesh, ElementVector(elem), quadrature=(X, np.full(X.shape[1], 1.0 / X.shape[1])))
+    pb = Basis(mesh, elem, intorder=2)
+    f = qb.interpolate(u)
+    r = np.maximum(qb.global_coordinates().value[0], 1e-300)
+    S = np.stack([f.grad[0][0], f.value[0] / r, f.grad[1][1], f.grad[0][1] + f.grad[1][0]], axis=-1)
+    nodes = np.asarray(pb.element_dofs).T                 # (nel, 6): the triangle's nodes, doflocs order
+    out = np.full((len(model.sec.blocks), pb.N, 4), np.nan)
+    for k, b in enumerate(model.sec.blocks):
+        if b.poling:
+            continue
+        c = constants(b.material, 0)[0]
+        el = np.flatnonzero(model.owner == k)
+        sig = np.einsum("ij,enj->eni", c, S[el])
+        count = np.bincount(nodes[el].ravel(), minlength=pb.N)
+        for i in range(4):
+            tot = np.bincount(nodes[el].ravel(), weights=sig[..., i].ravel(), minlength=pb.N)
+            out[k, count > 0, i] = tot[count > 0] / count[count > 0]
+    return pb.doflocs, out, nodes
+
+
+def fillet_peaks(sec: Section, h: float, grade_radius: float, near_hz: float, splits: int = 0) -> tuple[float, dict]:
+    """(f_r Hz, {block name + arc index: peak von Mises on that fillet arc per metre of axial tip
+    displacement, Pa/m}) of the working mode on one mesh (:func:`mesh_section`'s arguments)."""
+    model = assemble(sec, h, grade_radius, splits=splits)
+    f_r, u = working_shape(model, near_hz)
+    xy, stress, _nodes = nodal_stress(model, u)
+    out = {}
+    for k, b in enumerate(sec.blocks):
+        for i, rc, zc in b.arcs:
+            a, e = np.asarray(b.outline[i]), np.asarray(b.outline[(i + 1) % len(b.outline)])
+            rho = math.hypot(*(a - (rc, zc)))
+            d = np.hypot(xy[0] - rc, xy[1] - zc)
+            # on the circle, between the arc's end points (inside the corner's box)
+            lo, hi = np.minimum(a, e) - 1e-12, np.maximum(a, e) + 1e-12
+            on = ((np.abs(d - rho) < 1e-9 * (1 + rho)) & (xy[0] >= lo[0]) & (xy[0] <= hi[0])
+                  & (xy[1] >= lo[1]) & (xy[1] <= hi[1]) & np.isfinite(stress[k, :, 0]))
+            angle = np.arctan2(xy[1][on] - zc, xy[0][on] - rc)
+            out[f"{b.name}.{i}"] = arc_peak(angle, von_mises_rz(stress[k, on]))
+    return f_r, out
+
+
+def arc_peak(angle: np.ndarray, value: np.ndarray) -> float:
+    """Largest value along an arc from node samples: the parabola through the best node and its
+    two neighbours in angle (its vertex if it lies between them, else the best node). Taking the
+    best node alone would leave an O(h^2) sampling error that hides the field's own rate."""
+    o = np.argsort(angle)
+    a, v = angle[o], value[o]
+    j = int(np.argmax(v))
+    if j == 0 or j == len(v) - 1:
+        return float(v[j])
+    (a0, a1, a2), (v0, v1, v2) = a[j - 1:j + 2], v[j - 1:j + 2]
+    coef = np.polyfit([a0 - a1, 0.0, a2 - a1], [v0, v1, v2], 2)
+    if coef[0] >= 0:
+        return float(v1)
+    x = -coef[1] / (2 * coef[0])
+    return float(np.polyval(coef, np.clip(x, a0 - a1, a2 - a1)))

@@ -228,8 +228,9 @@ def test_k33_rod_against_ieee176_with_rayleigh_love(poling, vv):
 # ---------------------------------------------------------------------------- the default drill
 
 
-def test_section_of_the_default_drill_reads_the_design():
-    d = no_slots()
+@pytest.mark.parametrize("fillets", [False, True])
+def test_section_of_the_default_drill_reads_the_design(fillets):
+    d = geometry.filleted(no_slots()) if fillets else no_slots()
     sec = ar.section(d)
     names = [b.name for b in sec.blocks]
     assert names == ["coupler", "ring_1", "ring_2", "ring_3", "ring_4", "flange", "horn"]
@@ -240,6 +241,20 @@ def test_section_of_the_default_drill_reads_the_design():
         # Pappus and Green: V = 2 pi int r dA = pi (closed integral of r^2 dz), counter-clockwise
         r1, z1 = np.roll(r, -1), np.roll(z, -1)
         vol[b.name] = math.pi * np.sum((z1 - z) * (r * r + r * r1 + r1 * r1) / 3)
+        # a fillet's arc instead of its chord: the circular segment between them (area
+        # rho^2 (t - sin t) / 2, centroid 4 rho sin^3(t/2) / (3 (t - sin t)) from the centre on the
+        # bisector) lies on the side of the chord away from the centre: removed when the centre
+        # lies outside the block (a concave fillet), added otherwise
+        for i, rc, zc in b.arcs:
+            a, e, c = np.asarray(b.outline[i]), np.asarray(b.outline[(i + 1) % len(b.outline)]), np.array([rc, zc])
+            rho = np.hypot(*(a - c))
+            t = 2 * math.asin(np.hypot(*(e - a)) / (2 * rho))
+            mid = 0.5 * (a + e) - c
+            r_seg = rc + mid[0] / np.hypot(*mid) * 4 * rho * math.sin(t / 2) ** 3 / (3 * (t - math.sin(t)))
+            chord = e - a
+            outside = chord[0] * (c - a)[1] - chord[1] * (c - a)[0] < 0     # centre right of the edge
+            vol[b.name] += (-1 if outside else 1) * 2 * math.pi * r_seg * rho ** 2 * (t - math.sin(t)) / 2
+    assert any(b.arcs for b in sec.blocks) == fillets
     table = {region: v for region, _part, _mat, v in d.region_table()}
     assert vol["coupler"] == pytest.approx(table["coupler"], rel=1e-12)
     assert vol["horn"] == pytest.approx(table["horn"], rel=1e-12)
