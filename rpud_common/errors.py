@@ -88,7 +88,15 @@ def check_integer(name: str, value: Any, minimum: int, maximum: int | None = Non
 
 def check_range(name: str, value: Any, lo: float, hi: float, unit: str = "",
                 lo_open: bool = False, hi_open: bool = False) -> None:
-    """Raise :class:`ParameterError` unless ``lo <= value <= hi`` (bounds optionally open)."""
+    """Raise :class:`ParameterError` unless ``lo <= value <= hi`` (bounds optionally open).
+
+    Examples
+    --------
+    >>> check_range("voltage", 225.0, 1e-3, 1e4, "V")
+    >>> check_range("voltage", float("nan"), 1e-3, 1e4, "V")
+    Traceback (most recent call last):
+    rpud_common.errors.ParameterError: voltage = nan: must lie in [0.001, 10000] V
+    """
     ok = is_finite_number(value)
     if ok:
         ok = (value > lo if lo_open else value >= lo) and (value < hi if hi_open else value <= hi)

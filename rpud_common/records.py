@@ -185,6 +185,40 @@ def from_mapping(cls: type, data: Mapping[str, Any], where: str = "") -> Any:
 
     Unknown keys are an error (a misspelt option must not be silently ignored); missing keys
     take the dataclass defaults. Validation in ``__post_init__`` runs as usual.
+
+    Parameters
+    ----------
+    cls : type
+        A dataclass.
+    data : mapping
+        Field name -> value (a TOML table); nested dataclasses as nested tables.
+    where : str
+        Dotted path of ``data`` in its file, for the error message.
+
+    Returns
+    -------
+    cls
+        The instance, its values converted to the field types.
+
+    Raises
+    ------
+    ParameterError
+        An unknown or missing key, or a value of the wrong type, named by its dotted path.
+
+    Examples
+    --------
+    >>> from dataclasses import dataclass
+    >>> @dataclass(frozen=True)
+    ... class Rod:
+    ...     length: float = 0.04
+    ...     material: str = "PZT-4"
+    >>> from_mapping(Rod, {"length": 0.05})
+    Rod(length=0.05, material='PZT-4')
+    >>> to_mapping(Rod())
+    {'length': 0.04, 'material': 'PZT-4'}
+    >>> from_mapping(Rod, {"lenght": 0.05}, where="rod")
+    Traceback (most recent call last):
+    rpud_common.errors.ParameterError: rod.lenght = 0.05: unknown key; allowed: length, material
     """
     if not isinstance(data, Mapping):
         raise ParameterError(where or cls.__name__, data, f"must be a table of {cls.__name__} fields")

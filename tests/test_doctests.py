@@ -6,7 +6,7 @@ import importlib
 
 import pytest
 
-MODULES = ["geometry", "fem.forms", "fem.assembly"]
+MODULES = ["rpud_common.errors", "rpud_common.records", "geometry", "fem.forms", "fem.assembly"]
 
 
 @pytest.mark.parametrize("name", MODULES)
