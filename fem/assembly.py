@@ -175,7 +175,7 @@ def _blocks_reference(mesh, elem, qk, qm, rdata, cell_region) -> _Blocks:
     return _Blocks(Kuu.tocsr(), Luu.tocsr(), Muu.tocsr(), Kup.tocsr(), Kpp.tocsr(), Lpp.tocsr())
 
 
-@dataclass
+@dataclass(repr=False)
 class Split:
     """A driven problem with ``V_hot`` prescribed (harmonic / transient analyses).
 
@@ -193,6 +193,9 @@ class Split:
     k_hot: np.ndarray
     l_hot: np.ndarray
     phi_scale: float
+
+    def __repr__(self) -> str:
+        return f"Split({len(self.free)} free DOFs, {self.K.nnz} stiffness entries; phi_scale {self.phi_scale:g} V/m)"
 
     def rhs(self, volts: complex = 1.0, lossy: bool = True) -> np.ndarray:
         """Load vector on ``free`` for the hot electrode at ``volts`` (no mechanical load)."""
@@ -232,7 +235,8 @@ class PiezoSystem:
 
     def __repr__(self) -> str:
         # the sizes and the regions: the generated repr would print every matrix and array
-        regions = ", ".join(f"{r.name} ({r.material})" for r in self.regions)
+        named = [f"{r.name} ({r.material})" for r in self.regions]
+        regions = ", ".join(named[:4]) + (f", ... ({len(named)} in all)" if len(named) > 4 else "")
         phi = f"{self.n_phi} phi" + (" + V_hot" if self.hot_dof is not None else "")
         return (f"PiezoSystem({self.ndof} DOFs: {self.n_u} u, {phi}; P{self.order} fields on "
                 f"{len(self.mesh.cells)} cells; regions {regions}; phi_scale {self.phi_scale:g} V/m)")
