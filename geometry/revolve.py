@@ -34,7 +34,7 @@ from rpud_common import ParameterError, check_choice
 from .design_rpud import RPUDDesign
 from .fillets import flange_horn_outlines
 
-__all__ = ["can_revolve", "resolve_mesher", "MESHERS", "sectors_per_quarter", "revolved_parts", "stack_regions", "section_outlines", "quad_triangles", "split_to_tets", "place_midnodes",
+__all__ = ["can_revolve", "resolve_mesher", "MESHERS", "sectors_per_quarter", "revolved_parts", "stack_regions", "section_outlines", "section_face", "quad_triangles", "split_to_tets", "place_midnodes",
            "swept_quality", "jacobian_ratio", "straighten", "SECTORS_PER_QUARTER", "STRAIGHTEN_BELOW",
            "STRAIGHTEN_STEP"]
 
@@ -87,7 +87,7 @@ def sectors_per_quarter(refine: float) -> int:
     return max(1, math.ceil(SECTORS_PER_QUARTER / refine - 1e-9))
 
 
-def _face(occ, outline):
+def section_face(occ, outline):
     """A plane face in y = 0 (x = r) of an (r, z) outline; its ``arcs`` (edge index -> centre,
     :class:`geometry.fillets.Outline`) as circular arcs."""
     pts = [occ.addPoint(r, 0.0, z) for r, z in outline]
@@ -101,10 +101,6 @@ def _face(occ, outline):
         else:
             lines.append(occ.addLine(pts[i], pts[j]))
     return occ.addPlaneSurface([occ.addCurveLoop(lines)])
-
-
-def _rect(occ, r0, r1, z0, z1):
-    return _face(occ, ((r0, z0), (r1, z0), (r1, z1), (r0, z1)))
 
 
 def stack_regions(d: RPUDDesign) -> list[tuple[str, str, str, object, float, float]]:
@@ -142,7 +138,7 @@ def revolved_parts(occ, d: RPUDDesign, n_per_quarter: int):
     conformal fragment unchanged, which they do since their faces are not split by it.
     """
     outlines = section_outlines(d)
-    faces = [(2, _face(occ, o[4])) for o in outlines]
+    faces = [(2, section_face(occ, o[4])) for o in outlines]
     _out, fmap = occ.fragment(faces, [])
     # the sweep: every face of the fragmented section together, so that shared edges sweep to
     # shared faces; a full turn in four quarters (a swept mesh needs an angle below pi)

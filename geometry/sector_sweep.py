@@ -34,7 +34,7 @@ from rpud_common import ParameterError
 
 from .design_rpud import RPUDDesign
 from .mesh import Electrode, Region, TaggedMesh
-from .revolve import _VTK_EDGES, _face, _prism_tets, orient, place_midnodes, quad_triangles, section_outlines
+from .revolve import _VTK_EDGES, _prism_tets, orient, place_midnodes, quad_triangles, section_face, section_outlines
 from .sector import rotation, set_periodic
 from .solids import make_coupler
 from .tagging import _boundary_surfaces, _planar_at, surface_rules
@@ -65,7 +65,7 @@ def sector_model(gmsh, d: RPUDDesign, sectors: int):
     occ = gmsh.model.occ
     coupler = make_coupler(occ, d, sectors)
     outlines = section_outlines(d)
-    faces = [(2, _face(occ, o[4])) for o in outlines]
+    faces = [(2, section_face(occ, o[4])) for o in outlines]
     _out, omap = occ.fragment(coupler + faces, [])
     occ.synchronize()
     vols = sorted({t for m in omap[:len(coupler)] for dim, t in m if dim == 3})

@@ -17,7 +17,7 @@ from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .layers import Layer, make_layer
 from .fillets import exponential_base, flange_horn_outlines
-from .revolve import _face, revolved_parts, stack_regions
+from .revolve import revolved_parts, section_face, stack_regions
 
 __all__ = ["make_rpud", "make_coupler", "make_stack"]
 
@@ -177,7 +177,7 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None, sectors: int | Non
 
 def _revolved(occ, outline):
     """The solid of revolution (a full turn about z) of an (r, z) outline with arcs."""
-    face = _face(occ, outline)
+    face = section_face(occ, outline)
     return [dt for dt in occ.revolve([(2, face)], 0, 0, 0, 0, 0, 1, 2 * math.pi) if dt[0] == 3]
 
 
