@@ -46,17 +46,17 @@ from typing import Callable
 import numpy as np
 
 from impact.stats import MAX_MEMBERS
-from rpud_common import (ParameterError, check_choice, check_integer, check_positive, check_range, provenance_record,
+from rpud_common import (ParameterError, check_integer, check_positive, check_range, provenance_record,
                          save_figure, write_json)
 from rpud_common.result import Result
 
 from fem.losses import ASSEMBLED_Q_MECH
 
-from .coupled import round_sig  # noqa: F401  (the hand-off rounding; results.explore imports it from here)
+from .stage_impacts import CoupledAmplitude, coupled_amplitudes
 
 log = logging.getLogger(__name__)
 
-__all__ = ["PipelineSettings", "PipelineResult", "run_pipeline", "coupled_amplitudes"]
+__all__ = ["PipelineSettings", "PipelineResult", "run_pipeline", "coupled_amplitudes", "CoupledAmplitude"]
 
 ARTICLE_A0 = 15e-6
 """The article's assumed horn-tip amplitude (Table 1), m."""
@@ -131,14 +131,7 @@ class PipelineSettings:
             check_positive("q_mech", self.q_mech)
         self.losses()                                   # checks tan_delta and the source
         self.drive()                                    # checks the convention
-        if self.mesh_size is not None:
-            check_positive("mesh_size", self.mesh_size, "m")
-        from geometry.sizing import check_refine
-
-        check_refine(self.refine)
-        from geometry.revolve import MESHERS
-
-        check_choice("mesher", self.mesher, MESHERS)
+        self.mesh_options()
         if (not self.m_free_values or any((not np.isfinite(m)) or m < 0 or m > 10 for m in self.m_free_values)
                 or max(self.m_free_values) <= 0):
             raise ParameterError("m_free_values", self.m_free_values,
@@ -173,29 +166,17 @@ class PipelineSettings:
 
         return DriveVoltage(self.voltage, self.voltage_given_as)
 
+    def mesh_options(self):
+        """How the design is meshed (:class:`results.stage_fe.MeshOptions`; checks the options)."""
+        from .stage_fe import MeshOptions
+
+        return MeshOptions(mesh_size=self.mesh_size, refine=self.refine, grade=self.grade, mesher=self.mesher)
+
     def impact_settings(self):
         """The ensemble rule of the impact statistics."""
-        from impact.stats import StatsSettings
+        from .stage_impacts import stats_settings
 
-        return StatsSettings(rel_tol=self.impact_rel_tol, n_start=min(64, self.impact_max_members),
-                             n_max=self.impact_max_members, seed=self.seed)
-
-
-# --------------------------------------------------------------------------- A0 <-> impacts
-
-
-@dataclass
-class CoupledAmplitude:
-    """Fixed point of the horn amplitude under the impact load (one free mass)."""
-
-    m_free: float
-    A0: float
-    A0_unloaded: float
-    tip_damping: float
-    impact_power_w: float
-    history: list = field(default_factory=list)
-    converged: bool = True
-    note: str = ""
+        return stats_settings(self.impact_rel_tol, self.impact_max_members, self.seed)
 
 
 @dataclass(repr=False)
@@ -245,66 +226,48 @@ class PipelineResult(Result):
         return folder
 
 
-def coupled_amplitudes(point_fn: Callable[[float], float], base, masses, *, omega: float, scenario="device",
-                       settings=None, rtol: float = 0.03, max_iter: int = 8, digits: int = 4) -> dict:
-    """Iterate ``A0 -> impact power -> tip damper -> A0`` to a fixed point for every free mass.
-
-    The masses advance in lockstep: each iteration is one ensemble batch (:func:`impact.stats.
-    ensemble_batch`) over the masses not yet converged. The power is the ensemble mean of the
-    horn's work on the free mass per second in ``scenario``; the loop stops when the amplitude
-    moves by less than ``rtol`` (3 %, the confidence of that mean). A mass still wandering after
-    ``max_iter`` iterations gets the mean of its last three iterates (``converged`` False,
-    ``note`` says so). Every amplitude is rounded to ``digits`` significant digits.
-
-    Parameters
-    ----------
-    point_fn : callable(c) -> tip amplitude (m) of the harmonic working point with a tip damper
-        ``c`` (N s/m)
-    base : impact.params.ImpactParams (A0 and m_free are replaced)
-    masses : free masses, kg
-    omega : drive angular frequency, rad/s
-    settings : impact.stats.StatsSettings (the ensemble rule)
-
-    Returns
-    -------
-    dict mass -> CoupledAmplitude
-    """
-    from impact.stats import ensemble_batch
-
-    a_free = round_sig(point_fn(0.0), digits)
-    state = {m: CoupledAmplitude(m_free=m, A0=a_free, A0_unloaded=a_free, tip_damping=0.0,
-                                 impact_power_w=0.0, converged=False) for m in masses}
-    for _ in range(max_iter):
-        active = [m for m in masses if not state[m].converged and not state[m].note]
-        if not active:
-            break
-        stats = ensemble_batch([base.with_(m_free=m, A0=state[m].A0) for m in active], scenario, settings)
-        for m, est in zip(active, stats):
-            st = state[m]
-            power = est["horn_power_w"]
-            if not np.isfinite(power.mean):
-                st.note = f"no impact statistics at A0 = {st.A0:.3g} m: {est.note}"
-                log.warning("m_free %g kg: %s", m, st.note)
-                continue
-            st.impact_power_w = power.mean
-            st.tip_damping = 2.0 * st.impact_power_w / (omega * st.A0) ** 2
-            a_new = round_sig(point_fn(st.tip_damping), digits)
-            st.history.append({"A0_m": st.A0, "impact_power_w": st.impact_power_w,
-                               "impact_power_ci95_w": power.half_width,
-                               "tip_damping_ns_per_m": st.tip_damping, "A0_next_m": a_new, "members": est.members})
-            if abs(a_new / st.A0 - 1.0) < rtol:
-                st.A0, st.converged = a_new, True
-            else:
-                st.A0 = round_sig(float(np.sqrt(st.A0 * a_new)), digits)   # geometric relaxation: the loop overshoots
-    for st in state.values():
-        if not st.converged and not st.note and st.history:
-            st.A0 = round_sig(float(np.mean([h["A0_next_m"] for h in st.history[-3:]])), digits)
-            st.note = f"not within {rtol:.0%} after {max_iter} iterations: mean of the last three iterates"
-    return state
-
-
 # --------------------------------------------------------------------------- pipeline
 
+
+class _Clock:
+    """Stage announcements on the terminal (``[k/n] name``) and the ``timings`` record."""
+
+    def __init__(self, say: Callable[[str], None], n: int = 7):
+        self.say, self.n, self.k = say, n, 0
+        self.timings: dict[str, float] = {}
+        self.t_all = time.perf_counter()
+
+    def stage(self, name: str) -> float:
+        self.k += 1
+        self.say(f"[{self.k}/{self.n}] {name}")
+        return time.perf_counter()
+
+    def took(self, key: str, t0: float) -> float:
+        self.timings[key] = time.perf_counter() - t0
+        return self.timings[key]
+
+
+@dataclass
+class _Run:
+    """The stage results of one run, gathered for the figures and ``summary.json``."""
+
+    settings: PipelineSettings
+    out: Path
+    meshed: object = None
+    matched: object = None
+    harm: object = None
+    resp: object = None
+    stress: dict | None = None
+    est: object = None
+    base: object = None
+    amps: dict = field(default_factory=dict)
+    hist_ref: object = None
+    sweeps: dict = field(default_factory=dict)
+    coupled_model: dict | None = None
+    operating: dict | None = None
+    drilling: dict | None = None
+    renders: list = field(default_factory=list)
+    vtu: object = None
 
 
 def run_pipeline(design, settings: PipelineSettings, out_dir, *,
@@ -314,250 +277,240 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
 
     Files: ``summary.json``, ``report.md``, ``figures/*.png``, ``renders/*.png``, ``modes.vtu``.
     """
-    import geometry
-    from geometry.report import mesh_part_volumes
-    from geometry.revolve import resolve_mesher
-    from fem.harmonic import LossModel, harmonic_sweep, modal_basis, working_point
-    from fem.matching import MatchSettings, default_tune, match, working_mode
-    from fem.modal import modal_analysis
-    from fem.transient import ring_up
-    from impact.model import simulate
-    from impact.params import ImpactParams
-    from impact.stats import SCENARIOS
-    from impact.sweeps import sweep
+    from fem.matching import default_tune
 
-    from . import figures
-    from .errors import annotate_summary, estimate_stage
-    from .report import ke_rows, write_report
-    from .stress_stage import stress_stage
+    from .stage_fe import mesh_stage
 
     tune = default_tune(design) if settings.match else ()      # refused now, not after meshing
-    mesher = resolve_mesher(design, settings.mesher)           # likewise
-    out = Path(out_dir)
-    (out / "figures").mkdir(parents=True, exist_ok=True)
+    options = settings.mesh_options().resolved(design)         # likewise
+    run = _Run(settings, Path(out_dir))
+    (run.out / "figures").mkdir(parents=True, exist_ok=True)
     say = progress or (lambda msg: log.info("%s", msg))
-    timings: dict[str, float] = {}
-    t_all = time.perf_counter()
+    clock = _Clock(say)
 
-    def stage(name, k, n=7):
-        say(f"[{k}/{n}] {name}")
-        return time.perf_counter()
+    t0 = clock.stage("mesh")
+    run.meshed = mesh_stage(design, options)
+    clock.took("mesh_s", t0)
+    mesh = run.meshed.mesh
+    say(f"      {mesh.n_cells} tetrahedra, {mesh.n_points} nodes ({clock.timings['mesh_s']:.1f} s)")
+    _fe_stages(run, clock, tune, say)
+    _impact_stages(run, clock, say)
+    t0 = clock.stage("renders")
+    _render_stage(run)
+    clock.took("renders_s", t0)
+    t0 = clock.stage("figures and report")
+    figs = _figures(run)
+    summary = _summary(run, figs)
+    clock.took("figures_s", t0)
+    clock.took("total_s", clock.t_all)
+    summary["timings"] = clock.timings
+    from .errors import annotate_summary
+    from .report import write_report
 
-    # 1. mesh
-    t0 = stage("mesh", 1)
-    mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine, grade=settings.grade,
-                               mesher=mesher)
-    timings["mesh_s"] = time.perf_counter() - t0
-    say(f"      {mesh.n_cells} tetrahedra, {mesh.n_points} nodes ({timings['mesh_s']:.1f} s)")
+    annotate_summary(summary, run.est)
+    # in the summary itself, not only in the file: the report and PipelineResult.summary show it too
+    summary["provenance"] = provenance_record()
+    write_json(run.out / "summary.json", summary)
+    write_report(summary, run.out / "report.md")
+    say(f"done in {clock.timings['total_s']:.1f} s")
+    return PipelineResult(folder=run.out, summary=summary)
 
-    # 2. match
-    t0 = stage("resonance matching" if settings.match else "modal analysis", 2)
-    target = float(design.target_frequency)
-    if settings.match:
-        def show(rec):
-            say(f"      {rec['stage']:5s} {rec['parameter']} = {rec['value_m'] * 1e3:8.4f} mm -> {rec['f_hz']:10.2f} Hz")
 
-        m = match(design, MatchSettings(target_hz=target, mesh_size=settings.mesh_size, refine=settings.refine,
-                                        grade=settings.grade, mesher=mesher, tune=tune), mesh=mesh, progress=show)
-        design, mesh, system, modal, w = m.design, m.mesh, m.system, m.modal, m.working_index
-        match_json = m.to_dict()
-    else:
-        from fem.assembly import assemble
+def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
+    """Matching, harmonic response, stress and the discretisation error of the FE outputs."""
+    from .errors import estimate_stage
+    from .stage_fe import match_stage
+    from .stage_harmonic import harmonic_stage, response_stage
+    from .stress_stage import stress_stage
 
-        system = assemble(mesh)
-        modal = modal_analysis(system, target, 4)
-        w = working_mode(system, modal.f_r_hz, modal.vectors, target)
-        match_json = None
-    f_w = float(modal.f_r_hz[w])
-    f_a = float(modal.f_a_hz[w])
-    timings["match_s"] = time.perf_counter() - t0
-    say(f"      working mode {w + 1}: f_r = {f_w:.1f} Hz, f_a = {f_a:.1f} Hz, k_eff = {modal.k_eff[w]:.3f}")
+    st = run.settings
+    t0 = clock.stage("resonance matching" if st.match else "modal analysis")
 
-    # 3. harmonic
-    t0 = stage("harmonic response", 3)
-    surfaces = tuple(s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
-    loss = settings.losses().loss_model()
-    basis = modal_basis(system, f_w, loss=loss, modes=modal)
-    lo = f_w * (1 - settings.band)
-    hi = (f_a if np.isfinite(f_a) else f_w) * (1 + settings.band)
-    freqs = np.linspace(lo, hi, settings.n_points)
-    sweep_h = harmonic_sweep(system, freqs, settings.voltage, loss=loss, basis=basis, surfaces=surfaces)
-    wp = working_point(system, f_w, settings.voltage, loss=loss, surfaces=surfaces, basis=basis)
-    basis_ds = modal_basis(system, f_w, loss=LossModel(), modes=modal, reuse=basis)
-    wp_ds = working_point(system, f_w, settings.voltage, loss=LossModel(), surfaces=surfaces, basis=basis_ds)
-    eta_w = float(basis.eta[w])
-    tau = 2.0 / (eta_w * 2 * np.pi * f_w)            # amplitude time constant of the working mode
-    ring = ring_up(system, f_w, settings.voltage, min(6 * tau, 0.05), loss=loss, basis=basis,
-                   surfaces=surfaces[:1])
-    stress = stress_stage(system, wp, out, render=settings.render, say=say)    # peaks vs limits; own timing
-    timings["harmonic_s"] = time.perf_counter() - t0
-    say(f"      tip {wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {settings.q_mech}), "
-        f"{wp_ds.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; ring-up tau {tau * 1e3:.2f} ms")
+    def show(rec):
+        say(f"      {rec['stage']:5s} {rec['parameter']} = {rec['value_m'] * 1e3:8.4f} mm -> {rec['f_hz']:10.2f} Hz")
+
+    m = run.matched = match_stage(run.meshed, match=st.match, tune=tune, progress=show)
+    clock.took("match_s", t0)
+    say(f"      working mode {m.w + 1}: f_r = {m.f_r_hz:.1f} Hz, f_a = {m.f_a_hz:.1f} Hz, k_eff = {m.k_eff:.3f}")
+    t0 = clock.stage("harmonic response")
+    h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
+    run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
+    run.stress = stress_stage(m.system, h.wp, run.out, render=st.render, say=say)    # peaks vs limits; own timing
+    clock.took("harmonic_s", t0)
+    say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
+        f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
+        f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
     t0 = time.perf_counter()          # one solve on a 1.4x coarser mesh: the error of every FE output
-    est = estimate_stage(design, settings, system, modal, w, wp, surfaces, target, say)
-    timings["discretisation_error_s"] = time.perf_counter() - t0
+    run.est = estimate_stage(m.design, st, m.system, m.modal, m.w, h.wp, h.surfaces, float(m.design.target_frequency),
+                             say)
+    clock.took("discretisation_error_s", t0)
 
-    # 4. A0 with the impact load
-    t0 = stage("A0 coupled with the impacts", 4)
-    digits = settings.handoff_digits
-    horn_mass = mesh_part_volumes(mesh)[1].get("horn", ImpactParams().m_horn)
-    f_imp = round_sig(f_w, digits + 2)
-    base = ImpactParams(A0=round_sig(wp.tip_amplitude_m, digits), freq=f_imp, m_horn=round_sig(horn_mass, digits))
-    omega = 2 * np.pi * f_w
-    stats_settings = settings.impact_settings()
 
-    def point(c):
-        return working_point(system, f_w, settings.voltage, loss=loss, surfaces=surfaces[:1], basis=basis,
-                             tip_damping=c).tip_amplitude_m
+def _impact_stages(run: _Run, clock: _Clock, say) -> None:
+    """A0 under the impact load, the impact statistics, the coupled model and (opt-in) drilling."""
+    from impact.model import simulate
+    from impact.stats import SCENARIOS
 
-    masses = [m for m in settings.m_free_values if m > 0]
-    all_masses = sorted(set(masses) | {settings.reference_m_free})
-    if settings.couple_impacts:
-        coupled = coupled_amplitudes(point, base, all_masses, omega=omega, scenario="device",
-                                     settings=stats_settings, digits=digits)
-    else:
-        coupled = {m: CoupledAmplitude(m, base.A0, base.A0, 0.0, 0.0) for m in all_masses}
-    for m_free, c in coupled.items():
+    from .stage_impacts import amplitude_stage, handoff, impact_stage
+
+    st, h = run.settings, run.harm
+    stats_settings = st.impact_settings()
+    t0 = clock.stage("A0 coupled with the impacts")
+    base = handoff(h, st.handoff_digits)
+    masses = [m for m in st.m_free_values if m > 0]
+    all_masses = sorted(set(masses) | {st.reference_m_free})
+    run.amps = amplitude_stage(h, base, all_masses, voltage=st.voltage, settings=stats_settings,
+                               couple=st.couple_impacts, digits=st.handoff_digits)
+    for m_free, c in run.amps.items():
         say(f"      m_free {m_free * 1e3:4.1f} g: A0 = {c.A0 * 1e6:6.2f} um (unloaded {c.A0_unloaded * 1e6:.2f} um, "
             f"impact load {c.tip_damping:.2f} N s/m, {len(c.history)} iterations)")
-    ref = coupled[settings.reference_m_free]
-    timings["a0_s"] = time.perf_counter() - t0
-
-    # 5. impacts
-    t0 = stage("impact statistics", 5)
-    base = base.with_(A0=ref.A0, m_free=settings.reference_m_free)
-    hist_ref = simulate(SCENARIOS["device"].apply(base).with_(t_end=0.05))
-    fe_amps = [coupled[m].A0 for m in masses]
-    sweeps = {
-        "device_fe": sweep(base, masses, scenario="device", settings=stats_settings, A0_values=fe_amps),
-        "article_fe": sweep(base, masses, scenario="article", settings=stats_settings, A0_values=fe_amps),
-        "article_15um": sweep(base.with_(A0=ARTICLE_A0, freq=20e3), masses, scenario="article",
-                              settings=stats_settings),
+    clock.took("a0_s", t0)
+    t0 = clock.stage("impact statistics")
+    base = run.base = base.with_(A0=run.amps[st.reference_m_free].A0, m_free=st.reference_m_free)
+    run.hist_ref = simulate(SCENARIOS["device"].apply(base).with_(t_end=0.05))
+    article = {m: CoupledAmplitude(m, ARTICLE_A0, ARTICLE_A0, 0.0, 0.0) for m in masses}
+    run.sweeps = {
+        "device_fe": impact_stage(base, masses, run.amps, scenario="device", settings=stats_settings),
+        "article_fe": impact_stage(base, masses, run.amps, scenario="article", settings=stats_settings),
+        "article_15um": impact_stage(base.with_(A0=ARTICLE_A0, freq=20e3), masses, article, scenario="article",
+                                     settings=stats_settings),
     }
-    timings["impacts_s"] = time.perf_counter() - t0
-    # 5b. the coupled model: the FE transducer in the impact loop, beside the kinematic horn
-    t0 = time.perf_counter()
-    coupled_model = None
-    if settings.coupled_model:
+    clock.took("impacts_s", t0)
+    t0 = time.perf_counter()      # the coupled model: the FE transducer in the impact loop, beside the kinematic horn
+    if st.coupled_model:
         from .coupled import coupled_stage
 
-        coupled_model = coupled_stage(
-            system, basis, f_imp, w, settings.voltage, base, masses, stats_settings, sweeps["device_fe"].rows,
-            {m: coupled[m].A0 for m in masses}, wp.tip_amplitude_m, wp.power_w, f_w, f_a,
-            n_modes=settings.coupled_modes, history_s=settings.coupled_history_s,
-            reference_m_free=settings.reference_m_free, say=say)
-    timings["coupled_s"] = time.perf_counter() - t0
+        m = run.matched
+        run.coupled_model = coupled_stage(
+            m.system, h.basis, base.freq, m.w, st.voltage, base, masses, stats_settings,
+            run.sweeps["device_fe"].rows, {k: run.amps[k].A0 for k in masses}, h.wp.tip_amplitude_m, h.wp.power_w,
+            m.f_r_hz, m.f_a_hz, n_modes=st.coupled_modes, history_s=st.coupled_history_s,
+            reference_m_free=st.reference_m_free, say=say)
+    clock.took("coupled_s", t0)
     t0 = time.perf_counter()
     from .operating_point import operating_point_stage
 
-    operating = operating_point_stage(settings, system, modal, basis, f_w, surfaces, base, stats_settings, wp,
-                                      ref, sweeps["device_fe"], coupled_amplitudes, say=say)
-    timings["operating_point_s"] = time.perf_counter() - t0
-    drilling = None
-    if settings.load == "rock":                # opt-in: drilling under load
+    m = run.matched
+    run.operating = operating_point_stage(st, m.system, m.modal, h.basis, h.f_w, h.surfaces, base, stats_settings,
+                                          h.wp, run.amps[st.reference_m_free], run.sweeps["device_fe"],
+                                          coupled_amplitudes, say=say)
+    clock.took("operating_point_s", t0)
+    if st.load == "rock":                # opt-in: drilling under load
         from .drilling import drilling_stage
 
         t0 = time.perf_counter()
-        drilling = drilling_stage(base, list(settings.m_free_values), {m: coupled[m].A0 for m in masses},
-                                  settings.wob, settings.seed, say=say)
-        timings["drilling_s"] = time.perf_counter() - t0
-    top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in sweeps.items()}
+        run.drilling = drilling_stage(base, list(st.m_free_values), {k: run.amps[k].A0 for k in masses},
+                                      st.wob, st.seed, say=say)
+        clock.took("drilling_s", t0)
+    top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in run.sweeps.items()}
     say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']}, "
         f"article scenario {top['article_fe']} (FE A0), {top['article_15um']} (A0 = 15 um)")
 
-    # 6. renders
-    t0 = stage("renders", 6)
-    renders, vtu = [], None
-    if settings.render:
-        from fem.render import around, render_modes, write_modes_vtu
 
-        idx = around(w, modal.n_modes, 2)
-        renders = render_modes(mesh, modal.shapes, out / "renders", modes=idx, frequencies=modal.f_r_hz,
-                               labels=modal.labels)
-        vtu = write_modes_vtu(mesh, modal.shapes, out / "modes.vtu", frequencies=modal.f_r_hz)
-    timings["renders_s"] = time.perf_counter() - t0
+def _render_stage(run: _Run) -> None:
+    """Mode-shape PNGs of the working mode and its neighbours, and the VTU with every mode."""
+    if not run.settings.render:
+        return
+    from fem.render import around, render_modes, write_modes_vtu
 
-    # 7. figures, summary, report
-    t0 = stage("figures and report", 7)
-    fig_dir = out / "figures"
+    m = run.matched
+    idx = around(m.w, m.modal.n_modes, 2)
+    run.renders = render_modes(m.mesh, m.modal.shapes, run.out / "renders", modes=idx, frequencies=m.modal.f_r_hz,
+                               labels=m.modal.labels)
+    run.vtu = write_modes_vtu(m.mesh, m.modal.shapes, run.out / "modes.vtu", frequencies=m.modal.f_r_hz)
+
+
+def _figures(run: _Run) -> dict:
+    """Every figure of the report, written into ``figures/``; returns key -> path."""
+    from . import figures
+
+    m, h, r, sw = run.matched, run.harm, run.resp, run.sweeps
+    with_zero = 0.0 in run.settings.m_free_values
     drawn = {
-        "admittance": (figures.admittance(sweep_h, f_w, f_a), "admittance.png"),
-        "tip_response": (figures.tip_response(sweep_h, f_w), "tip_response.png"),
-        "ring_up": (figures.ring_up(ring, wp.tip_amplitude_m), "ring_up.png"),
-        "impact_history": (figures.impact_history(hist_ref), "impact_history_50ms.png"),
-        "kinetic_energy": (figures.kinetic_energy(sweeps, 0.0 in settings.m_free_values),
-                           "kinetic_energy_vs_free_mass.png"),
-        "a0_coupling": (figures.a0_coupling(coupled, est.relative("tip_per_volt_m") if est else None),
+        "admittance": (figures.admittance(r.sweep, m.f_r_hz, m.f_a_hz), "admittance.png"),
+        "tip_response": (figures.tip_response(r.sweep, m.f_r_hz), "tip_response.png"),
+        "ring_up": (figures.ring_up(r.ring, h.wp.tip_amplitude_m), "ring_up.png"),
+        "impact_history": (figures.impact_history(run.hist_ref), "impact_history_50ms.png"),
+        "kinetic_energy": (figures.kinetic_energy(sw, with_zero), "kinetic_energy_vs_free_mass.png"),
+        "a0_coupling": (figures.a0_coupling(run.amps, run.est.relative("tip_per_volt_m") if run.est else None),
                         "a0_vs_free_mass.png"),
     }
-    if coupled_model is not None:
+    if run.coupled_model is not None:
         from . import coupled_figures as cf
 
-        drawn["coupled_tip_envelope"] = (cf.tip_envelope(coupled_model["history"]["result"], wp.tip_amplitude_m),
+        cm = run.coupled_model
+        drawn["coupled_tip_envelope"] = (cf.tip_envelope(cm["history"]["result"], h.wp.tip_amplitude_m),
                                          "coupled_tip_envelope.png")
-        drawn["ke_three_horn_models"] = (cf.ke_three_models(coupled_model["kinematic"], sweeps["device_fe"].rows,
-                                                            coupled_model["stats"]),
+        drawn["ke_three_horn_models"] = (cf.ke_three_models(cm["kinematic"], sw["device_fe"].rows, cm["stats"]),
                                          "ke_vs_free_mass_three_horn_models.png")
-        drawn["coupled_drive_power"] = (cf.drive_power(coupled_model["stats"], wp.power_w),
-                                        "drive_power_vs_free_mass.png")
-    if drilling is not None:
+        drawn["coupled_drive_power"] = (cf.drive_power(cm["stats"], h.wp.power_w), "drive_power_vs_free_mass.png")
+    if run.drilling is not None:
         from impact.drilling_plots import plot_depth_vs_mass
 
-        drilling["result"].no_load = sweeps["device_fe"]
-        drawn["drilling"] = (plot_depth_vs_mass(drilling["result"]), "depth_vs_free_mass.png")
-    figs = {key: save_figure(axes, fig_dir / name) for key, (axes, name) in drawn.items()}
-    ke_table = ke_rows(sweeps, 0.0 in settings.m_free_values, coupled)
-    timings["figures_s"] = time.perf_counter() - t0
-    timings["total_s"] = time.perf_counter() - t_all
-    summary = {
-        "design": design.to_mapping(),
-        "settings": {k: getattr(settings, k) for k in settings.__dataclass_fields__},
-        "mesh": {"tetrahedra": mesh.n_cells, "nodes": mesh.n_points, "order": mesh.order, "ndof": system.ndof,
-                 "mesher": mesher},
-        "materials": system.materials_block(),
-        "matching": match_json,
-        "working_mode": {"index": w, "f_r_hz": f_w, "f_a_hz": f_a, "k_eff": float(modal.k_eff[w]),
-                         "label": modal.labels[w], "modal_loss_factor": eta_w},
-        "harmonic": {
-            "voltage_v": settings.voltage, "voltage": settings.drive().record(), "q_mech": settings.q_mech,
-            "losses": settings.losses().record(),
-            "tip_per_volt_m": wp.tip_per_volt_m, "tip_amplitude_m": wp.tip_amplitude_m,
-            "tip_per_volt_datasheet_losses_m": wp_ds.tip_per_volt_m,
-            "tip_amplitude_datasheet_losses_m": wp_ds.tip_amplitude_m,
-            "power_w": wp.power_w, "current_a": float(abs(wp.current_a)),
-            "teeth_ellipse_ratio": wp.teeth_ellipse_ratio, "teeth_phase_deg": wp.teeth_phase_deg,
-            "admittance_f_r_hz": sweep_h.f_r_hz, "admittance_f_a_hz": sweep_h.f_a_hz,
-            "ring_up_tau_s": tau, "ring_up_steady_m": ring.steady_amplitude(surfaces[0]),
-            "basis_reuse": "modal superposition on the matched short-circuit modes + residual "
-                           "(one real factorisation at the modal shift)",
-        },
-        "A0": {"per_volt_m": wp.tip_per_volt_m, "used_m": ref.A0, "reference_m_free_kg": ref.m_free,
-               "unloaded_m": ref.A0_unloaded, "impact_tip_damping_ns_per_m": ref.tip_damping,
-               "impact_power_w": ref.impact_power_w, "converged": ref.converged, "note": ref.note,
-               "iterations": ref.history,
-               "per_mass": {f"{m * 1e3:g} g": c.A0 for m, c in coupled.items()},
-               "article_assumption_m": ARTICLE_A0, "frequency_hz": f_w},
-        "impacts": {"params": base.to_dict(), "headline": "device_fe",
+        run.drilling["result"].no_load = sw["device_fe"]
+        drawn["drilling"] = (plot_depth_vs_mass(run.drilling["result"]), "depth_vs_free_mass.png")
+    return {key: save_figure(axes, run.out / "figures" / name) for key, (axes, name) in drawn.items()}
+
+
+def _harmonic_record(run: _Run) -> dict:
+    st, h, r = run.settings, run.harm, run.resp
+    wp, wp_ds = h.wp, r.wp_datasheet
+    return {
+        "voltage_v": st.voltage, "voltage": st.drive().record(), "q_mech": st.q_mech,
+        "losses": st.losses().record(),
+        "tip_per_volt_m": wp.tip_per_volt_m, "tip_amplitude_m": wp.tip_amplitude_m,
+        "tip_per_volt_datasheet_losses_m": wp_ds.tip_per_volt_m,
+        "tip_amplitude_datasheet_losses_m": wp_ds.tip_amplitude_m,
+        "power_w": wp.power_w, "current_a": float(abs(wp.current_a)),
+        "teeth_ellipse_ratio": wp.teeth_ellipse_ratio, "teeth_phase_deg": wp.teeth_phase_deg,
+        "admittance_f_r_hz": r.sweep.f_r_hz, "admittance_f_a_hz": r.sweep.f_a_hz,
+        "ring_up_tau_s": r.tau, "ring_up_steady_m": r.ring.steady_amplitude(h.surfaces[0]),
+        "basis_reuse": "modal superposition on the matched short-circuit modes + residual "
+                       "(one real factorisation at the modal shift)",
+    }
+
+
+def _a0_record(run: _Run) -> dict:
+    st, m = run.settings, run.matched
+    ref = run.amps[st.reference_m_free]
+    return {"per_volt_m": run.harm.wp.tip_per_volt_m, "used_m": ref.A0, "reference_m_free_kg": ref.m_free,
+            "unloaded_m": ref.A0_unloaded, "impact_tip_damping_ns_per_m": ref.tip_damping,
+            "impact_power_w": ref.impact_power_w, "converged": ref.converged, "note": ref.note,
+            "iterations": ref.history,
+            "per_mass": {f"{k * 1e3:g} g": c.A0 for k, c in run.amps.items()},
+            "article_assumption_m": ARTICLE_A0, "frequency_hz": m.f_r_hz}
+
+
+def _summary(run: _Run, figs: dict) -> dict:
+    """``summary.json`` without the timings, error annotations and provenance (added by the caller)."""
+    from .report import ke_rows
+
+    st, m, out = run.settings, run.matched, run.out
+    return {
+        "design": m.design.to_mapping(),
+        "settings": {k: getattr(st, k) for k in st.__dataclass_fields__},
+        "mesh": {"tetrahedra": m.mesh.n_cells, "nodes": m.mesh.n_points, "order": m.mesh.order,
+                 "ndof": m.system.ndof, "mesher": m.options.mesher},
+        "materials": m.system.materials_block(),
+        "matching": m.matching.to_dict() if m.matching is not None else None,
+        "working_mode": {"index": m.w, "f_r_hz": m.f_r_hz, "f_a_hz": m.f_a_hz, "k_eff": m.k_eff,
+                         "label": m.modal.labels[m.w], "modal_loss_factor": run.harm.eta},
+        "harmonic": _harmonic_record(run),
+        "A0": _a0_record(run),
+        "impacts": {"params": run.base.to_dict(), "headline": "device_fe",
                     "headline_why": "the device scenario is the drill as built and run: restoring spring on the "
                                     "free mass, steady operation, A0 from the FE model loaded by the impacts",
-                    "handoff": {"A0_digits": digits, "freq_hz": f_imp, "m_horn_kg": base.m_horn},
-                    **{k: sw.to_dict() for k, sw in sweeps.items()},
+                    "handoff": {"A0_digits": st.handoff_digits, "freq_hz": run.base.freq, "m_horn_kg": run.base.m_horn},
+                    **{k: sw.to_dict() for k, sw in run.sweeps.items()},
                     "sample_run_50ms": {"note": "one sample trajectory (device scenario, chaotic)",
-                                        **hist_ref.summary()}},
-        "kinetic_energy_table": ke_table,
-        "coupled_model": coupled_model["json"] if coupled_model is not None else None,
-        **({"drilling": drilling["json"]} if drilling is not None else {}),
-        "stress": stress,
-        "operating_point": operating,
+                                        **run.hist_ref.summary()}},
+        "kinetic_energy_table": ke_rows(run.sweeps, 0.0 in st.m_free_values, run.amps),
+        "coupled_model": run.coupled_model["json"] if run.coupled_model is not None else None,
+        **({"drilling": run.drilling["json"]} if run.drilling is not None else {}),
+        "stress": run.stress,
+        "operating_point": run.operating,
         "files": {"figures": {k: str(Path(v).relative_to(out)) for k, v in figs.items()},
-                  "renders": [str(Path(p).relative_to(out)) for p in renders],
-                  "vtu": str(Path(vtu).relative_to(out)) if vtu else None},
-        "timings": timings,
+                  "renders": [str(Path(p).relative_to(out)) for p in run.renders],
+                  "vtu": str(Path(run.vtu).relative_to(out)) if run.vtu else None},
+        "timings": {},
     }
-    annotate_summary(summary, est)
-    # in the summary itself, not only in the file: the report and PipelineResult.summary show it too
-    summary["provenance"] = provenance_record()
-    write_json(out / "summary.json", summary)
-    write_report(summary, out / "report.md")
-    say(f"done in {timings['total_s']:.1f} s")
-    return PipelineResult(folder=out, summary=summary)

@@ -19,6 +19,8 @@ points that :mod:`results.explore` runs::
     voltage = 225.0
     q_mech = 100.0
     mesh_size = 0.0               # 0: the design's own rule
+    refine = 1.0                  # mesh refinement factor (< 1 refines), as python -m results --refine
+    mesher = "free"               # free | revolve | auto, as python -m results --mesher
 
     [parameters."coupler.slot_angle_deg"]
     values = [20.0, 30.0, 40.0]   # grid levels
@@ -127,6 +129,9 @@ class StudySettings:
     voltage: float = 225.0
     q_mech: float = ASSEMBLED_Q_MECH
     mesh_size: float = 0.0
+    refine: float = 1.0
+    grade: bool = False
+    mesher: str = "free"
     match: bool = True
     scenario: str = "device"
     rel_tol: float = 0.05
@@ -138,9 +143,23 @@ class StudySettings:
         check_range("settings.q_mech", self.q_mech, 1.0, 1e6)
         if self.mesh_size != 0:
             check_range("settings.mesh_size", self.mesh_size, 1e-5, 1.0, "m (0: the design's rule)")
+        from geometry.sizing import check_refine
+
+        check_refine(self.refine, "settings.refine")
+        from geometry.revolve import MESHERS
+
+        check_choice("settings.mesher", self.mesher, MESHERS)
         check_choice("settings.scenario", self.scenario, ("device", "article"))
         check_range("settings.rel_tol", self.rel_tol, 0.0, 1.0, lo_open=True)
         check_integer("settings.max_members", self.max_members, 2, 1_000_000)
+
+    def mesh_options(self):
+        """How every point's design is meshed (:class:`results.stage_fe.MeshOptions`), as the
+        end-to-end run meshes it with the same settings."""
+        from .stage_fe import MeshOptions
+
+        return MeshOptions(mesh_size=self.mesh_size or None, refine=self.refine, grade=self.grade,
+                           mesher=self.mesher)
 
 
 @dataclass(frozen=True)
@@ -316,11 +335,13 @@ def _settings(raw: Any) -> StudySettings:
     kw = {}
     for key, v in raw.items():
         where = f"settings.{key}"
-        if key == "match":
+        if key in ("match", "grade"):
             if not isinstance(v, bool):
                 raise ParameterError(where, v, "must be true or false")
         elif key == "scenario":
             v = _text(where, v, "must be 'device' or 'article'")
+        elif key == "mesher":
+            v = _text(where, v, "must be 'free', 'revolve' or 'auto'")
         elif key == "tip_surface":
             if not isinstance(v, str) or (v and not _NAME_PART.match(v)) or len(v) > 64:
                 raise ParameterError(where, v, "must be the name of a surface of the mesh ('' picks horn_tip)")

@@ -29,6 +29,7 @@ from hypothesis import strategies as st
 
 from rpud_common import run_cli
 from results import explore as explore_mod
+from results import explore_cluster, explore_cost
 from results.explore_cli import main
 from results.study import OUTPUTS, SAMPLINGS, STAGES
 
@@ -424,7 +425,7 @@ def _silent_server():
 
 
 def test_silent_scheduler_ends_within_the_timeout(tmp_path, monkeypatch):
-    monkeypatch.setattr(explore_mod, "SCHEDULER_TIMEOUT_S", 1.5)
+    monkeypatch.setattr(explore_cluster, "SCHEDULER_TIMEOUT_S", 1.5)
     with _silent_server() as port:
         t0 = time.monotonic()
         text = refused(tmp_path, BASE, ["--scheduler", f"tcp://127.0.0.1:{port}"], limit=20)
@@ -472,8 +473,8 @@ def test_cost_estimate_shares_fe_tasks():
     study = load_study(ROOT / "results" / "examples" / "study_free_mass_voltage.toml")
     cost = explore_mod.estimate_cost(study, study.points(), 2)
     assert (cost.points, cost.meshes, cost.harmonics) == (12, 1, 1)
-    one_chain = explore_mod.MESH_SECONDS + explore_mod.MODAL_SECONDS + explore_mod.HARMONIC_SECONDS
-    assert cost.core_seconds > one_chain and cost.seconds < explore_mod.MAX_HOURS * 3600
+    one_chain = explore_cost.MESH_SECONDS + explore_cost.MODAL_SECONDS + explore_cost.HARMONIC_SECONDS
+    assert cost.core_seconds > one_chain and cost.seconds < explore_cost.MAX_HOURS * 3600
 
 
 def test_help_documents_the_override(capsys):

@@ -242,3 +242,39 @@ def test_mesher_is_checked_before_anything_runs(tmp_path):
                         "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "stepped or conical" in r.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_one_point_study_equals_the_pipeline(result, tmp_path):
+    """A design study submits the pipeline's own stage functions (results.stage_*) to Dask: one
+    point with the pipeline's settings gives the pipeline's numbers. The FE values differ only by
+    the solvers' round-off (a worker runs one BLAS thread; the thread test above measures up to
+    1e-11 relative between thread counts, so 1e-9 is asserted); the hand-off to the impacts is
+    rounded, so the loaded amplitude and the impact statistics are equal bit for bit."""
+    from results.explore import explore
+    from results.study import study_from_mapping
+
+    s = result.summary
+    DESIGN.save(tmp_path / "design.toml")
+    study = study_from_mapping({
+        "study": {"name": "one", "design": str(tmp_path / "design.toml"), "seed": SETTINGS.seed,
+                  "stages": ["mesh", "match", "harmonic", "impact"]},
+        "settings": {"voltage": SETTINGS.voltage, "q_mech": SETTINGS.q_mech, "mesh_size": SETTINGS.mesh_size,
+                     "refine": SETTINGS.refine, "mesher": SETTINGS.mesher, "match": True, "scenario": "device",
+                     "rel_tol": SETTINGS.impact_rel_tol, "max_members": SETTINGS.impact_max_members},
+        "parameters": {"impact.m_free": {"values": [0.008]}}})
+    row = explore(study, tmp_path / "study", workers=1, figures=False).rows[0]
+    assert row["status"] == "ok", row["error"]
+    wm, h = s["working_mode"], s["harmonic"]
+    for key in ("f_r_hz", "f_a_hz", "k_eff"):
+        assert row[key] == pytest.approx(wm[key], rel=1e-9), key
+    for path, value in s["matching"]["tuned"].items():
+        assert row[f"tuned.{path}"] == pytest.approx(value, rel=1e-9), path
+    assert row["tip_per_volt_m"] == pytest.approx(h["tip_per_volt_m"], rel=1e-9)
+    assert row["teeth_ellipse_ratio"] == pytest.approx(h["teeth_ellipse_ratio"], rel=1e-9, nan_ok=True)
+    assert row["power_w"] == pytest.approx(h["power_w"], rel=1e-9)
+    assert row["A0_m"] == s["A0"]["per_mass"]["8 g"]
+    ke = next(r for r in s["kinetic_energy_table"] if r["m_free_kg"] == 0.008)["device_fe"]
+    assert row["members"] == ke["members"]
+    assert (row["tool_ke_j"], row["tool_ke_j_ci95"]) == (ke["mean_tool_ke_after_j"]["mean"],
+                                                         ke["mean_tool_ke_after_j"]["ci95_half_width"])
+    assert (row["tool_rate_hz"], row["tool_power_w"]) == (ke["tool_impact_rate_hz"]["mean"], ke["tool_power_w"]["mean"])

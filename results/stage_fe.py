@@ -1,0 +1,164 @@
+"""The finite-element stages: mesh the design, then match it (or take it as it is) to its working mode.
+
+Both the end-to-end run (:func:`results.pipeline.run_pipeline`) and the design studies
+(:mod:`results.explore`) call these functions with the same :class:`MeshOptions`, so a mesh rule
+or a matching fix reaches both at once.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+log = logging.getLogger(__name__)
+
+__all__ = ["MeshOptions", "Meshed", "mesh_stage", "Matched", "match_stage"]
+
+
+@dataclass(frozen=True)
+class MeshOptions:
+    """How a design is meshed (SI units).
+
+    Attributes
+    ----------
+    mesh_size : float or None
+        Mesh size override, m (None: the design's elements-per-wavelength rule).
+    refine : float
+        Factor scaling every size rule (:mod:`geometry.sizing`; < 1 refines).
+    grade : bool
+        Grade the mesh toward the re-entrant edges.
+    mesher : str
+        ``"free"``, ``"revolve"`` or ``"auto"`` (:mod:`geometry.revolve`).
+    """
+
+    mesh_size: float | None = None
+    refine: float = 1.0
+    grade: bool = False
+    mesher: str = "free"
+
+    def __post_init__(self):
+        from geometry.revolve import MESHERS
+        from geometry.sizing import check_refine
+        from rpud_common import check_choice, check_positive
+
+        if self.mesh_size is not None:
+            check_positive("mesh_size", self.mesh_size, "m")
+        check_refine(self.refine)
+        check_choice("mesher", self.mesher, MESHERS)
+
+    def resolved(self, design) -> "MeshOptions":
+        """These options with ``auto`` resolved for ``design`` (a ParameterError if the mesher cannot
+        mesh it: refused before any meshing)."""
+        from dataclasses import replace
+
+        from geometry.revolve import resolve_mesher
+
+        return replace(self, mesher=resolve_mesher(design, self.mesher))
+
+
+@dataclass(frozen=True)
+class Meshed:
+    """A design and its mesh (:func:`mesh_stage`)."""
+
+    design: Any
+    mesh: Any
+    options: MeshOptions
+    seconds: float
+
+    def record(self) -> dict:
+        """Mesh size figures (a study's table columns)."""
+        return {"tetrahedra": self.mesh.n_cells, "nodes": self.mesh.n_points, "mesh_s": self.seconds}
+
+
+def mesh_stage(design, options: MeshOptions) -> Meshed:
+    """Mesh ``design`` (Gmsh, second-order tetrahedra) as ``options`` say."""
+    import geometry
+
+    t0 = time.perf_counter()
+    options = options.resolved(design)
+    mesh = geometry.build_mesh(design, mesh_size=options.mesh_size, refine=options.refine, grade=options.grade,
+                               mesher=options.mesher)
+    return Meshed(design, mesh, options, time.perf_counter() - t0)
+
+
+@dataclass(frozen=True)
+class Matched:
+    """The working mode of a (matched) design (:func:`match_stage`).
+
+    Attributes
+    ----------
+    design, mesh, system, modal
+        The tuned design (the input design without matching), its mesh, the assembled
+        :class:`fem.assembly.PiezoSystem` and the :class:`fem.modal.ModalResult` around the target.
+    w : int
+        Index of the working mode in ``modal``.
+    matching : fem.matching.MatchResult or None
+        The matching run (None: the design analysed as it is).
+    options : MeshOptions
+    seconds : float
+    """
+
+    design: Any
+    mesh: Any
+    system: Any
+    modal: Any
+    w: int
+    matching: Any
+    options: MeshOptions
+    seconds: float
+
+    @property
+    def f_r_hz(self) -> float:
+        return float(self.modal.f_r_hz[self.w])
+
+    @property
+    def f_a_hz(self) -> float:
+        return float(self.modal.f_a_hz[self.w])
+
+    @property
+    def k_eff(self) -> float:
+        return float(self.modal.k_eff[self.w])
+
+    def record(self) -> dict:
+        """The working mode's figures and the tuned lengths (a study's table columns)."""
+        rec: dict[str, float] = {}
+        if self.matching is not None:
+            rec["matched"] = float(self.matching.converged)
+            rec.update({f"tuned.{k}": float(v) for k, v in self.matching.tuned.items()})
+        rec.update({"f_r_hz": self.f_r_hz, "f_a_hz": self.f_a_hz, "k_eff": self.k_eff, "match_s": self.seconds})
+        return rec
+
+
+def match_stage(meshed: Meshed, *, match: bool = True, tune: tuple[str, ...] | None = None,
+                progress: Callable[[dict], None] | None = None) -> Matched:
+    """Tune the design to its target frequency (:func:`fem.matching.match`) on ``meshed``'s mesh, or
+    (``match`` False) assemble it and find its working mode as it is.
+
+    ``tune``: the lengths matched (default :func:`fem.matching.default_tune`); ``progress`` is
+    called after every matching iteration (:func:`fem.matching.match`).
+    """
+    from fem.matching import MatchSettings, default_tune
+    from fem.matching import match as run_match
+
+    t0 = time.perf_counter()
+    design, mesh, opt = meshed.design, meshed.mesh, meshed.options
+    target = float(design.target_frequency)
+    if not match:
+        system, modal, w = _as_it_is(mesh, target)
+        return Matched(design, mesh, system, modal, w, None, opt, time.perf_counter() - t0)
+    settings = MatchSettings(target_hz=target, mesh_size=opt.mesh_size, refine=opt.refine, grade=opt.grade,
+                             mesher=opt.mesher, tune=tune or default_tune(design))
+    m = run_match(design, settings, mesh=mesh, progress=progress)
+    return Matched(m.design, m.mesh, m.system, m.modal, m.working_index, m, opt, time.perf_counter() - t0)
+
+
+def _as_it_is(mesh, target: float):
+    from fem.assembly import assemble
+    from fem.matching import working_mode
+    from fem.modal import modal_analysis
+
+    system = assemble(mesh)
+    modal = modal_analysis(system, target, 4)
+    return system, modal, working_mode(system, modal.f_r_hz, modal.vectors, target)
