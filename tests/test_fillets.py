@@ -297,3 +297,117 @@ def test_reference_stress_on_a_curved_surface_against_goodier():
     s1 = 0.5 * (rr + zz) + np.sqrt(0.25 * (rr - zz) ** 2 + rz ** 2)
     kt = ar.arc_peak(np.arctan2(xy[1][on], xy[0][on]), s1)
     assert kt == pytest.approx((27 - 15 * nu) / (2 * (7 - 5 * nu)), rel=0.005)
+
+
+# ---------------------------------------------------------------------------- Peterson
+
+
+def _peterson_flat(H, d, r):
+    """K_t of a stepped flat bar in tension with shoulder fillets (Pilkey & Pilkey, Peterson's
+    Stress Concentration Factors, 3rd ed., Chart 3.1's curve fit; nominal stress P / (h d)):
+    K_t = C1 + C2 (2t/H) + C3 (2t/H)^2 + C4 (2t/H)^3, t = (H - d) / 2, for 0.1 <= t/r <= 20."""
+    t = (H - d) / 2
+    tr = t / r
+    sq = math.sqrt(tr)
+    if tr <= 2.0:
+        c = (1.006 + 1.008 * sq - 0.044 * tr, -0.115 - 0.584 * sq + 0.315 * tr,
+             0.245 - 1.006 * sq - 0.257 * tr, -0.135 + 0.582 * sq - 0.017 * tr)
+    else:
+        c = (1.020 + 1.009 * sq - 0.048 * tr, -0.065 - 0.165 * sq - 0.007 * tr,
+             -3.459 + 1.266 * sq - 0.016 * tr, 3.505 - 2.109 * sq + 0.069 * tr)
+    q = 2 * t / H
+    return sum(ci * q ** i for i, ci in enumerate(c))
+
+
+def _stepped_plate(H, d, r, t, h_far, h_arc):
+    """A stepped flat bar (widths H, d, lengths 2 H and 3 d, fillets r on both sides, thickness t,
+    all m) as a TaggedMesh of 10-node tetrahedra with facet sets ``bottom`` and ``top`` (its end
+    faces); element size h_arc on the arcs growing by 0.3 per m to h_far."""
+    import gmsh
+
+    from geometry.materials import get_material
+    from geometry.mesh import Region, TaggedMesh
+
+    zs, a, b = 2 * H, H / 2, d / 2
+    outline = [(-a, 0), (a, 0), (a, zs), (b + r, zs), (b, zs + r), (b, zs + 3 * d), (-b, zs + 3 * d), (-b, zs + r),
+               (-b - r, zs), (-a, zs)]
+    arcs = {3: (b + r, zs + r), 7: (-b - r, zs + r)}
+    gmsh.initialize(interruptible=False)
+    try:
+        gmsh.option.setNumber("General.Terminal", 0)
+        occ = gmsh.model.occ
+        pts = [occ.addPoint(x, -t / 2, z) for x, z in outline]
+        curves = [occ.addCircleArc(pts[i], occ.addPoint(arcs[i][0], -t / 2, arcs[i][1]), pts[(i + 1) % len(pts)])
+                  if i in arcs else occ.addLine(pts[i], pts[(i + 1) % len(pts)]) for i in range(len(pts))]
+        face = occ.addPlaneSurface([occ.addCurveLoop(curves)])
+        vol = [dt for dt in occ.extrude([(2, face)], 0, t, 0) if dt[0] == 3][0][1]
+        occ.synchronize()
+        dist = [f"Sqrt((x - ({cx!r}))^2 + (z - ({cz!r}))^2)" for cx, cz in arcs.values()]
+        fid = gmsh.model.mesh.field.add("MathEval")
+        gmsh.model.mesh.field.setString(fid, "F", f"Min({h_far!r}, {h_arc!r} + 0.3 * (Min({dist[0]}, {dist[1]}) - {r!r}))")
+        gmsh.model.mesh.field.setAsBackgroundMesh(fid)
+        for key, value in (("MeshSizeFromPoints", 0), ("MeshSizeFromCurvature", 0), ("MeshSizeExtendFromBoundary", 0),
+                           ("MeshSizeMax", h_far)):
+            gmsh.option.setNumber(f"Mesh.{key}", value)
+        gmsh.model.mesh.generate(3)
+        gmsh.model.mesh.setOrder(2)
+        tags, xyz, _ = gmsh.model.mesh.getNodes()
+        index = np.zeros(int(tags.max()) + 1, dtype=np.int64)
+        index[np.asarray(tags, dtype=np.int64)] = np.arange(len(tags))
+        nodes = gmsh.model.mesh.getElements(3, vol)[2][0]
+        # Gmsh's 10-node order lists the edges (2, 3) and (1, 3) the other way round from VTK's
+        cells = index[np.asarray(nodes, dtype=np.int64)].reshape(-1, 10)[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]]
+        sets = {}
+        for name, z in (("bottom", 0.0), ("top", zs + 3 * d)):
+            for _dim, s in gmsh.model.getEntities(2):
+                bb = gmsh.model.getBoundingBox(2, s)
+                if abs(bb[2] - z) < 1e-6 and abs(bb[5] - z) < 1e-6:
+                    sets[name] = index[np.asarray(gmsh.model.mesh.getElements(2, s)[2][0], dtype=np.int64)].reshape(-1, 6)[:, :3]
+    finally:
+        gmsh.finalize()
+    points = np.asarray(xyz).reshape(-1, 3)
+    used = np.unique(cells)
+    renum = np.full(len(points), -1)
+    renum[used] = np.arange(len(used))
+    return TaggedMesh(points[used], renum[cells], np.zeros(len(cells), dtype=np.int64),
+                      (Region("plate", "plate", "ti6al4v", None),), {k: renum[v] for k, v in sets.items()}, (),
+                      {"ti6al4v": get_material("ti6al4v")})
+
+
+@pytest.mark.slow
+def test_filleted_flat_bar_in_tension_against_peterson():
+    """The 3-D FE's stress concentration factor (fem.assembly, fem.preload.static_solve free-free
+    with equal and opposite end tractions, fem.stress recovered field, largest principal stress on
+    the fillet arcs of the plate's faces, parabola along the arc) against Peterson's stepped flat
+    bar in tension (:func:`_peterson_flat`; H / d = 2, r / d = 0.2: K_t = 1.992). The chart is a
+    fit of photoelastic data (Wilson and White 1973) whose stated accuracy we could not find:
+    the tolerance is the brief's 3 %; a plane-stress P2 solve of the same outline (independent
+    2-D code) gives 1.988, 0.2 % from the fit, so the fit carries this geometry well. A plate
+    t = r / 4.4 thin is in plane stress to well within that. Measured: 1.973-1.981 on the four arc
+    edges (-0.6 % to -1.0 %).
+
+    A round stepped bar (Chart 3.4's fit, D / d = 2.18, r / d = 0.18: 1.685) is not used: this
+    FE on the horn's step (1.81-1.83, whole swept drill in tension) and the (r, z) model (1.821,
+    nested levels) agree with each other within 0.6 % and lie 8 % above that fit (8-15 % over
+    D / d 1.5-2.2, r / d 0.1-0.2), while the (r, z) model meets Goodier's cavity to 0.13 %."""
+    from fem.assembly import assemble
+    from fem.preload import face_area, static_solve, traction_load
+    from fem.stress import StressRecovery, principal_values
+
+    H, d, r, t = 22e-3, 11e-3, 2.2e-3, 0.5e-3
+    system = assemble(_stepped_plate(H, d, r, t, 2e-3, 0.28e-3))
+    force = 1.0
+    load = (traction_load(system, "top", (0, 0, force / face_area(system, "top")))
+            + traction_load(system, "bottom", (0, 0, -force / face_area(system, "bottom"))))
+    fld = StressRecovery(system).field(static_solve(system, load))
+    s1 = principal_values(fld.nodal_average("stress").real)[..., 2].reshape(-1)
+    p = fld.points.reshape(-1, 3)
+    zs, b = 2 * H, d / 2
+    for sign in (1, -1):
+        for face in (1, -1):
+            cx, cz = sign * (b + r), zs + r
+            on = (np.abs(np.hypot(p[:, 0] - cx, p[:, 2] - cz) - r) < 1e-7) & (np.abs(p[:, 1] - face * t / 2) < 1e-9)
+            ang = np.arctan2(p[on, 2] - cz, sign * (p[on, 0] - cx))
+            _u, first = np.unique(np.round(ang, 9), return_index=True)
+            kt = ar.arc_peak(ang[first], s1[on][first]) / (force / (d * t))
+            assert kt == pytest.approx(_peterson_flat(H, d, r), rel=0.03), (sign, face, kt)
