@@ -50,12 +50,20 @@ def run_study(args, design, near: float, level: Callable[[float], object], descr
     budget; prints each level (``describe(level)``) and the table, writes ``record`` +
     ``convergence`` to ``--json``. Exit status 0 if converged, else 1."""
     from rpud_common import atomic_write_text, json_text
-    from geometry.guard import MAX_DOFS, estimate
+    from geometry.guard import MAX_DOFS, estimate, sector_estimate
     from geometry.options import mesher_of
+    from geometry.sector import symmetry_order
 
     from .convergence import study
 
     mesher = mesher_of(args, design)
+    path = getattr(args, "fe_path", "whole")
+
+    def size(F):
+        if path == "sector":
+            return sector_estimate(design, symmetry_order(design) or 6, args.mesh_size, F).dofs
+        return estimate(design, args.mesh_size, getattr(args, "order", 2), refine=F, grade=args.grade,
+                        mesher=mesher).dofs
 
     def run(refine):
         lev = level(refine)
@@ -63,11 +71,9 @@ def run_study(args, design, near: float, level: Callable[[float], object], descr
         return lev
 
     st = study(run, tol=args.converge, start=args.refine,
-               estimate_dofs=lambda F: estimate(design, args.mesh_size, getattr(args, "order", 2), refine=F,
-                                                grade=args.grade, mesher=mesher).dofs,
-               max_dofs=None if args.allow_large else MAX_DOFS)
+               estimate_dofs=size, max_dofs=None if args.allow_large else MAX_DOFS)
     print(st.table())
     if args.json:
         atomic_write_text(args.json, json_text({**record, "mesh_size": args.mesh_size, "grade": args.grade, "mesher": mesher,
-                                                "convergence": st.to_dict()}, nonfinite="null"))
+                                                "path": path, "convergence": st.to_dict()}, nonfinite="null"))
     return 0 if st.converged else 1

@@ -39,6 +39,10 @@ def build_parser():
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
     add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"))
+    p.add_argument("--path", choices=("auto", "sector", "whole"), default="auto",
+                   help="FE path: sector (the k = 0 swept sector, which holds every response to the stack's "
+                        "voltage: converged at the default cost), whole (the whole drill, graded); auto (default): "
+                        "the sector where the design can be swept and --mesher is auto, else the whole drill")
     p.add_argument("--modes", type=int, default=8, metavar="N",
                    help="modes in the superposition basis (default 8; a wide --band grows it as needed)")
     p.add_argument("--mode", type=int, metavar="K",
@@ -49,7 +53,8 @@ def build_parser():
     p.add_argument("--error", action="store_true",
                    help="estimate the discretisation error of f_r, f_a, k_eff, the tip amplitude and the teeth "
                         "ellipse ratio from one extra solve on a mesh 1.4x coarser (fem.errors); prints value +- "
-                        "error and adds X_error keys and a discretisation_error block to the JSON")
+                        "error and adds X_error keys and a discretisation_error block to the JSON (on the sector "
+                        "path every run without --freq/--mode does this)")
     p.add_argument("--converge", type=float, metavar="TOL",
                    help="mesh-convergence study instead: refine by 0.8 per level from --refine until f_r, f_a, "
                         "k_eff, the tip amplitude per volt and the teeth ellipse ratio change by less than TOL "
@@ -149,6 +154,32 @@ def _parse_band(text: str) -> tuple[float, float]:
     return lo, hi
 
 
+def resolve_path(args, design) -> str:
+    """The FE path of ``--path`` for ``design`` (:func:`fem.sector_system.check_path`): ``auto``
+    is the sector where the design can be swept and ``--mesher`` is auto, and no stress table is
+    asked (its recovery runs on the whole drill); refused where the design cannot take it."""
+    from .sector_system import check_path, default_path
+
+    if args.path == "auto":
+        whole = getattr(args, "mesher", "auto") != "auto" or getattr(args, "stress", None)
+        return "whole" if whole else default_path(design)
+    if args.path == "sector" and getattr(args, "mesher", "auto") != "auto":
+        raise ParameterError("--mesher", args.mesher, "applies to the whole drill (--path whole); the sector has its rule")
+    if args.path == "sector" and getattr(args, "stress", None):
+        raise ParameterError("--stress", args.stress, "runs on the whole drill: use --path whole")
+    return check_path(design, args.path)
+
+
+def _mesh_label(args, design, path) -> str:
+    from geometry.options import mesher_of
+
+    from .sector_system import path_label
+
+    if path == "sector":
+        return path_label(design, "sector", refine=args.refine, grade=args.grade, mesh_size=args.mesh_size)
+    return "whole drill, " + mesh_text(mesher_of(args, design), args.refine, args.grade, args.mesh_size)
+
+
 def _inputs(args, design, band) -> dict:
     """The run's inputs for the inputs line."""
     from geometry.options import mesher_of
@@ -161,7 +192,7 @@ def _inputs(args, design, band) -> dict:
     items.update({"losses": args.losses.short(),
                   "modes": args.modes, "driven mode": "largest k_eff" if args.mode is None else args.mode,
                   "surfaces": ", ".join(args.surface) if args.surface else "horn_tip, teeth_tops",
-                  "mesher": mesh_text(mesher_of(args, design), args.refine, args.grade, args.mesh_size)})
+                  "mesh": _mesh_label(args, design, args.fe_path)})
     if args.ring_up is not None:
         items["ring-up"] = "six time constants" if args.ring_up == 0 else quantity(args.ring_up, "s")
     if args.stress:
@@ -191,10 +222,18 @@ def main(argv=None) -> int:
     args.losses = q_option_losses(args.q_mech, args.tan_delta)
     loss = args.losses.loss_model()
     design = design_from_options(args)
-    check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args, design))
+    args.fe_path = resolve_path(args, design)
+    sectors = _sectors(design) if args.fe_path == "sector" else None
+    check_budget(design, args.mesh_size, allow_large=args.allow_large, sectors=sectors, **mesh_options(args, design))
     check_usual(parser.prog, "--voltage", args.voltage, "voltage")
     echo_inputs(_inputs(args, design, band), args.quiet)
-    mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, **mesh_options(args, design))
+    if args.fe_path == "sector":
+        from .sector_system import axial_sector
+
+        system = axial_sector(design, refine=args.refine, grade=args.grade, mesh_size=args.mesh_size)
+        mesh = system.mesh
+    else:
+        mesh, system = geometry.build_mesh(design, mesh_size=args.mesh_size, **mesh_options(args, design)), None
     surfaces = tuple(args.surface) if args.surface else tuple(
         s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
     for s in surfaces:
@@ -204,17 +243,25 @@ def main(argv=None) -> int:
     near = float(args.freq or getattr(design, "target_frequency", 20e3))
     if args.converge is not None:
         return _converge(args, design, near, loss, surfaces)
-    return _run(args, design, mesh, surfaces, near, loss, band)
+    if system is None:
+        from .assembly import assemble
+
+        system = assemble(mesh)
+    return _run(args, design, system, surfaces, near, loss, band)
 
 
-def _run(args, design, mesh, surfaces, near: float, loss, band) -> int:
-    """Solve, print and write the harmonic response of ``mesh``."""
+def _sectors(design) -> int:
+    from geometry.sector import symmetry_order
+
+    return symmetry_order(design) or 6
+
+
+def _run(args, design, system, surfaces, near: float, loss, band) -> int:
+    """Solve, print and write the harmonic response of ``system`` (a whole drill or a k = 0 sector)."""
     from rpud_common import atomic_write_text, json_text
 
-    from .assembly import assemble
     from .modal import modal_analysis
 
-    system = assemble(mesh)
     modal = modal_analysis(system, near, args.modes)
     if args.mode is not None and args.mode > modal.n_modes:
         raise ParameterError("--mode", args.mode, f"must be <= {modal.n_modes}, the modes computed")
@@ -239,7 +286,10 @@ def _run(args, design, mesh, surfaces, near: float, loss, band) -> int:
         ring = ring_up(system, f_w, args.voltage, args.ring_up or 6 * tau, loss=loss, basis=basis,
                        surfaces=surfaces[:1])
     _print_response(args, modal, w, f_w, wp, res, band, ring, surfaces)
-    est = _error(args, design, modal, w, wp, system, near, loss, surfaces) if args.error else None
+    print(f"mesh: {_mesh_label(args, design, args.fe_path)}, {system.ndof} DOFs", flush=True)
+    # on the sector path the estimate is cheap (a coarser sector): every run states it
+    auto = args.fe_path == "sector" and args.freq is None and args.mode is None and args.refine * 1.4 <= 5.0
+    est = _error(args, design, modal, w, wp, system, near, loss, surfaces) if args.error or auto else None
     stress = None
     if args.stress:
         from .stress_cli import run_stress
@@ -283,7 +333,7 @@ def _error(args, design, modal, w, wp, system, near, loss, surfaces):
               "tip_per_volt_m": wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
     est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
                    near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode,
-                   mesher=mesher_of(args, design))
+                   mesher=mesher_of(args, design), path=args.fe_path)
     print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
     return est
 
@@ -301,7 +351,7 @@ def _record(args, design, modal, w, f_w, wp, res, ring, system, est, stress) -> 
         "losses": args.losses.record(),
         "working_point": annotate(wp.to_dict(), est, POINT_KEYS), "sweep": res.to_dict(),
         "ring_up": ring.to_dict() if ring is not None else None, "ndof": system.ndof,
-        "mesher": mesher_of(args, design),
+        "mesher": mesher_of(args, design), "path": args.fe_path, "mesh": _mesh_label(args, design, args.fe_path),
         "discretisation_error": est.to_dict() if est is not None else None, "stress": stress}
 
 
@@ -331,7 +381,7 @@ def _converge(args, design, near: float, loss, surfaces) -> int:
     def level(refine):
         return working_mode_level(design, refine, mesh_size=args.mesh_size, near_hz=near, n_modes=args.modes,
                                   grade=args.grade, loss=loss, surfaces=surfaces, select=driven_mode,
-                                  mesher=mesher)
+                                  mesher=mesher, path=args.fe_path)
 
     def describe(lev):
         v = lev.values
