@@ -18,7 +18,7 @@ the Hertz approach ``d`` the root of that monotone scalar equation (:func:`appro
 phase is integrated (``scipy.integrate.solve_ivp``, DOP853) in branches of the law
 (:class:`impact.hertz.HertzLaw`): loading until the total approach ``D`` stops growing (its
 largest value fixes ``d_m``), unloading until ``D`` returns to ``D_m`` (reloading) or to the
-permanent set (separation).
+zero (separation).
 """
 
 from __future__ import annotations
@@ -91,19 +91,19 @@ class ModalBody:
         return float(0.5 * np.sum(m * qd * qd + m * self.omega ** 2 * q * q))
 
 
-def approach_of(total: float, c: float) -> float:
-    """The root ``x >= 0`` of ``x + c x^{3/2} = total`` (0 if ``total <= 0``), c >= 0.
+def approach_of(total: float, c: float, p: float = 1.5) -> float:
+    """The root ``x >= 0`` of ``x + c x^p = total`` (0 if ``total <= 0``), c >= 0, p >= 1.
 
-    Newton from ``min(total, (total / c)^{2/3})``, which lies right of the root of this convex
+    Newton from ``min(total, (total / c)^{1/p})``, which lies right of the root of this convex
     increasing function, so the iterates fall monotonically onto it."""
     if total <= 0.0:
         return 0.0
     if c <= 0.0:
         return total
-    x = min(total, (total / c) ** (2.0 / 3.0))
-    for _ in range(100):
-        r = math.sqrt(x)
-        step = (x + c * x * r - total) / (1.0 + 1.5 * c * r)
+    x = min(total, (total / c) ** (1.0 / p))
+    for _ in range(200):
+        xp = x ** (p - 1.0)
+        step = (x + c * xp * x - total) / (1.0 + p * c * xp)
         x -= step
         if step <= 4e-16 * x:
             break
@@ -146,18 +146,13 @@ class Strike:
 
 
 class _Phase:
-    """The force law on one branch: ``F = K x^{3/2}`` with ``x = d - d_r`` (loading: K = k, d_r = 0)."""
+    """The force law on one branch: ``F = K d^p`` (:meth:`impact.hertz.HertzLaw.branch`)."""
 
     def __init__(self, law: HertzLaw, d_max: float | None):
-        if d_max is None:
-            self.K, self.d_r = law.stiffness, 0.0
-        else:
-            self.d_r = law.set_of(d_max)
-            self.K = law.stiffness * d_max ** 1.5 / (d_max - self.d_r) ** 1.5
+        self.K, self.p = law.branch(d_max)
 
     def force(self, total: float, g: float) -> float:
-        x = approach_of(total - self.d_r, g * self.K)
-        return self.K * x ** 1.5
+        return self.K * approach_of(total, g * self.K, self.p) ** self.p
 
 
 def _rhs(body: ModalBody, mass: float, accel: float, phase: _Phase):
@@ -233,8 +228,8 @@ def strike(body: ModalBody, law: HertzLaw, mass: float, speed: float, *, accel: 
         if d_max is None:                    # loading: ends where the approach stops growing
             ev = [lambda t, yy: rate(yy)]
             ev[0].direction = -1
-        else:                                # unloading: back to D_m (reload) or to the set (separation)
-            ev = [lambda t, yy: total(yy) - total_max, lambda t, yy: total(yy) - phase.d_r]
+        else:                                # unloading: back to D_m (reload) or to 0 (separation)
+            ev = [lambda t, yy: total(yy) - total_max, lambda t, yy: total(yy)]
             ev[0].direction, ev[1].direction = 1, -1
         for e in ev:
             e.terminal = True
@@ -250,7 +245,7 @@ def strike(body: ModalBody, law: HertzLaw, mass: float, speed: float, *, accel: 
             raise ParameterError("t_max", t_max, "is shorter than the contact (it has not separated)")
         if d_max is None:
             total_max = total(y)
-            d_max = approach_of(total_max, g * law.stiffness)
+            d_max = approach_of(total_max, g * law.stiffness, 1.5)
         elif hit[0] == 0:
             d_max = None                     # reloading: Hertz again from the largest approach
         else:

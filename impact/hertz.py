@@ -21,16 +21,17 @@ Contact geometry as design data (:class:`ContactGeometry`):
   axis). A perfectly square flat face (theta = 0) is a flat punch, not a Hertz contact; it is
   refused.
 
-Dissipation (:class:`HertzLaw`). Loading follows Hertz; after the largest approach ``d_m`` the
-contact unloads along ``F = k d_m^{3/2} ((d - d_r) / (d_m - d_r))^{3/2}`` with the permanent set
-``d_r = (1 - e^2) d_m`` and reloads along the same curve up to ``d_m`` (then Hertz again). The
-unloading curve returns ``(2/5) k d_m^{3/2} (d_m - d_r)`` of the ``(2/5) k d_m^{5/2}`` stored on
-loading, so a mass striking a rigid flat leaves with exactly ``e`` times its approach speed at any
-speed and mass (the definition of the coefficient of restitution), and the energy lost in one
-contact is ``(1 - e^2) (2/5) k d_m^{5/2}`` in closed form. The force is a function of the approach
-and of ``d_m`` alone (rate-independent, unlike a Hunt-Crossley dashpot): in series with a static
-compliance (the residual of modes left out of a modal model) the force is the root of one
-monotone scalar equation, and the energy ledger stays closed without integrating a damping power.
+Dissipation (:class:`HertzLaw`). Loading follows Hertz; from the largest approach ``d_m`` the
+contact unloads along the power law ``F = k d_m^{3/2} (d / d_m)^p`` with ``p = 5 / (2 e^2) - 1`` and
+reloads along the same curve up to ``d_m`` (then Hertz again). The unloading curve returns
+``k d_m^{5/2} / (p + 1) = e^2 (2/5) k d_m^{5/2}``, ``e^2`` of the energy stored on loading, so a mass
+striking a rigid flat leaves with exactly ``e`` times its approach speed at any speed and mass (the
+definition of the coefficient of restitution), and one contact loses ``(1 - e^2) (2/5) k d_m^{5/2}``
+in closed form. The curve ends at ``d = 0`` (no permanent set: repeated impacts keep the contact
+geometry) and for ``e = 1`` it is Hertz's. The force is a function of the approach and of ``d_m``
+alone (rate-independent, unlike a Hunt-Crossley dashpot): in series with a static compliance (the
+residual of modes left out of a modal model) the force is the root of one monotone scalar equation,
+and the energy ledger stays closed without integrating a damping power.
 """
 
 from __future__ import annotations
@@ -162,38 +163,33 @@ class HertzLaw:
         check_range("stiffness", self.stiffness, 1e3, 1e20, "N/m^1.5")
         check_range("restitution", self.restitution, 0.0, 1.0, lo_open=True)
 
-    def set_of(self, d_max: float) -> float:
-        """Permanent set ``d_r = (1 - e^2) d_m`` after the largest approach ``d_max`` (m)."""
-        return (1.0 - self.restitution ** 2) * d_max
+    @property
+    def exponent(self) -> float:
+        """Exponent ``p = 5 / (2 e^2) - 1`` of the unloading curve (3/2 for e = 1)."""
+        return 2.5 / self.restitution ** 2 - 1.0
+
+    def branch(self, d_max: float | None) -> tuple[float, float]:
+        """``(K, p)``: the force is ``K d^p`` on the loading curve (``d_max`` None) or on the
+        unloading curve from ``d_max`` (m)."""
+        if d_max is None:
+            return self.stiffness, 1.5
+        p = self.exponent
+        return self.stiffness * d_max ** (1.5 - p), p
 
     def force(self, d: float, d_max: float) -> float:
         """Contact force (N, >= 0) at approach ``d`` (m) after the largest approach ``d_max`` (m)."""
-        if d >= d_max:
-            return self.stiffness * d ** 1.5 if d > 0.0 else 0.0
-        d_r = self.set_of(d_max)
-        if d <= d_r:
+        if d <= 0.0:
             return 0.0
-        return self.stiffness * d_max ** 1.5 * ((d - d_r) / (d_max - d_r)) ** 1.5
-
-    def slope(self, d: float, d_max: float) -> float:
-        """``dF/dd`` (N/m) on the branch the contact is on."""
-        if d >= d_max:
-            return 1.5 * self.stiffness * math.sqrt(d) if d > 0.0 else 0.0
-        d_r = self.set_of(d_max)
-        if d <= d_r:
-            return 0.0
-        return 1.5 * self.stiffness * d_max ** 1.5 * math.sqrt(d - d_r) / (d_max - d_r) ** 1.5
+        K, p = self.branch(None if d >= d_max else d_max)
+        return K * d ** p
 
     def stored(self, d: float, d_max: float) -> float:
-        """Elastic energy the contact would return on unloading from ``d`` (J)."""
-        if d >= d_max:
-            d_max = d
-        if d_max <= 0.0:
+        """Elastic energy the contact would return on unloading from ``d`` (J):
+        ``K d^{p+1} / (p + 1)`` on the unloading curve from ``max(d, d_max)``."""
+        if d <= 0.0:
             return 0.0
-        d_r = self.set_of(d_max)
-        if d <= d_r:
-            return 0.0
-        return 0.4 * self.stiffness * d_max ** 1.5 * (d - d_r) ** 2.5 / (d_max - d_r) ** 1.5
+        K, p = self.branch(max(d, d_max))
+        return K * d ** (p + 1.0) / (p + 1.0)
 
     def dissipated(self, d_max: float) -> float:
         """Energy lost in a contact whose largest approach was ``d_max`` (J):

@@ -329,3 +329,87 @@ def contact_from_design(design, m_free: float, restitution: float, free_mass_mat
     radius = (3.0 * m_free / (4.0 * np.pi * ball.density)) ** (1.0 / 3.0)
     k = hertz_stiffness(horn.youngs_modulus, horn.poisson_ratio, ball.youngs_modulus, ball.poisson_ratio, radius)
     return HuntCrossley(k, restitution)
+
+
+def tip_body(system, cutoff_hz: float, *, tip_surface: str = "horn_tip", modes=None, say=None):
+    """The transducer seen from its tip by an impact: every mode up to ``cutoff_hz`` plus the
+    static residual of the rest (:class:`impact.compliant.ModalBody`).
+
+    The short-circuit modes of the driven free set (hot electrode grounded) from 0 to the cut-off
+    (one shift-invert window centred on ``lambda_cut / 2``, widened until it reaches 0 and the
+    cut-off), the axial rigid-body translation (``omega = 0``, the whole drill's mass), and the tip
+    compliance of everything above: with ``T`` the solve of ``K - sigma0 M`` deflated of the kept
+    modes (``sigma0 = -(2 pi 0.01 f_cut)^2``, below every elastic mode), ``g = a^T T a - sigma0
+    |T a|_M^2`` (``a`` the tip's mean axial displacement row): the first two terms of
+    ``sum s_i^2 / lambda_i`` over the modes left out, the third is ``(sigma0/lambda)^2 <= 1e-8`` of it.
+
+    Parameters
+    ----------
+    system : fem.assembly.PiezoSystem
+        The drill (a k = 0 sector system carries the axisymmetric modes only, which are the
+        modes an axial impact excites).
+    cutoff_hz : float
+        Highest mode kept, Hz.
+    tip_surface : str
+        Facet set whose mean axial displacement is the contact point.
+    modes : fem.modal.ModalResult, optional
+        A wide-band short-circuit modal analysis of ``system`` reaching 0 and ``cutoff_hz``
+        (reused; computed otherwise).
+
+    Returns
+    -------
+    (impact.compliant.ModalBody, dict)
+        The body (undamped, unit modal masses) and its description: ``modes_hz`` (kept, the rigid
+        mode first), ``drill_mass_kg``, ``residual_m_per_n``, ``end_mass_kg``, ``cutoff_hz``.
+    """
+    from fem.eigen import rigid_basis
+    from fem.harmonic import surface_functional
+    from fem.modal import modal_analysis
+    from fem.solvers import factorize
+    from impact.compliant import ModalBody
+    from rpud_common import ParameterError, check_range
+
+    check_range("cutoff_hz", cutoff_hz, 1e3, 1e6, "Hz")
+    say = say or (lambda msg: log.info("%s", msg))
+    lam_cut = (2 * np.pi * cutoff_hz) ** 2
+    n_req = 16
+    while modes is None or not _window_covers(modes, lam_cut):
+        if n_req > 400:
+            raise ParameterError("cutoff_hz", cutoff_hz, "needs more than 400 modes (lower the cut-off)")
+        modes = modal_analysis(system, cutoff_hz / np.sqrt(2), n_req, open_circuit=False, sigma=lam_cut / 2)
+        n_req *= 2
+    split = system.split(())
+    free = split.free
+    keep = np.flatnonzero(modes.f_r_hz <= cutoff_hz)
+    Phi = modes.vectors[free][:, keep]
+    lam = (2 * np.pi * modes.f_r_hz[keep]) ** 2
+    R, _ = rigid_basis(system, free, split.M)
+    a = np.asarray(surface_functional(system, tip_surface).rows[0][:, free].toarray()).ravel()
+    s_rigid = R.T @ a
+    axial = int(np.argmax(np.abs(s_rigid)))          # the translation along the axis (a rotation: 0)
+    B = np.column_stack([R[:, axial], Phi])
+    lam_all = np.concatenate(([0.0], lam))
+    s_all = B.T @ a
+    sign = np.where(s_all < 0, -1.0, 1.0)             # tip participation >= 0: the same numbers every run
+    sigma0 = -(2 * np.pi * 0.01 * cutoff_hz) ** 2
+    F = factorize((split.K - sigma0 * split.M).tocsr())
+    # the solve deflated of the kept modes (M-orthonormal): the modes left out only; the other
+    # rigid motion (rotation about the axis) has no axial tip displacement
+    y = F(a) - B @ (s_all / (lam_all - sigma0))
+    g = float(a @ y - sigma0 * (y @ (split.M @ y)))
+    drill_mass = float(1.0 / s_all[0] ** 2)
+    body = ModalBody(np.sqrt(lam_all), np.zeros(lam_all.size), np.ones(lam_all.size), sign * s_all, g)
+    info = {"cutoff_hz": float(cutoff_hz), "modes_hz": [float(x) for x in np.sqrt(lam_all) / (2 * np.pi)],
+            "participation": [float(x) for x in sign * s_all], "drill_mass_kg": drill_mass,
+            "residual_m_per_n": g, "end_mass_kg": body.end_mass, "tip_surface": tip_surface}
+    say(f"      tip body to {cutoff_hz / 1e3:.0f} kHz: {lam.size} modes + rigid translation "
+        f"(drill {drill_mass * 1e3:.1f} g), residual {g:.3g} m/N, effective tip mass {body.end_mass * 1e3:.2f} g")
+    return body, info
+
+
+def _window_covers(modes, lam_cut: float) -> bool:
+    """The shift-invert window of ``modes`` (the eigenvalues nearest its shift) reaches 0 and
+    ``lam_cut``: every mode below the cut-off is in it."""
+    lam = (2 * np.pi * np.asarray(modes.f_r_hz)) ** 2
+    reach = np.max(np.abs(lam - modes.sigma))
+    return bool(modes.sigma - reach <= 0.0 and modes.sigma + reach >= lam_cut)

@@ -49,6 +49,8 @@ SLOW: tuple[str, ...] = (
     "tests/test_cli_fuzz.py::test_modal_cli_refuses_cleanly",
     "tests/test_cli_fuzz.py::test_results_cli_refuses_cleanly",
     "tests/test_common.py",
+    "tests/test_contact_fe.py",
+    "tests/test_contact_loop.py",
     "tests/test_cyclic.py::test_command_line_rules_meet_the_targets_on_the_design_without_slots",
     "tests/test_cyclic.py::test_command_line_solves_the_default_design_by_harmonics",
     "tests/test_cyclic.py::test_harmonics_equal_the_whole_drill",
