@@ -124,9 +124,10 @@ def print_result(res) -> None:
           + (" (STALLED)" if res.stalled else ""))
     print(f"cycle at the load: contact {cyc.fraction('contact') * 100:.2f} %, stick {cyc.fraction('stick') * 100:.2f} %, "
           f"slip forward {cyc.fraction('slip+') * 100:.2f} %, slip back {cyc.fraction('slip-') * 100:.2f} % of the cycle")
+    hover = "confirmed by direct integration" if res.hover["holds"] else "NOT confirmed: the rotor bounces"
     print(f"assumption checks: rotor axial ripple {res.axial_ripple * 1e9:.3g} nm = "
-          f"{res.axial_ripple / res.peak_penetration:.2g} of the peak penetration; speed ripple "
-          f"{res.speed_ripple:.3g} rad/s")
+          f"{res.axial_ripple / res.peak_penetration:.2g} of the peak penetration, constant axial position {hover}; "
+          f"speed ripple {res.speed_ripple:.3g} rad/s")
     for note in res.notes:
         print(f"note: {note}")
 

@@ -138,7 +138,7 @@ def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, ele
     values = _outputs(nominal)
     spread = {k: 0.0 for k in values}
     for tm in teeth.corners():
-        corner = _outputs(rotor_performance(tm, params, load_torque, points=points))
+        corner = _outputs(rotor_performance(tm, params, load_torque, points=points, check_hover=False))
         for k, v in corner.items():
             spread[k] = max(spread[k], abs(v - values[k]))
     out = {}
@@ -159,6 +159,7 @@ def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, ele
                     "phase_deg": teeth.phase_deg, "phase_deg_error": teeth.phase_error_deg}
     out["load_torque_n_m"] = load_torque
     out["nominal"] = nominal.to_dict()
+    out["hover"] = nominal.hover
     out["notes"] = list(nominal.notes)
     if say:
         say(f"      rotor: no-load {values['no_load_speed_rpm']:.3g} ± {spread['no_load_speed_rpm']:.2g} rpm, stall "
