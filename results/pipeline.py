@@ -266,6 +266,7 @@ class _Run:
     coupled_model: dict | None = None
     operating: dict | None = None
     drilling: dict | None = None
+    rotor: dict | None = None
     renders: list = field(default_factory=list)
     vtu: object = None
 
@@ -344,6 +345,11 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
     run.est = estimate_stage(m.design, st, m.system, m.modal, m.w, h.wp, h.surfaces, float(m.design.target_frequency),
                              say)
     clock.took("discretisation_error_s", t0)
+    t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
+    from .rotor_stage import pipeline_rotor_stage
+
+    run.rotor = pipeline_rotor_stage(m.design, h.wp, h.f_w, run.est, st.wob, say=say)
+    clock.took("rotor_s", t0)
 
 
 def _impact_stages(run: _Run, clock: _Clock, say) -> None:
@@ -449,6 +455,11 @@ def _figures(run: _Run) -> dict:
 
         run.drilling["result"].no_load = sw["device_fe"]
         drawn["drilling"] = (plot_depth_vs_mass(run.drilling["result"]), "depth_vs_free_mass.png")
+    if run.rotor is not None:
+        from impact.rotor_plots import plot_contact_phases, plot_torque_speed
+
+        drawn["rotor_torque_speed"] = (plot_torque_speed(run.rotor["result"]), "rotor_torque_speed.png")
+        drawn["rotor_contact_phases"] = (plot_contact_phases(run.rotor["result"]), "rotor_contact_phases.png")
     return {key: save_figure(axes, run.out / "figures" / name) for key, (axes, name) in drawn.items()}
 
 
@@ -507,6 +518,7 @@ def _summary(run: _Run, figs: dict) -> dict:
         "kinetic_energy_table": ke_rows(run.sweeps, 0.0 in st.m_free_values, run.amps),
         "coupled_model": run.coupled_model["json"] if run.coupled_model is not None else None,
         **({"drilling": run.drilling["json"]} if run.drilling is not None else {}),
+        **({"rotor": run.rotor["json"]} if run.rotor is not None else {}),
         "stress": run.stress,
         "operating_point": run.operating,
         "files": {"figures": {k: str(Path(v).relative_to(out)) for k, v in figs.items()},

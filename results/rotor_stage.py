@@ -164,5 +164,39 @@ def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, ele
     if say:
         say(f"      rotor: no-load {values['no_load_speed_rpm']:.3g} ± {spread['no_load_speed_rpm']:.2g} rpm, stall "
             f"{values['stall_torque_n_m'] * 1e3:.3g} ± {spread['stall_torque_n_m'] * 1e3:.2g} mN m, under "
-            f"{load_torque * 1e3:.3g} mN m {values['load_speed_rpm']:.3g} ± {spread['load_speed_rpm']:.2g} rpm")
+            f"{load_torque * 1e3:.3g} mN m {values['load_speed_rpm']:.3g} ± {spread['load_speed_rpm']:.2g} rpm"
+            + ("" if nominal.hover is None or nominal.hover["holds"] else
+               "; the rotor does not hover (it bounces): not a prediction"))
     return {"result": nominal, "json": out}
+
+
+def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> dict | None:
+    """The stage as the pipeline runs it, or None for a design without teeth.
+
+    ``wp``: the harmonic working point (``teeth_tops`` among its surfaces), ``f_w`` its frequency
+    (Hz), ``est`` the discretisation-error estimate (:func:`results.errors.estimate_stage`, or
+    None), ``wob`` the weight on bit (N) whose bit friction is the load. The teeth's axial
+    amplitude carries the tip amplitude's relative error (the same mode's amplitude at its other
+    antinode); the ellipse ratio its own estimated error; the phase has no estimate in
+    :mod:`fem.errors`, which the JSON states (``phase_error_note``) rather than hiding.
+    """
+    from impact.rotor import bit_friction_torque
+
+    if "teeth_tops" not in getattr(wp, "surfaces", {}) or not getattr(design.coupler, "n_teeth", 0):
+        return None
+    axial = abs(wp.surfaces["teeth_tops"]["axial"])
+    rel = est.relative("tip_per_volt_m") if est is not None else None
+    ratio_err = est.error("teeth_ellipse_ratio") if est is not None and "teeth_ellipse_ratio" in est.errors else None
+    teeth = TeethReport(freq_hz=f_w, axial_m=axial, axial_error_m=axial * (rel or 0.0), ratio=wp.teeth_ellipse_ratio,
+                        ratio_error=ratio_err or 0.0, phase_deg=wp.teeth_phase_deg, phase_error_deg=0.0)
+    out = rotor_stage(teeth, rotor_params_from_design(design), bit_friction_torque(wob, 3e-3, 0.4),
+                      float(wp.power_w), say=say)
+    j = out["json"]
+    j["axial_error_note"] = ("the tip amplitude's relative discretisation error" if rel is not None
+                             else "not estimated (no discretisation-error estimate in this run)")
+    if ratio_err is None:
+        j["ratio_error_note"] = "not estimated (no discretisation-error estimate of the ellipse ratio in this run)"
+    j["phase_error_note"] = ("the teeth phase has no discretisation-error estimate (fem.errors does not estimate it): "
+                             "the errors above exclude it")
+    j["load_note"] = f"the bit's friction in rock: flat 3 mm bit, weight on bit {wob:g} N, mu_rock 0.4 (assumed)"
+    return out

@@ -281,3 +281,19 @@ def test_hover_check_by_direct_integration():
     light = rotor_performance(tm, RotorParams(), 0.0, points=3)
     assert not light.hover["holds"] and light.hover["first_cycle_without_contact"] is not None
     assert any("does not hover" in n for n in light.notes)
+
+
+def test_pipeline_adapter_reads_the_working_point():
+    from types import SimpleNamespace
+
+    from geometry import default_design
+    from results.rotor_stage import pipeline_rotor_stage
+
+    wp = SimpleNamespace(surfaces={"teeth_tops": {"axial": 5e-6 + 0j, "tangential": 1e-6 + 0j}},
+                         teeth_ellipse_ratio=0.2, teeth_phase_deg=150.0, power_w=200.0)
+    est = SimpleNamespace(errors={"teeth_ellipse_ratio": 0.01}, relative=lambda q: 0.02, error=lambda q: 0.01)
+    out = pipeline_rotor_stage(default_design(), wp, 20e3, est, 7.0)["json"]
+    assert out["teeth"]["axial_m_error"] == pytest.approx(1e-7) and out["teeth"]["ellipse_ratio_error"] == 0.01
+    assert out["load_torque_n_m"] == pytest.approx(bit_friction_torque(7.0, 3e-3, 0.4))
+    assert "phase_error_note" in out and out["no_load_speed_rpm_error"] > 0
+    assert pipeline_rotor_stage(default_design().replace({"coupler.n_teeth": 0}), wp, 20e3, est, 7.0) is None
