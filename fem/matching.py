@@ -301,7 +301,9 @@ def _side(design, path: str) -> str:
 
 
 def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh | None = None,
-          progress: Callable[[dict], None] | None = None) -> MatchResult:
+          progress: Callable[[dict], None] | None = None,
+          system_of: Callable[[TaggedMesh], PiezoSystem] | None = None,
+          remesh: Callable[[object], TaggedMesh] | None = None) -> MatchResult:
     """Tune the design lengths until horn and coupler resonate together at the target.
 
     Parameters
@@ -310,9 +312,21 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
     settings : MatchSettings
     mesh : an existing mesh of ``design`` (built here otherwise)
     progress : called with a dict after every iteration (stage, path, value_m, f_hz, seconds)
+    system_of : ``system_of(mesh)``, the system a (morphed or cut) mesh is solved as (default: its
+        assembly, :func:`fem.assembly.assemble`); the ``k = 0`` system of a swept sector mesh
+        (:func:`fem.sector_system.sector_system`) matches on the sector
+    remesh : ``remesh(design)``, the mesh of a tuned design when the morphed one is stretched too
+        far, and of ``design`` when ``mesh`` is not given (default: :func:`geometry.build_mesh`
+        with the settings' mesh options)
     """
     import geometry
 
+    def default_remesh(d):
+        return geometry.build_mesh(d, mesh_size=settings.mesh_size, refine=settings.refine, grade=settings.grade,
+                                   mesher=settings.mesher)
+
+    system_of = system_of or (lambda m: assemble(m, order=settings.order))
+    remesh = remesh or default_remesh
     t_start = time.perf_counter()
     for path in settings.tune:
         if path not in design.tunable_lengths():
@@ -326,8 +340,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         front, back = None, settings.tune[0]
     target = settings.target_hz
     if mesh is None:
-        mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine,
-                                   grade=settings.grade, mesher=settings.mesher)
+        mesh = remesh(design)
     t_mesh = time.perf_counter() - t_start
     iterations: list[dict] = []
     start = {p: float(design.get(p)) for p in settings.tune}
@@ -360,7 +373,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
                 if idx["keep"] is None:
                     idx["keep"] = select(m)
                 m = _select(m, idx["keep"])
-            sy = assemble(m, order=settings.order)
+            sy = system_of(m)
             f, vec, F = _modes(sy, free_of(sy), target, n_modes, keep=True)
             i = working_mode(sy, f, vec, target, prev["shape"])
             prev["shape"] = sy.displacement(vec[:, i])
@@ -404,36 +417,36 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         log.info("match: re-meshing the tuned design (zones stretched by %.1f %%)",
                  100 * _distortion(mesh_design, design))
         mesh_design = design
-        mesh = geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine,
-                                   grade=settings.grade, mesher=settings.mesher)
+        mesh = remesh(design)
         timings["mesh_s"] += time.perf_counter() - t0
-    prev = {"shape": last_shape}
 
     # ---- final: one true assembly of the tuned geometry, paired resonance/anti-resonance
+    t0 = time.perf_counter()
+    system, factor = reuse if reuse is not None else (system_of(mesh), None)   # reuse: the same mesh and shift
+    modal, w, motion = _final_modes(system, mesh, factor, target, settings.n_modes, last_shape)
+    timings["final_s"] = time.perf_counter() - t0
+    timings["total_s"] = time.perf_counter() - t_start
+    matched = float(modal.f_r_hz[w])
+    return MatchResult(target_hz=target, matched_hz=matched, converged=abs(matched / target - 1) <= settings.tolerance,
+                       tuned={p: float(design.get(p)) for p in settings.tune}, start=start,
+                       iterations=iterations, design=design, mesh=mesh, system=system, modal=modal,
+                       working_index=w, **motion, timings=timings)
+
+
+def _final_modes(system: PiezoSystem, mesh: TaggedMesh, factor, target: float, n_modes: int, last_shape):
+    """The tuned system's modes (``factor``: the last stage's factorisation at the same shift, or
+    None), the working mode followed into them by MAC from ``last_shape``, and its surface motion
+    (``teeth``, ``tip`` and the flange-to-tip ``node_ratio`` of :class:`MatchResult`)."""
     from .modal import modal_analysis
 
-    t0 = time.perf_counter()
-    if reuse is not None:
-        system, factor = reuse                 # the same mesh, matrices and shift: nothing to redo
-    else:
-        system, factor = assemble(mesh, order=settings.order), None
-    modal = modal_analysis(system, target, settings.n_modes, sigma=_shift(target), factor=factor)
+    modal = modal_analysis(system, target, n_modes, sigma=_shift(target), factor=factor)
     log.info("match: final modal analysis %s", "reuses the last stage's system and factorisation"
-             if reuse is not None else "assembles and factorises afresh")
-    # follow the working mode into the final modal result by MAC
-    w = working_mode(system, modal.f_r_hz, modal.vectors, target, prev["shape"])
+             if factor is not None else "assembles and factorises afresh")
+    w = working_mode(system, modal.f_r_hz, modal.vectors, target, last_shape)
     shape = modal.shapes[w]
     teeth, tip, flange = ({} if name not in mesh.facet_sets else surface_motion(system, shape, name)
                           for name in ("teeth_tops", "horn_tip", "flange"))
     node_ratio = (flange.get("axial_mean", np.nan) / tip["axial_mean"]) if tip and flange else float("nan")
-    timings["final_s"] = time.perf_counter() - t0
-    timings["total_s"] = time.perf_counter() - t_start
-    matched = float(modal.f_r_hz[w])
-    converged = abs(matched / target - 1) <= settings.tolerance
     keep = ("axial", "tangential", "radial", "axial_mean", "tangential_mean", "ellipse_ratio")
-    return MatchResult(target_hz=target, matched_hz=matched, converged=converged,
-                       tuned={p: float(design.get(p)) for p in settings.tune}, start=start,
-                       iterations=iterations, design=design, mesh=mesh, system=system, modal=modal,
-                       working_index=w, teeth={k: teeth[k] for k in keep if k in teeth},
-                       tip={k: tip[k] for k in keep if k in tip}, node_ratio=float(node_ratio),
-                       timings=timings)
+    return modal, w, {"teeth": {k: teeth[k] for k in keep if k in teeth}, "tip": {k: tip[k] for k in keep if k in tip},
+                      "node_ratio": float(node_ratio)}

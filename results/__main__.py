@@ -14,7 +14,7 @@ from pathlib import Path
 
 from rpud_common import (CliParser, ParameterError, atomic_folder, check_integer, check_output_paths,
                              check_range, setup_logging)
-from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_inputs, mesh_text, needs, quantity
+from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_inputs, needs, quantity
 
 WOB = 7.0
 """Default weight on bit of the drilling stage, N (the article's)."""
@@ -36,8 +36,11 @@ def build_parser() -> CliParser:
     add_voltage_options(p)
     p.add_argument("--out", metavar="DIR",
                    help="output folder (default results/default for the built-in design, else results/<name>)")
-    # free by default: the minute that `make run` promises is set on the free mesh
-    add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"), mesher_default="free")
+    add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"))
+    p.add_argument("--path", choices=("auto", "sector", "whole"), default="auto",
+                   help="auto (default): the k = 0 swept sector where the design can be swept (every response of "
+                        "the stack on a sixth of the unknowns, working mode within ~0.03 %% on the default design), "
+                        "else the whole drill, graded; sector / whole: that path (--mesher other than auto: whole)")
     p.add_argument("--q-mech", type=float, default=None, metavar="Q",
                    help="mechanical quality factor of the assembled transducer (default: the assumed 100 of "
                         "fem.losses, its source in the report); 0 = datasheet values")
@@ -95,12 +98,9 @@ def check_options(args) -> None:
 
 def _inputs(design, settings, out) -> dict:
     """The run's inputs for the inputs line."""
-    from geometry.revolve import resolve_mesher
-
     on = {True: "on", False: "off"}
     items = {"design": design.name, "voltage": settings.drive().text(), "losses": settings.losses().short(),
-             "mesher": mesh_text(resolve_mesher(design, settings.mesher), settings.refine, settings.grade,
-                                 settings.mesh_size),
+             "mesh": settings.mesh_options().resolved(design).label(design),
              "matching": on[settings.match], "impact load on the tip": on[settings.couple_impacts],
              "coupled model": (f"{settings.coupled_modes} modes" if settings.coupled_model and settings.coupled_modes
                                else on[settings.coupled_model]),
@@ -114,8 +114,6 @@ def _inputs(design, settings, out) -> dict:
 
 def _settings(args):
     """The pipeline settings of the (checked) options, defaults applied."""
-    from geometry.options import mesh_options
-
     from .pipeline import PipelineSettings
 
     from fem.losses import q_option_losses
@@ -123,7 +121,9 @@ def _settings(args):
     losses = q_option_losses(args.q_mech)
     return PipelineSettings(voltage=args.drive.amplitude_v, voltage_given_as=args.drive.convention,
                             q_mech=losses.q_mech, losses_origin=losses.origin, losses_source=losses.source,
-                            mesh_size=args.mesh_size, **mesh_options(args), match=not args.no_match,
+                            mesh_size=args.mesh_size, refine=1.0 if args.refine is None else args.refine,
+                            grade=True if args.grade else None, mesher=args.mesher,
+                            path=None if args.path == "auto" else args.path, match=not args.no_match,
                             couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                             impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
                             coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes,
@@ -146,7 +146,7 @@ def main(argv=None) -> int:
 
         return explore_main(argv[1:])
     from geometry.guard import check_budget
-    from geometry.options import design_from_options, design_inputs, mesh_options
+    from geometry.options import design_from_options, design_inputs
 
     from .pipeline import run_pipeline
 
@@ -161,7 +161,7 @@ def main(argv=None) -> int:
     check_output_paths(inputs=design_inputs(args), folders=("out",), out=out)
     if args.design is not None and out.exists() and Path(args.design).resolve().is_relative_to(out.resolve()):
         raise ParameterError("--out", str(out), "holds the input --design; it would be replaced by the results")
-    check_budget(design, args.mesh_size, allow_large=args.allow_large, **mesh_options(args))
+    check_budget(design, args.mesh_size, allow_large=args.allow_large, **settings.mesh_options().budget(design))
     check_usual(parser.prog, "--voltage", settings.voltage, "voltage")
     if settings.load:
         check_usual(parser.prog, "--wob", settings.wob, "wob")

@@ -30,19 +30,20 @@ __all__ = ["estimate_stage", "annotate_summary", "error_text"]
 TIP = "tip_per_volt_m"
 
 
-def estimate_stage(design, settings, system, modal, w: int, wp, surfaces, near_hz: float, say=None):
-    """The two-level estimate of the working mode's outputs (:class:`fem.errors.ErrorEstimate`),
-    or None when ``settings.refine`` leaves no room for a coarser mesh."""
+def estimate_stage(design, options, settings, system, modal, w: int, wp, surfaces, near_hz: float, say=None):
+    """The two-level estimate of the working mode's outputs (:class:`fem.errors.ErrorEstimate`) on
+    the path that ran (``options``: the resolved :class:`results.stage_fe.MeshOptions`), or None
+    when ``options.refine`` leaves no room for a coarser mesh."""
     from fem.errors import ESTIMATOR_RATIO, estimate, plus_minus
 
-    if settings.refine * ESTIMATOR_RATIO > 5.0:
-        log.warning("no discretisation-error estimate: refine %g x %g exceeds 5", settings.refine, ESTIMATOR_RATIO)
+    if options.refine * ESTIMATOR_RATIO > 5.0:
+        log.warning("no discretisation-error estimate: refine %g x %g exceeds 5", options.refine, ESTIMATOR_RATIO)
         return None
     values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": float(modal.f_a_hz[w]), "k_eff": float(modal.k_eff[w]),
               TIP: wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
-    est = estimate(design, values, system.ndof, refine=settings.refine, mesh_size=settings.mesh_size,
-                   grade=settings.grade, near_hz=near_hz, q_mech=settings.q_mech, surfaces=tuple(surfaces),
-                   n_modes=4, mesher=settings.mesher)
+    est = estimate(design, values, system.ndof, refine=options.refine, mesh_size=options.mesh_size,
+                   grade=options.grade, near_hz=near_hz, loss=settings.losses().loss_model(),
+                   surfaces=tuple(surfaces), n_modes=4, mesher=options.mesher, path=options.path)
     if say:
         v, e = est.values, est.error
         say(f"      discretisation error ({est.coarse_ndof} DOFs at refine {est.coarse_refine:g}, order {est.order:g}): "

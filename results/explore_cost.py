@@ -86,13 +86,15 @@ def estimate_cost(study: Study, points: list[dict], workers: int) -> CostEstimat
     Points that share their design share the mesh and match tasks and, with the same
     ``q_mech``, the harmonic task (as :func:`explore` schedules them); every point has its own
     impact task. Stage times are the constants above, scaled by the base design's estimated
-    DOFs as the study meshes it.
+    DOFs as the study meshes it (the sector on the sector path).
     """
-    from geometry.guard import estimate
+    from geometry.guard import estimate, sector_estimate
 
     design = study.base_design()
-    opt = study.settings.mesh_options().resolved(design)
-    dofs = estimate(design, opt.mesh_size, refine=opt.refine, grade=opt.grade, mesher=opt.mesher).dofs
+    opt = study.settings.mesh_options().budget(design)
+    size = study.settings.mesh_size or None
+    dofs = (sector_estimate(design, opt["sectors"], size, opt["refine"]) if "sectors" in opt
+            else estimate(design, size, **opt)).dofs
     scale = (dofs / REFERENCE_DOFS) ** FE_COST_EXPONENT
     splits = [split_point(study, p) for p in points]
     meshes = len({json.dumps(d, sort_keys=True) for d, _, _, _ in splits})

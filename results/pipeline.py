@@ -37,6 +37,7 @@ FE solvers never reaches it. MKL runs in its conditional-reproducibility mode as
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -76,10 +77,13 @@ class PipelineSettings:
     losses_origin, losses_source : where q_mech and tan_delta come from (empty: derived from q_mech)
     mesh_size : mesh size override, m (None: the design's elements-per-wavelength rule)
     refine : mesh refinement factor scaling every size rule (geometry.sizing; < 1 refines)
-    grade : grade the mesh toward the re-entrant edges (off: the 60 s budget is set on the ungraded mesh)
-    mesher : "free" (default: the 60 s budget), "revolve" (stack, flange and horn swept: working mode
-        ~+0.1 % instead of ~+0.5 %; default design 99.6 s instead of 45 s, the matching 56 s instead
-        of 19 s) or "auto" (revolve where it can)
+    grade : grade the mesh toward the re-entrant edges (None: the path's own rule, the sector's
+        notch grading on the sector path, graded on the whole drill)
+    mesher : whole-drill mesher, "auto" (default: swept where it can be), "free" or "revolve"; a
+        mesher other than auto asks for the whole drill
+    path : "sector" (the k = 0 swept sector: converged within ~0.03 % at refine 1 on the default
+        design), "whole" or None (default: the sector where the design can be swept,
+        :func:`fem.sector_system.default_path`)
     match : run the resonance matching (else analyse the design as it is)
     couple_impacts : iterate A0 with the impact load on the horn tip
     m_free_values : free masses of the sweep, kg (0 is reported as zero energy: no free mass)
@@ -106,8 +110,9 @@ class PipelineSettings:
     losses_source: str = ""
     mesh_size: float | None = None
     refine: float = 1.0
-    grade: bool = False
-    mesher: str = "free"
+    grade: bool | None = None
+    mesher: str = "auto"
+    path: str | None = None
     match: bool = True
     couple_impacts: bool = True
     m_free_values: tuple[float, ...] = (0.0, 0.001, 0.002, 0.003, 0.004, 0.005, 0.006, 0.007, 0.008)
@@ -170,7 +175,8 @@ class PipelineSettings:
         """How the design is meshed (:class:`results.stage_fe.MeshOptions`; checks the options)."""
         from .stage_fe import MeshOptions
 
-        return MeshOptions(mesh_size=self.mesh_size, refine=self.refine, grade=self.grade, mesher=self.mesher)
+        return MeshOptions(mesh_size=self.mesh_size, refine=self.refine, grade=self.grade, mesher=self.mesher,
+                           path=self.path)
 
     def impact_settings(self):
         """The ensemble rule of the impact statistics."""
@@ -336,20 +342,31 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
     t0 = clock.stage("harmonic response")
     h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
     run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
-    run.stress = stress_stage(m.system, h.wp, run.out, render=st.render, say=say)    # peaks vs limits; own timing
+    run.stress = stress_stage(*_field_system(m.system, h.wp), run.out, render=st.render, say=say)   # own timing
     clock.took("harmonic_s", t0)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
         f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
     t0 = time.perf_counter()          # one solve on a 1.4x coarser mesh: the error of every FE output
-    run.est = estimate_stage(m.design, st, m.system, m.modal, m.w, h.wp, h.surfaces, float(m.design.target_frequency),
-                             say)
+    run.est = estimate_stage(m.design, m.options, st, m.system, m.modal, m.w, h.wp, h.surfaces,
+                             float(m.design.target_frequency), say)
     clock.took("discretisation_error_s", t0)
     t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
     from .rotor_stage import pipeline_rotor_stage
 
     run.rotor = pipeline_rotor_stage(m.design, h.wp, h.f_w, run.est, st.wob, say=say)
     clock.took("rotor_s", t0)
+
+
+def _field_system(system, wp):
+    """The system and working point whose solution is the field on the mesh: on the sector path
+    the sector's own system and the sector's field of the ``k = 0`` solution
+    (:meth:`fem.sector_system.SectorSystem.complete`), else the system and ``wp`` themselves."""
+    from fem.sector_system import SectorSystem
+
+    if isinstance(system, SectorSystem):
+        return system.sector, dataclasses.replace(wp, x=system.complete(wp.x))
+    return system, wp
 
 
 def _impact_stages(run: _Run, clock: _Clock, say) -> None:
@@ -419,11 +436,16 @@ def _render_stage(run: _Run) -> None:
         return
     from fem.render import around, render_modes, write_modes_vtu
 
+    from fem.sector_system import SectorSystem
+
     m = run.matched
+    mesh, shapes = m.mesh, m.modal.shapes
+    if isinstance(m.system, SectorSystem):          # the sector's modes shown on the whole drill
+        mesh, shapes = m.system.whole_mesh()[0], m.system.whole_shapes(m.modal.vectors)
     idx = around(m.w, m.modal.n_modes, 2)
-    run.renders = render_modes(m.mesh, m.modal.shapes, run.out / "renders", modes=idx, frequencies=m.modal.f_r_hz,
+    run.renders = render_modes(mesh, shapes, run.out / "renders", modes=idx, frequencies=m.modal.f_r_hz,
                                labels=m.modal.labels)
-    run.vtu = write_modes_vtu(m.mesh, m.modal.shapes, run.out / "modes.vtu", frequencies=m.modal.f_r_hz)
+    run.vtu = write_modes_vtu(mesh, shapes, run.out / "modes.vtu", frequencies=m.modal.f_r_hz)
 
 
 def _figures(run: _Run) -> dict:
@@ -501,7 +523,8 @@ def _summary(run: _Run, figs: dict) -> dict:
         "design": m.design.to_mapping(),
         "settings": {k: getattr(st, k) for k in st.__dataclass_fields__},
         "mesh": {"tetrahedra": m.mesh.n_cells, "nodes": m.mesh.n_points, "order": m.mesh.order,
-                 "ndof": m.system.ndof, "mesher": m.options.mesher},
+                 "ndof": m.system.ndof, "mesher": m.options.mesher, "path": m.options.path,
+                 "label": m.options.label(m.design)},
         "materials": m.system.materials_block(),
         "matching": m.matching.to_dict() if m.matching is not None else None,
         "working_mode": {"index": m.w, "f_r_hz": m.f_r_hz, "f_a_hz": m.f_a_hz, "k_eff": m.k_eff,

@@ -166,8 +166,8 @@ def report_lines(s: dict) -> list[str]:
                   f"{m['flange_to_tip_axial_ratio']:.3f}.", ""]
     lines += [
         "| quantity | value |", "|---|---|",
-        f"| mesh | {s['mesh']['tetrahedra']} second-order tetrahedra, {s['mesh']['ndof']} DOFs "
-        f"({'stack, flange and horn swept' if s['mesh'].get('mesher') == 'revolve' else 'free'}) |",
+        f"| mesh | {s['mesh'].get('label') or s['mesh'].get('mesher')}: {s['mesh']['tetrahedra']} second-order "
+        f"tetrahedra, {s['mesh']['ndof']} DOFs |",
         f"| working mode | #{wm['index'] + 1} {wm['label']}: f_r {_pm(wm['f_r_hz'], wm.get('f_r_hz_error'), 'Hz')}, "
         f"f_a {_pm(wm['f_a_hz'], wm.get('f_a_hz_error'), 'Hz')}, k_eff {_pm(wm['k_eff'], wm.get('k_eff_error'))} |",
         f"| tip amplitude per volt (Q_m {h['q_mech']}, {h.get('losses', {}).get('origin', 'given')}) | {_pm(h['tip_per_volt_m'], h.get('tip_per_volt_m_error'), 'nm/V', 1e9)} |",

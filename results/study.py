@@ -20,7 +20,8 @@ points that :mod:`results.explore` runs::
     q_mech = 100.0
     mesh_size = 0.0               # 0: the design's own rule
     refine = 1.0                  # mesh refinement factor (< 1 refines), as python -m results --refine
-    mesher = "free"               # free | revolve | auto, as python -m results --mesher
+    path = "auto"                 # auto (the sector where the design can be swept) | sector | whole
+    # grade = true / false: the mesh graded or not (absent: the path's own rule, as python -m results)
 
     [parameters."coupler.slot_angle_deg"]
     values = [20.0, 30.0, 40.0]   # grid levels
@@ -130,8 +131,9 @@ class StudySettings:
     q_mech: float = ASSEMBLED_Q_MECH
     mesh_size: float = 0.0
     refine: float = 1.0
-    grade: bool = False
-    mesher: str = "free"
+    grade: bool | None = None
+    mesher: str = "auto"
+    path: str = "auto"
     match: bool = True
     scenario: str = "device"
     rel_tol: float = 0.05
@@ -149,6 +151,7 @@ class StudySettings:
         from geometry.revolve import MESHERS
 
         check_choice("settings.mesher", self.mesher, MESHERS)
+        check_choice("settings.path", self.path, ("auto", "sector", "whole"))
         check_choice("settings.scenario", self.scenario, ("device", "article"))
         check_range("settings.rel_tol", self.rel_tol, 0.0, 1.0, lo_open=True)
         check_integer("settings.max_members", self.max_members, 2, 1_000_000)
@@ -159,7 +162,7 @@ class StudySettings:
         from .stage_fe import MeshOptions
 
         return MeshOptions(mesh_size=self.mesh_size or None, refine=self.refine, grade=self.grade,
-                           mesher=self.mesher)
+                           mesher=self.mesher, path=self.path)
 
 
 @dataclass(frozen=True)
@@ -342,6 +345,8 @@ def _settings(raw: Any) -> StudySettings:
             v = _text(where, v, "must be 'device' or 'article'")
         elif key == "mesher":
             v = _text(where, v, "must be 'free', 'revolve' or 'auto'")
+        elif key == "path":
+            v = _text(where, v, "must be 'auto', 'sector' or 'whole'")
         elif key == "tip_surface":
             if not isinstance(v, str) or (v and not _NAME_PART.match(v)) or len(v) > 64:
                 raise ParameterError(where, v, "must be the name of a surface of the mesh ('' picks horn_tip)")

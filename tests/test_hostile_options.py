@@ -257,7 +257,7 @@ def test_pipeline_echoes_its_inputs(capsys, monkeypatch, tmp_path):
     monkeypatch.setattr(results.pipeline, "run_pipeline", _stop)
     out, _ = _echo(_results, ["--out", str(tmp_path / "r"), "--load", "rock", "--wob", "9"], capsys)
     line = _first(out)
-    assert "design rpud-default" in line and "voltage 225 V" in line and "mesher free" in line
+    assert "design rpud-default" in line and "voltage 225 V" in line and "mesh swept sector 1/6 (k = 0)" in line
     assert "WOB 9 N" in line and "Q_mech 100 (assumed)" in line
     assert not (tmp_path / "r").exists()
 
