@@ -11,7 +11,11 @@ UV     := uv==0.13.9
 
 .PHONY: run test test-fast docs bench install lock clean
 
-$(STAMP): pyproject.toml $(LOCK) impact/kernel.py impact/kernel_modal.py
+# the compiled engines' sources (impact/kernel_cache.py COMPILED_SOURCES): a change recompiles them
+KERNELS := $(addprefix impact/,event_rules.py columns.py horn.py kernel_blocks.py kernel.py kernel_energy.py \
+             kernel_contact.py kernel_modal.py rock.py drill_kernel.py kernel_cache.py)
+
+$(STAMP): pyproject.toml $(LOCK) $(KERNELS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --require-hashes -r $(LOCK)
 	# the project itself on top of the locked set: no dependency may be resolved again here

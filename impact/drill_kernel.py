@@ -30,6 +30,7 @@ import math
 import numpy as np
 from numba import njit, prange
 
+from . import kernel_cache  # noqa: F401  (drops stale caches first)
 from .rock import R_E, R_FMAX, R_N, R_P, rock_new_blow, rock_step_fast
 
 # packed parameters

@@ -23,7 +23,7 @@ roots ``lambda_r`` and ``4 lambda_r`` whose fast root is never excited). A tip i
 physical velocities ``q_i'`` by ``-s_i J / m_i``; in pseudo coordinates it is a jump of both ``y_k``
 and ``y_k'`` (``jq``, ``jv`` per unit impulse), the physical tip position staying continuous.
 
-Energies (closed form per segment, :func:`impact.kernel_modal._integrals_series`): every rate is a
+Energies (closed form per segment, :func:`impact.kernel_energy.segment_energy_series`): every rate is a
 quadratic form of ``(x, V_s)``: the source's work ``V_s i``, the resistor and dielectric loss ``R i^2
 + G V_p^2``, the conversion to mechanics ``V_p sum theta_i q_i'`` and the modal damping ``sum c_i
 q_i'^2``; with the stored ``1/2 C0 V_p^2`` and the modal energy they close the balance.

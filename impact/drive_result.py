@@ -9,7 +9,7 @@ import math
 import numpy as np
 
 from .drive import SeriesModel, pack_series, physical_states, series_model
-from .kernel_modal import _integrals_series
+from .kernel_energy import segment_energy_series
 
 __all__ = ["model_of", "tip_series", "fundamental", "drive_power", "port_terms", "physical"]
 
@@ -52,7 +52,7 @@ def _segment_sums(res, a: float, b: float) -> np.ndarray:
         t0 = res.seg_t0[j]
         lo, hi = max(t0, a), min(ends[j], b)
         if hi > lo:
-            out += np.array(_integrals_series(tab, xs, m.n_pseudo, t0, res.seg_q[j], res.seg_qd[j], lo - t0, hi - t0,
+            out += np.array(segment_energy_series(tab, xs, m.n_pseudo, t0, res.seg_q[j], res.seg_qd[j], lo - t0, hi - t0,
                                               lam, G1, G2, cw))
     return out
 

@@ -120,6 +120,12 @@ import numpy as np
 
 from rpud_common.result import Result
 
+from .columns import (FREE, N_STATS, ON_HORN, ON_TOOL, S_HORN_WORK, S_KE_AFTER, S_KE_GAIN, S_N_EVENTS, S_N_HORN,
+                      S_N_TOOL, S_STATUS, S_T_ON_HORN, S_T_ON_TOOL)
+from .event_rules import (APEX_MIN as _APEX_MIN, CONTACT_TOL, H_MIN as _H_MIN, RTOL as _RTOL, XTOL as _XTOL,
+                          brent_next, brent_start, grid_step as _grid_step, next_cross,
+                          parabola_excursion as _parabola_excursion, parabola_leave as _parabola_leave,
+                          parabola_reach as _parabola_reach, sticks as _sticks)
 from .params import ImpactParams
 
 __all__ = ["simulate", "window_stats", "ImpactResult", "SimulationError", "CONTACT_TOL",
@@ -127,16 +133,6 @@ __all__ = ["simulate", "window_stats", "ImpactResult", "SimulationError", "CONTA
 
 log = logging.getLogger(__name__)
 
-#: interpenetration accepted as "touching" (m): far above round-off of mm positions (~1e-19 m)
-CONTACT_TOL = 1e-15
-#: shortest interval bisected in the event search (s)
-_H_MIN = 1e-12
-_XTOL = 2e-16
-_RTOL = 8.9e-16
-#: smallest resolved flight apex after an impact (m): 100 CONTACT_TOL
-_APEX_MIN = 1e-13
-
-FREE, ON_HORN, ON_TOOL = 0, 1, 2
 HORN, TOOL = "horn", "tool"
 
 
@@ -256,42 +252,15 @@ def _safe(fa, fpa, fb, fpb, B, h, tol):
 
 
 def _brent(f, xa: float, xb: float, fa: float, fb: float) -> float:
-    """Root of f in [xa, xb] with f(xa) f(xb) < 0: Brent's method (inverse quadratic /
-    secant steps safeguarded by bisection), to ``_XTOL + _RTOL |x|`` (s). The compiled
-    kernel repeats these exact operations, so both engines return the same bits."""
-    xpre, xcur, fpre, fcur = xa, xb, fa, fb
-    xblk = fblk = spre = scur = 0.0
+    """Root of f in [xa, xb] with f(xa) f(xb) < 0: Brent's method
+    (:func:`impact.event_rules.brent_next`) to ``XTOL + RTOL |x|`` (s)."""
+    st = brent_start(xa, xb, fa, fb)
     for _ in range(200):
-        if fpre != 0.0 and fcur != 0.0 and (fpre < 0.0) != (fcur < 0.0):
-            xblk, fblk = xpre, fpre
-            spre = scur = xcur - xpre
-        if abs(fblk) < abs(fcur):
-            xpre, xcur, xblk = xcur, xblk, xcur
-            fpre, fcur, fblk = fcur, fblk, fcur
-        delta = 0.5 * (_XTOL + _RTOL * abs(xcur))
-        sbis = 0.5 * (xblk - xcur)
-        if fcur == 0.0 or abs(sbis) < delta:
-            return xcur
-        if abs(spre) > delta and abs(fcur) < abs(fpre):
-            if xpre == xblk:
-                stry = -fcur * (xcur - xpre) / (fcur - fpre)
-            else:
-                dpre = (fpre - fcur) / (xpre - xcur)
-                dblk = (fblk - fcur) / (xblk - xcur)
-                stry = -fcur * (fblk * dblk - fpre * dpre) / (dblk * dpre * (fblk - fpre))
-            if 2.0 * abs(stry) < min(abs(spre), 3.0 * abs(sbis) - delta):
-                spre, scur = scur, stry
-            else:
-                spre = scur = sbis
-        else:
-            spre = scur = sbis
-        xpre, fpre = xcur, fcur
-        if abs(scur) > delta:
-            xcur += scur
-        else:
-            xcur += delta if sbis > 0.0 else -delta
-        fcur = f(xcur)[0]
-    return xcur
+        done, st = brent_next(st)
+        if done:
+            break
+        st = st[:4] + (f(st[1])[0],) + st[5:]
+    return st[1]
 
 
 def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
@@ -315,88 +284,6 @@ def _refine(sca, a, b, fa, fpa, fb, fpb, B, tol):
     if r is not None:
         return r
     return _refine(sca, m, b, fm, fpm, fb, fpb, B, tol)
-
-
-def _sticks(rel: float, push: float, v_stick: float) -> bool:
-    """Sticking rule after an impact.
-
-    Parameters
-    ----------
-    rel : float
-        Relative separation speed just after the impact, m/s.
-    push : float
-        Relative acceleration that drives the bodies together, m/s^2 (> 0: compressive).
-    v_stick : float
-        Sticking threshold of the relative speed, m/s.
-    """
-    if push <= 0.0:
-        return False
-    # A flight whose apex rel^2 / (2 push) stays below _APEX_MIN cannot be resolved against
-    # CONTACT_TOL: its re-impact is found late, with an approach speed ~sqrt(2 push tol) that
-    # can exceed the departure speed, and the chattering never ends (a Zeno loop of
-    # ~1e-10 s flights). It is the tail of a chattering sequence: stick now.
-    return rel < v_stick or rel * rel < 2.0 * push * _APEX_MIN
-
-
-def _parabola_reach(p0: float, p1: float, acc: float) -> float:
-    """Smallest s >= 0 with p0 + p1 s + acc s^2/2 <= 0 (inf if never); p0 > 0 expected."""
-    if p0 <= 0.0:
-        return 0.0
-    r = math.inf
-    if acc == 0.0:
-        if p1 < 0.0:
-            r = -p0 / p1
-    else:
-        disc = p1 * p1 - 2.0 * acc * p0
-        if disc >= 0.0:
-            sq = math.sqrt(disc)
-            # numerically stable pair of roots of (acc/2) s^2 + p1 s + p0
-            q = -(p1 + math.copysign(sq, p1))
-            if q != 0.0:
-                r1, r2 = q / acc, 2.0 * p0 / q
-                if r1 >= 0.0:
-                    r = r1
-                if r2 >= 0.0 and r2 < r:
-                    r = r2
-    if r == math.inf:
-        return r
-    # a little early on purpose: the grid search starts before the zone is reached
-    return max(0.0, r * (1.0 - 1e-9) - 1e-12)
-
-
-def _parabola_leave(p0: float, p1: float, acc: float) -> float:
-    """The s after which p0 + p1 s + acc s^2/2 stays > 0 for good (inf if it may not).
-
-    For acc > 0 the parabola's larger root; for acc = 0 (no gravity, no spring: the free mass
-    flies straight) the line's root when it moves away (p1 > 0), else inf. The line's case
-    closes the horn's grid search once a weightless free mass has left the horn's band, rather
-    than keeping it open over the whole flight (~10x the run time at g = 0)."""
-    if acc == 0.0 and p1 > 0.0:
-        return max(0.0, -p0 / p1) * (1.0 + 1e-9) + 1e-12
-    if acc <= 0.0:
-        return math.inf
-    disc = p1 * p1 - 2.0 * acc * p0
-    if disc < 0.0:
-        return 0.0
-    r2 = (-p1 + math.sqrt(disc)) / acc
-    # a little late on purpose: the grid search ends after the zone is left
-    return max(0.0, r2) * (1.0 + 1e-9) + 1e-12
-
-
-def _parabola_excursion(p0: float, p1: float, acc: float) -> tuple[float, float]:
-    """For p0 <= 0 < p1 and acc < 0: (r1, r2), a little narrow, on which p0 + p1 s + acc s^2/2
-    stays > 0 (the flight is out of a contact's band and back); (inf, inf) otherwise."""
-    if p0 > 0.0 or p1 <= 0.0 or acc >= 0.0:
-        return math.inf, math.inf
-    disc = p1 * p1 - 2.0 * acc * p0
-    if disc <= 0.0:
-        return math.inf, math.inf
-    q = p1 + math.sqrt(disc)
-    r1 = (-2.0 * p0 / q) * (1.0 + 1e-9) + 1e-12
-    r2 = (q / -acc) * (1.0 - 1e-9) - 1e-12
-    if r2 <= r1:
-        return math.inf, math.inf
-    return r1, r2
 
 
 class _Fn:
@@ -424,15 +311,6 @@ def _tool_horn_gap(osc, t0: float, L0: float, A0: float, om: float):
         return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
 
     return g_vec, g_sca
-
-
-def _grid_step(B: float, t_end: float, fscale: float = 1e-7) -> float:
-    """Grid step whose chord bound B h^2/8 is ``fscale`` (unit of f): far from a root every
-    interval is cleared at once. Gaps use 0.1 µm; the release function (an acceleration)
-    uses a fraction of its own size, else the bound |v''''| of a stiff tool forces ns steps."""
-    if B <= 0.0:
-        return t_end
-    return min(math.sqrt(8.0 * fscale / B), 1e-3)
 
 
 def _first_event(fns: list[_Fn], t_hi: float) -> tuple[float | None, str | None]:
@@ -654,19 +532,7 @@ class _Sim:
 
     def _next_cross(self, t0: float, up: bool) -> float:
         """Next t > t0 where f = u'' - a crosses zero upward (up) or downward."""
-        if self.A0 == 0.0:
-            return math.inf
-        cstar = -self.a / (self.A0 * self.om2)
-        if abs(cstar) >= 1.0:
-            return math.inf
-        th = math.acos(cstar) if up else 2.0 * math.pi - math.acos(cstar)
-        ph0 = self.om * t0
-        k = math.ceil((ph0 - th) / (2.0 * math.pi))
-        t = (th + 2.0 * math.pi * k) / self.om
-        while t <= t0:
-            k += 1
-            t = (th + 2.0 * math.pi * k) / self.om
-        return t
+        return next_cross(t0, up, self.A0, self.om, self.om2, self.a)
 
     def energy(self, w, wd, v, vd):
         p = self.p
@@ -937,10 +803,6 @@ def _run_kernel(p: ImpactParams) -> tuple[ImpactResult, tuple]:
     return res, (s_t0, s_mode, s_w0, s_wd0, s_v0, s_vd0)
 
 
-#: columns of :func:`window_stats` and :func:`impact.kernel.ensemble_stats`
-S_N_TOOL, S_N_HORN, S_KE_AFTER, S_KE_GAIN, S_HORN_WORK, S_T_ON_HORN, S_T_ON_TOOL, S_STATUS, \
-    S_N_EVENTS = range(9)
-N_STATS = 9
 
 
 def window_stats(result: ImpactResult, t_from: float, t_end: float) -> np.ndarray:

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from impact import kernel
+from impact import event_rules, kernel, kernel_blocks
 from impact import model
 from impact.model import SimulationError, _Osc, simulate, window_stats
 from impact.params import ImpactParams
@@ -103,7 +103,11 @@ def assert_same_events(rk, rp, bounds, k):
 
 
 def test_constants_agree():
-    for name in ("CONTACT_TOL", "_H_MIN", "_XTOL", "_RTOL", "_APEX_MIN", "FREE", "ON_HORN", "ON_TOOL",
+    for name in ("CONTACT_TOL", "_H_MIN", "_XTOL", "_RTOL", "_APEX_MIN"):
+        assert getattr(event_rules, name.lstrip("_")) == getattr(model, name), name
+    for name in ("CONTACT_TOL", "H_MIN", "XTOL", "RTOL"):
+        assert getattr(kernel_blocks, name) == getattr(event_rules, name), name
+    for name in ("FREE", "ON_HORN", "ON_TOOL",
                  "N_STATS", "S_N_TOOL", "S_N_HORN", "S_KE_AFTER", "S_KE_GAIN", "S_HORN_WORK",
                  "S_T_ON_HORN", "S_T_ON_TOOL", "S_STATUS", "S_N_EVENTS"):
         assert getattr(kernel, name) == getattr(model, name), name
@@ -254,14 +258,14 @@ def test_oscillator_closed_form_and_bounds(zeta):
         # and four more roundings, 8 eps of |delta| + |P| + |Q|; the bounds are a dozen more
         # roundings (recursion, sqrt, products, min) of the same coefficients: 1e-12 relative
         # still covers a cancellation by 1e3 among them
-        ok = np.empty(kernel._O_N)
-        kernel._osc_make(ok, m, k, c, 1e-5, x0 + 1e-5, xd0)
+        ok = np.empty(kernel_blocks.O_N)
+        kernel_blocks.osc_make(ok, m, k, c, 1e-5, x0 + 1e-5, xd0)
         tol_pos = 8 * np.finfo(float).eps * (1e-5 + abs(o.P[0]) + abs(o.Q[0]))
         tol_vel = 8 * np.finfo(float).eps * (abs(o.P[1]) + abs(o.Q[1]))
         for si in s[::997]:
-            (yk, vk), (yp, vp) = kernel._osc_pv(ok, si), o.pv(si)
+            (yk, vk), (yp, vp) = kernel_blocks.osc_pv(ok, si), o.pv(si)
             assert abs(yk - yp) <= tol_pos and abs(vk - vp) <= tol_vel, (si, yk - yp, vk - vp)
-        np.testing.assert_allclose([ok[kernel._O_B0], ok[kernel._O_B2], ok[kernel._O_B4]], [o.b0, o.b2, o.b4],
+        np.testing.assert_allclose([ok[kernel_blocks.O_B0], ok[kernel_blocks.O_B2], ok[kernel_blocks.O_B4]], [o.b0, o.b2, o.b4],
                                    rtol=1e-12, atol=0)
 
 
@@ -341,3 +345,19 @@ def test_hard_regimes_finish_in_bounded_time(compiled, m_free, A0, e1, e2, gap, 
     assert time.perf_counter() - t0 < 2.0
     assert (r.w - r.u).min() >= -1e-12
     assert (r.tool_face - r.w).min() >= -1e-12
+
+
+def test_numba_caches_are_dropped_when_a_compiled_source_changes(tmp_path):
+    """numba checks only a cached function's own file; kernel_cache drops every cache of the
+    package when any compiled source (a building block the loops inline) changed."""
+    from impact import kernel_cache
+
+    (tmp_path / "a.nbi").write_text("")
+    assert kernel_cache.drop_stale(tmp_path) is True          # no stamp yet: dropped
+    assert not (tmp_path / "a.nbi").exists()
+    (tmp_path / "b.nbc").write_text("")
+    assert kernel_cache.drop_stale(tmp_path) is False         # the same sources: kept
+    assert (tmp_path / "b.nbc").exists()
+    (tmp_path / "compiled-sources.sha256").write_text("the hash of other sources")
+    assert kernel_cache.drop_stale(tmp_path) is True
+    assert not (tmp_path / "b.nbc").exists()
