@@ -73,7 +73,7 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
     state = f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz" + (f" + bolt preload {args.preload:g} N on "
                                                            f"{pre.faces[0]}/{pre.faces[1]}" if pre else "")
     print(f"stress, peaks over one cycle ({state}); ± est: recovered - raw element values near the peak "
-          "(peaks at re-entrant corners are mesh-dependent)")
+          "(rows marked * peak on a singular edge: their utilisation is the off-edge peak's)")
     print(table.text())
     sweep = None
     if args.stress_points:

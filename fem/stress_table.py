@@ -40,13 +40,19 @@ from .stress import (StressField, StressRecovery, efield_cycle_peak, principal_c
                      principal_values, quadratic_peak, vm_cycle_peak)
 
 __all__ = ["StressRow", "StressTable", "stress_table", "StressSweep", "stress_sweep", "QUANTITIES",
-           "bonded_edge_nodes", "converged_table", "STRESS_ORDER", "CORNER_ANGLE_DEG"]
+           "bonded_edge_nodes", "converged_table", "STRESS_ORDER", "CORNER_ANGLE_DEG", "OFF_EDGE_DISTANCE"]
 
 STRESS_ORDER = 2.0
 """Convergence order of a recovered stress peak at a smooth point with P2 elements (the
 displacement's h^3 less one derivative): the order of the two-mesh estimate of
 :func:`converged_table`. Observed on the fillets of the (r, z) reference: 2.6-2.9
 (tests/test_fillets.py)."""
+
+OFF_EDGE_DISTANCE = 0.5e-3
+"""The peak "off the singular edges" of a region leaves out the cells with a node within this
+distance (m) of a singular edge, or within a tenth of the region's smallest extent if that is
+less (a tenth of a default ring's thickness): a fixed distance, so that the off-edge peak
+converges with the mesh (the cells touching an edge are micrometres wide on a graded mesh)."""
 
 CORNER_ANGLE_DEG = 60.0
 """Two regions of one material meeting on the surface make a singular edge when their boundary
@@ -297,7 +303,7 @@ def _region_limits(system):
 
 def stress_table(dynamic: StressField | None, static: StressField | None = None, *, freq_hz: float | None = None,
                  voltage: float | None = None, preload_n: float = 0.0, regions=None,
-                 detail: bool = True) -> StressTable:
+                 detail: bool = True, off_edges: bool | None = None, edge: np.ndarray | None = None) -> StressTable:
     """Peaks per region of ``static + Re(dynamic exp(j w t))`` over a cycle (see the module docstring).
 
     Parameters
@@ -307,8 +313,10 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
     freq_hz, voltage : the harmonic state, for the record
     preload_n : the static state's bolt force, N, for the record
     regions : names of the regions to report (default: all)
-    detail : also the error estimates and the peaks off the bonded edges (False: peaks only,
-        error estimate 0, as :func:`stress_sweep` uses them)
+    detail : also the error estimates (False: error estimate 0, as :func:`stress_sweep` uses them)
+    off_edges : also the peaks off the singular edges and the rows' ``singular`` marks (default:
+        ``detail``)
+    edge : :func:`bonded_edge_nodes` of the system, if computed already
     """
     ref = dynamic if dynamic is not None else static
     if ref is None:
@@ -335,7 +343,15 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
         unknown = sorted(set(regions) - set(names))
         if unknown:
             raise ParameterError("regions", unknown[0], "unknown; known: " + ", ".join(names))
-    edge = bonded_edge_nodes(system)
+    off_edges = detail if off_edges is None else off_edges
+    edge_distance = None
+    if off_edges:
+        from scipy.spatial import cKDTree
+
+        if edge is None:
+            edge = bonded_edge_nodes(system)
+        if edge.any():
+            edge_distance = cKDTree(system.nodes[edge]).query(system.nodes)[0]
     rows = []
     for ri, rd in enumerate(system.regions):
         if regions is not None and rd.name not in regions:
@@ -356,8 +372,14 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
             cells = np.flatnonzero((nodes_r == nodes_r.ravel()[i]).any(axis=1))
             return (cells[:, None] * k + np.arange(k)[None, :]).ravel()
 
-        # entries of the cells that touch no bonded free edge (the singular lines of the model)
-        off = np.flatnonzero(np.repeat(~edge[nodes_r].any(axis=1), k))
+        # entries of the cells whose nodes all lie farther than the region's band from every
+        # singular edge: a fixed distance, so that the off-edge peak converges with the mesh (the
+        # cells touching the edge alone are micrometres wide on a graded mesh)
+        off, band = np.zeros(0, dtype=np.int64), 0.0
+        if off_edges:
+            band = min(OFF_EDGE_DISTANCE, 0.1 * float(np.ptp(pts, axis=0).min()))
+            far = edge_distance[nodes_r] > band if edge_distance is not None else np.ones(nodes_r.shape, bool)
+            off = np.flatnonzero(np.repeat(far.all(axis=1), k))
 
         def row(q, peak, fn, rec, raw):
             # error estimate: the largest difference between recovered and raw element values of
@@ -367,12 +389,12 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
             if detail:
                 j = patch(i)
                 est = np.max(np.abs(fn(*(a[j] for a in rec)) - fn(*(a[j] for a in raw))))
-            if detail and len(off):
+            if off_edges and len(off):
                 i_off, v_off = peak(*(a[off] for a in rec))
                 loc_off = tuple(float(c) for c in pts[off[i_off]])
             rows.append(StressRow(rd.name, part, rd.material, q, float(value), tuple(float(c) for c in pts[i]),
                                   lim.get(QUANTITIES[q][3]), float(est), v_off, loc_off,
-                                  bool(detail and edge[nodes_r.ravel()[i]])))
+                                  bool(edge_distance is not None and edge_distance[nodes_r.ravel()[i]] <= band)))
 
         if not rd.piezo:
             row("von_mises", lambda h, s: quadratic_peak("von_mises", h, s),
@@ -435,8 +457,9 @@ def converged_table(coarse: StressTable, fine: StressTable, ratio: float, order:
 
 @dataclass(repr=False)
 class StressSweep(Result):
-    """Peaks along a harmonic sweep: ``peaks[(region, quantity)]`` (n_freq,) SI values,
-    ``limits`` the same keys' limits (None if absent)."""
+    """Headline peaks (off the singular edges where a peak sits on one) along a harmonic sweep:
+    ``peaks[(region, quantity)]`` (n_freq,) SI values, ``limits`` the same keys' limits (None if
+    absent)."""
 
     freqs_hz: np.ndarray
     voltage: float
@@ -476,8 +499,9 @@ class StressSweep(Result):
 
 def stress_sweep(system, basis, freqs_hz, voltage: float, *, static: StressField | None = None,
                  preload_n: float = 0.0, recovery: StressRecovery | None = None) -> StressSweep:
-    """Peak of every row of :func:`stress_table` at each frequency of ``freqs_hz`` (Hz), from the
-    modal superposition ``basis`` (:func:`fem.harmonic.modal_basis`) at ``voltage`` (V)."""
+    """Headline (:attr:`StressRow.headline`: off the singular edges where the peak sits on one) of
+    every row of :func:`stress_table` at each frequency of ``freqs_hz`` (Hz), from the modal
+    superposition ``basis`` (:func:`fem.harmonic.modal_basis`) at ``voltage`` (V)."""
     f = np.atleast_1d(np.asarray(freqs_hz, float))
     if f.ndim != 1 or len(f) == 0 or not np.all(np.isfinite(f)) or np.any(f <= 0):
         raise ParameterError("freqs_hz", freqs_hz, "must be finite frequencies > 0 Hz")
@@ -485,12 +509,13 @@ def stress_sweep(system, basis, freqs_hz, voltage: float, *, static: StressField
     cols = basis.columns()
     W = basis.weights(f)
     peaks, limits = {}, {}
+    edge = bonded_edge_nodes(system)
     for i in range(len(f)):
         x = system.expand(cols @ W[i] * voltage, basis.free, voltage)
         tab = stress_table(rec.field(x), static, freq_hz=float(f[i]), voltage=voltage, preload_n=preload_n,
-                           detail=False)
+                           detail=False, off_edges=True, edge=edge)
         for r in tab.rows:
             key = (r.region, r.quantity)
-            peaks.setdefault(key, np.zeros(len(f)))[i] = r.value
+            peaks.setdefault(key, np.zeros(len(f)))[i] = r.headline
             limits[key] = r.limit
     return StressSweep(f, float(voltage), float(preload_n), peaks, limits)
