@@ -36,6 +36,16 @@ def build_parser():
                    help="mechanical quality factor of every part (default: the assumed assembled-transducer Q "
                         "of fem.losses, 100; 0: each material's datasheet value)")
     p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
+    p.add_argument("--admittance", metavar="CSV",
+                   help="measured impedance/admittance sweep of the drill (frequency and |Z|, phase or G, B; "
+                        "fem.bvd): its Butterworth-Van Dyke fit nearest the working mode sets the losses (Q_m, "
+                        "tan delta) instead of --q-mech/--tan-delta")
+    p.add_argument("--convection", type=float, default=None, metavar="H",
+                   help="convective coefficient of the lumped thermal model, W/m^2/K (default 10: natural "
+                        "convection in air; 5-25 is bracketed in the output)")
+    p.add_argument("--duty", type=float, default=None, metavar="D",
+                   help="fraction of the time the drive is on in the thermal model (default 1: continuous; "
+                        "periods of 10 s)")
     p.add_argument("--surface", action="append", metavar="NAME",
                    help="surface(s) to report, the tip first (default horn_tip and teeth_tops when present)")
     add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"))
@@ -106,6 +116,22 @@ def _check_options(args) -> None:
         check_zero_or_range("--q-mech", args.q_mech, 1.0, 1e6, "", "datasheet values")
     if args.tan_delta is not None:
         check_range("--tan-delta", args.tan_delta, 0.0, 1.0)
+    from .thermal import ThermalSettings
+
+    if args.convection is not None:
+        check_range("--convection", args.convection, 0.1, 1e4, "W/m^2/K")
+    if args.duty is not None:
+        check_range("--duty", args.duty, 0.0, 1.0, lo_open=True)
+    args.thermal = ThermalSettings(**{k: v for k, v in (("h_w_per_m2k", args.convection), ("duty", args.duty))
+                                      if v is not None})
+    args.bvd_fits = None
+    if args.admittance is not None:
+        from .bvd import fit_bvd, read_admittance
+
+        for opt in ("q_mech", "tan_delta", "converge"):
+            if getattr(args, opt) is not None:
+                raise ParameterError("--admittance", args.admittance, f"sets the losses: drop --{opt.replace('_', '-')}")
+        args.bvd_fits = fit_bvd(read_admittance(args.admittance))
     check_design_options(args)
     if args.ring_up is not None:
         check_zero_or_range("--ring-up", args.ring_up, MIN_RING_UP, MAX_RING_UP, "s", "six time constants")
@@ -189,14 +215,17 @@ def _inputs(args, design, band) -> dict:
     if args.converge is None:
         items["band"] = ("f_r - 3 % .. f_a + 3 %" if band is None else
                          f"{quantity(band[0], 'Hz')} .. {quantity(band[1], 'Hz')}") + f", {args.points} points"
-    items.update({"losses": args.losses.short(),
+    items.update({"losses": args.losses.short() if args.admittance is None else
+                  f"measured ({args.admittance}: {len(args.bvd_fits)} resonance(s) fitted)",
                   "modes": args.modes, "driven mode": "largest k_eff" if args.mode is None else args.mode,
                   "surfaces": ", ".join(args.surface) if args.surface else "horn_tip, teeth_tops",
                   "mesh": _mesh_label(args, design, args.fe_path)})
+    items["thermal"] = f"h {quantity(args.thermal.h_w_per_m2k, 'W/m^2/K')}, duty {args.thermal.duty:g}"
     if args.ring_up is not None:
         items["ring-up"] = "six time constants" if args.ring_up == 0 else quantity(args.ring_up, "s")
     if args.stress:
-        items["stress"] = f"{args.stress}, preload {quantity(args.preload, 'N')}, {args.stress_points} band points"
+        pre = "the design's bolt" if args.preload is None else quantity(args.preload, 'N')
+        items["stress"] = f"{args.stress}, preload {pre}, {args.stress_points} band points"
     if args.converge is not None:
         items["convergence study"] = f"tolerance {args.converge:g}"
     elif args.error:
@@ -272,6 +301,12 @@ def _run(args, design, system, surfaces, near: float, loss, band) -> int:
         band = (f_w * 0.97, (f_a if np.isfinite(f_a) else f_w) * 1.03)
     elif not band[0] <= f_w <= band[1]:
         raise ParameterError("--band", args.band, f"does not contain the working frequency {f_w:.1f} Hz")
+    if args.bvd_fits:
+        from .bvd import measured_losses
+
+        args.losses, fit = measured_losses(system, modal, w, args.bvd_fits)
+        loss = args.losses.loss_model()
+        print(f"admittance fit ({args.admittance}): {fit.text()}")
     basis = modal_basis(system, f_w, loss=loss, modes=modal)
     freqs = np.linspace(band[0], band[1], args.points)
     # a band wider than these modes represent gets its own, larger basis (see harmonic_sweep)
@@ -286,6 +321,10 @@ def _run(args, design, system, surfaces, near: float, loss, band) -> int:
         ring = ring_up(system, f_w, args.voltage, args.ring_up or 6 * tau, loss=loss, basis=basis,
                        surfaces=surfaces[:1])
     _print_response(args, modal, w, f_w, wp, res, band, ring, surfaces)
+    from .thermal import thermal_summary
+
+    thermal = thermal_summary(system, wp.x, f_w, basis.L, wp.power_w, settings=args.thermal)
+    print("\n".join(thermal.pop("lines")))
     print(f"mesh: {_mesh_label(args, design, args.fe_path)}, {system.ndof} DOFs", flush=True)
     # on the sector path the estimate is cheap (a coarser sector): every run states it
     auto = args.fe_path == "sector" and args.freq is None and args.mode is None and args.refine * 1.4 <= 5.0
@@ -294,10 +333,15 @@ def _run(args, design, system, surfaces, near: float, loss, band) -> int:
     if args.stress:
         from .stress_cli import run_stress
 
+        from .preload import design_preload
+
+        if args.preload is None:
+            args.preload = design_preload(design)
         stress = run_stress(args, system, basis, wp, band)
     text = None
     if args.json:
-        text = json_text(_record(args, design, modal, w, f_w, wp, res, ring, system, est, stress), nonfinite="null")
+        text = json_text({**_record(args, design, modal, w, f_w, wp, res, ring, system, est, stress),
+                          "thermal": thermal}, nonfinite="null")
     if args.plots:
         _plots(args, modal, w, f_w, res, ring, wp)
     if text is not None:

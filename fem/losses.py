@@ -89,6 +89,11 @@ class DriveLosses:
         """:meth:`short` and the full source."""
         return f"{self.short()}: {self.source}"
 
+    @classmethod
+    def from_record(cls, rec: dict) -> "DriveLosses":
+        """The losses of a :meth:`record`."""
+        return cls(rec["q_mech"], rec["tan_delta"], rec["origin"], rec["source"], rec["q_mech_ci95_half_width"])
+
     def record(self) -> dict:
         return {"q_mech": self.q_mech, "q_mech_ci95_half_width": self.q_mech_ci95, "tan_delta": self.tan_delta,
                 "origin": self.origin, "source": self.source}

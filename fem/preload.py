@@ -26,6 +26,7 @@ near-singular solve is projected out afterwards (it carries no strain).
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass
 from typing import Iterable, Sequence
 
@@ -36,7 +37,8 @@ from rpud_common import ParameterError, check_finite, check_nonnegative
 from .assembly import PiezoSystem, _sub
 from .solvers import factorize
 
-__all__ = ["traction_load", "static_solve", "stack_end_faces", "preload_solve", "PreloadState", "face_area"]
+__all__ = ["traction_load", "static_solve", "stack_end_faces", "preload_solve", "PreloadState", "face_area",
+           "ring_means", "RingWindow", "PreloadWindows", "preload_windows", "design_preload", "window_lines"]
 
 log = logging.getLogger(__name__)
 
@@ -117,6 +119,13 @@ def static_solve(system: PiezoSystem, load: np.ndarray, *, clamp: Iterable[str] 
     K = _sub(system.K, free)
     if not clamp:
         R = _rigid_modes(system)
+        kept = getattr(system, "kept", None)
+        if kept is not None:
+            # a k = 0 sector system (fem.sector_system) holds the axial translation and the
+            # rotation about the axis only; its vectors live on the kept indices
+            mask = np.zeros(system.ndof)
+            mask[kept] = 1.0
+            R = R[:, [2, 5]] * mask[:, None]
         MR = system.M @ R
         f = f - MR @ np.linalg.solve(R.T @ MR, R.T @ f)
         K = (K + (2 * np.pi * _SHIFT_HZ) ** 2 * _sub(system.M, free)).tocsr()
@@ -160,7 +169,9 @@ def preload_solve(system: PiezoSystem, force_n: float, *, faces: Sequence[str] |
                   axis=(0.0, 0.0, 1.0), backend: str | None = None) -> PreloadState:
     """Static state of a bolt preload ``force_n`` (N, >= 0) squeezing the stack (module docstring).
 
-    ``faces``: (lower, upper) facet sets along ``axis``; default :func:`stack_end_faces`.
+    ``faces``: (lower, upper) facet sets along ``axis``; default :func:`stack_end_faces`. On a
+    :class:`fem.sector_system.SectorSystem` the force is the whole drill's (each sector carries
+    its share) and ``areas_m2`` the whole faces'.
     """
     check_finite("preload", force_n, "N")
     check_nonnegative("preload", force_n, "N")
@@ -181,7 +192,208 @@ def preload_solve(system: PiezoSystem, force_n: float, *, faces: Sequence[str] |
     if z_lo >= z_hi:
         raise ParameterError("faces", (lo, hi), "must be given lower first along the axis")
     a_lo, a_hi = face_area(system, lo), face_area(system, hi)
-    f = traction_load(system, lo, d * force_n / a_lo) + traction_load(system, hi, -d * force_n / a_hi)
+    n = int(getattr(system, "sectors", 1) or 1)
+    # a sector carries 1/n of the force on 1/n of the area: the same traction
+    f = traction_load(system, lo, d * force_n / (n * a_lo)) + traction_load(system, hi, -d * force_n / (n * a_hi))
+    if n > 1:
+        f = n * np.asarray(system.tie.T @ f).ravel()         # the whole drill's load on the k = 0 unknowns
+        a_lo, a_hi = n * a_lo, n * a_hi
     x = static_solve(system, f, backend=backend)
     log.info("preload %.4g N on %s (%.4g mm^2) and %s (%.4g mm^2)", force_n, lo, a_lo * 1e6, hi, a_hi * 1e6)
     return PreloadState(x, float(force_n), (lo, hi), (a_lo, a_hi), tuple(d))
+
+
+# --------------------------------------------------------------------------- the preload window
+
+WINDOW_COMPONENT = 2
+"""Voigt component of the stack-axis normal stress (zz: the stack lies along z)."""
+
+
+def ring_means(system: PiezoSystem, fld) -> dict[str, tuple[complex, complex]]:
+    """Volume means over every piezoelectric region of the axial stress (Pa) and axial field
+    (V/m) of a recovered field ``fld`` (:class:`fem.stress.StressField`, real or complex).
+
+    The stress of a P2 displacement is linear on a straight cell, so a cell's mean is the mean of
+    its four corner values. The volume mean of the axial stress over a ring is its section force
+    over its area averaged along the ring: the quantity the 1-D Langevin design rules use, free of
+    the singular peaks at the bonded ring edges (those are in the utilisation table)."""
+    vol = np.asarray(system.basis.dx).sum(axis=1)[fld.cells]
+    sz = fld.stress[:, :4, WINDOW_COMPONENT].mean(axis=1)
+    ez = fld.efield[:, :4, WINDOW_COMPONENT].mean(axis=1)
+    out = {}
+    for r, reg in enumerate(system.regions):
+        if not reg.piezo:
+            continue
+        sel = fld.region == r
+        w = vol[sel] / vol[sel].sum()
+        out[reg.name] = (complex(np.sum(sz[sel] * w)), complex(np.sum(ez[sel] * w)))
+    return out
+
+
+@dataclass(frozen=True)
+class RingWindow:
+    """The preload window of one ceramic ring at one drive.
+
+    Attributes
+    ----------
+    region : str
+    sigma_dyn_pa : float
+        Amplitude of the ring's mean axial stress at the drive, Pa.
+    static_per_newton_pa : float
+        The ring's mean axial stress per newton of bolt preload, Pa/N (negative: compression).
+    efield_v_per_m : float
+        Amplitude of the ring's mean axial field at the drive, V/m.
+    compressive_limit_pa, depolarisation_field : float or None
+        The material's rated static compressive stress (Pa) and AC depoling field (V/m).
+    """
+
+    region: str
+    sigma_dyn_pa: float
+    static_per_newton_pa: float
+    efield_v_per_m: float
+    compressive_limit_pa: float | None
+    depolarisation_field: float | None
+
+    @property
+    def p_min_n(self) -> float:
+        """Least preload that keeps the ring's mean stress compressive over the whole cycle, N."""
+        return self.sigma_dyn_pa / abs(self.static_per_newton_pa)
+
+    @property
+    def p_max_n(self) -> float:
+        """Most preload whose static stress plus the dynamic compression peak stays within the
+        rated compressive stress, N (inf without a rating)."""
+        if self.compressive_limit_pa is None:
+            return math.inf
+        return (self.compressive_limit_pa - self.sigma_dyn_pa) / abs(self.static_per_newton_pa)
+
+    @property
+    def drive_factor_max(self) -> float:
+        """Largest factor on the drive at which this ring still has a window and stays below its
+        depoling field: the window closes where ``sigma_dyn`` reaches half the compressive rating."""
+        f = math.inf
+        if self.compressive_limit_pa is not None and self.sigma_dyn_pa > 0:
+            f = min(f, self.compressive_limit_pa / (2 * self.sigma_dyn_pa))
+        if self.depolarisation_field is not None and self.efield_v_per_m > 0:
+            f = min(f, self.depolarisation_field / self.efield_v_per_m)
+        return f
+
+    def record(self) -> dict:
+        return {"region": self.region, "sigma_dyn_pa": self.sigma_dyn_pa,
+                "static_per_newton_pa": self.static_per_newton_pa, "efield_v_per_m": self.efield_v_per_m,
+                "compressive_limit_pa": self.compressive_limit_pa,
+                "depolarisation_field_v_per_m": self.depolarisation_field,
+                "p_min_n": self.p_min_n, "p_max_n": _finite(self.p_max_n),
+                "drive_factor_max": _finite(self.drive_factor_max)}
+
+
+def _finite(v: float):
+    return float(v) if math.isfinite(v) else None
+
+
+@dataclass(frozen=True)
+class PreloadWindows:
+    """The preload windows of every ring at a drive, and the verdict on the design's bolt.
+
+    ``voltage`` (V amplitude) and ``tip_amplitude_m`` describe the drive; ``preload_n`` is the
+    design's bolt preload (N); ``rings`` one :class:`RingWindow` per ceramic region.
+    """
+
+    rings: tuple
+    voltage: float
+    tip_amplitude_m: float
+    preload_n: float
+
+    @property
+    def p_min_n(self) -> float:
+        return max(r.p_min_n for r in self.rings)
+
+    @property
+    def p_max_n(self) -> float:
+        return min(r.p_max_n for r in self.rings)
+
+    @property
+    def drive_factor_max(self) -> float:
+        return min(r.drive_factor_max for r in self.rings)
+
+    @property
+    def ok(self) -> bool:
+        return self.p_min_n <= self.preload_n <= self.p_max_n and self.drive_factor_max >= 1.0
+
+    def verdict(self) -> str:
+        """One sentence: the window, the bolt's place in it, and when it fails why and the fix."""
+        kn = 1e-3
+        lo, hi = self.p_min_n, self.p_max_n
+        f = self.drive_factor_max
+        top = (f"largest drive with a window {f * self.voltage:.4g} V amplitude (tip {f * self.tip_amplitude_m * 1e6:.3g} "
+               f"um)" if math.isfinite(f) else "no limit on the drive from the ratings")
+        worst = max(self.rings, key=lambda r: r.p_min_n)
+        if lo > hi:
+            return (f"NO preload window at {self.voltage:.4g} V (tip {self.tip_amplitude_m * 1e6:.3g} um): {worst.region}'s "
+                    f"dynamic stress {worst.sigma_dyn_pa * 1e-6:.1f} MPa needs at least {lo * kn:.1f} kN to stay in "
+                    f"compression, and more than {hi * kn:.1f} kN exceeds the rated compressive stress; fix: drive "
+                    f"at most {f * self.voltage:.4g} V (tip {f * self.tip_amplitude_m * 1e6:.3g} um), or lower the "
+                    "stack's dynamic stress (a larger ring area or a smaller load on the stack)")
+        where = (f"bolt preload {self.preload_n * kn:.1f} kN inside the window {lo * kn:.1f}-{hi * kn:.1f} kN"
+                 if lo <= self.preload_n <= hi else
+                 f"bolt preload {self.preload_n * kn:.1f} kN OUTSIDE the window {lo * kn:.1f}-{hi * kn:.1f} kN "
+                 f"({'the rings go into tension' if self.preload_n < lo else 'the rated compressive stress is exceeded'}"
+                 f"); fix: set the bolt preload within the window")
+        if f < 1.0:
+            where += (f"; the AC field exceeds the depoling field: drive at most {f * self.voltage:.4g} V")
+        return f"{where}; {top}"
+
+    def record(self) -> dict:
+        return {"voltage_v": self.voltage, "tip_amplitude_m": self.tip_amplitude_m, "preload_n": self.preload_n,
+                "p_min_n": self.p_min_n, "p_max_n": _finite(self.p_max_n),
+                "drive_factor_max": _finite(self.drive_factor_max),
+                "voltage_max_v": _finite(self.drive_factor_max * self.voltage),
+                "tip_amplitude_max_m": _finite(self.drive_factor_max * self.tip_amplitude_m),
+                "ok": self.ok, "verdict": self.verdict(), "rings": [r.record() for r in self.rings],
+                "basis": "ring volume means of the axial stress and field (section force over area); the "
+                         "singular peaks at bonded edges are in the utilisation table"}
+
+
+def design_preload(design) -> float:
+    """The design's bolt force on the stack, N (``stack.bolt_preload``; 0 for a design without a bolt)."""
+    stack = getattr(design, "stack", None)
+    return float(getattr(stack, "bolt_preload", 0.0) or 0.0)
+
+
+def window_lines(win: PreloadWindows) -> list[str]:
+    """The printed preload windows: one line per ring, then the verdict."""
+    out = []
+    for r in win.rings:
+        hi = "no rating" if not math.isfinite(r.p_max_n) else f"{r.p_max_n * 1e-3:.1f} kN"
+        out.append(f"  {r.region}: window {r.p_min_n * 1e-3:.1f} kN .. {hi} (mean axial stress amplitude "
+                   f"{r.sigma_dyn_pa * 1e-6:.1f} MPa, field {r.efield_v_per_m * 1e-3:.0f} V/mm)")
+    return out + [f"  {win.verdict()}"]
+
+
+def preload_windows(system: PiezoSystem, x_dyn: np.ndarray, voltage: float, tip_amplitude_m: float,
+                    preload_n: float = 0.0, *, recovery=None, unit_state: PreloadState | None = None,
+                    backend: str | None = None) -> PreloadWindows:
+    """The preload window of every ceramic ring for the harmonic state ``x_dyn`` (complex, at
+    ``voltage`` V amplitude, tip amplitude ``tip_amplitude_m``; both scale with the drive).
+
+    ``unit_state``: a :func:`preload_solve` of 1 N (solved here when not given); ``recovery`` a
+    :class:`fem.stress.StressRecovery` of ``system`` to reuse.
+    """
+    from .stress import StressRecovery
+
+    check_nonnegative("preload", preload_n, "N")
+    rec = recovery or StressRecovery(system)
+    unit = unit_state or preload_solve(system, 1.0, backend=backend)
+    dyn = ring_means(system, rec.field(x_dyn))
+    sta = ring_means(system, rec.field(unit.x / unit.force_n))
+    rings = []
+    for reg in system.regions:
+        if reg.name not in dyn:
+            continue
+        mat = system.materials.get(reg.material)
+        lim = mat.limits() if mat is not None else {}
+        rings.append(RingWindow(reg.name, abs(dyn[reg.name][0]), sta[reg.name][0].real, abs(dyn[reg.name][1]),
+                                lim.get("compressive_strength"), lim.get("depolarisation_field")))
+    if not rings:
+        raise ParameterError("preload window", "no ceramic", "the system has no piezoelectric region")
+    return PreloadWindows(tuple(rings), float(voltage), float(tip_amplitude_m), float(preload_n))

@@ -27,8 +27,9 @@ def add_stress_options(p) -> None:
                         "region, locations, limits from the material records) and write DIR/stress.png, "
                         "DIR/stress.vtu, DIR/stress.json and the peaks along the band (DIR/stress_sweep.png)")
     p.add_argument("--preload", type=float, default=None, metavar="N",
-                   help="bolt preload on the stack, N (>= 0; default 0): its static stress is added to the "
-                        "dynamic one before the peaks are taken (needs --stress)")
+                   help="bolt preload on the stack, N (>= 0; default: the design's bolt, stack.bolt_prestress "
+                        "times the ring area): its static stress is added to the dynamic one before the peaks are "
+                        "taken, and the preload window of every ring is printed (needs --stress)")
     p.add_argument("--stress-points", type=int, default=None, metavar="N",
                    help=f"frequencies of the stress peaks along the band, plus the working frequency (default "
                         f"{STRESS_POINTS}; 0: working point only; needs --stress)")
@@ -36,8 +37,8 @@ def add_stress_options(p) -> None:
 
 def check_stress_options(args) -> None:
     """Before any meshing: finite, non-negative preload, options given only with ``--stress``;
-    then the defaults of the options not given (``args.preload`` 0, ``args.stress_points``
-    :data:`STRESS_POINTS`)."""
+    then the defaults of the options not given (``args.preload`` None: the design's bolt,
+    ``args.stress_points`` :data:`STRESS_POINTS`)."""
     pre = args.preload
     if pre is not None:
         if not (isinstance(pre, (int, float)) and math.isfinite(pre)) or pre < 0:
@@ -49,7 +50,6 @@ def check_stress_options(args) -> None:
         for opt, value in (("--preload", pre), ("--stress-points", args.stress_points)):
             if value is not None:
                 raise ParameterError(opt, value, "needs --stress DIR")
-    args.preload = 0.0 if pre is None else pre
     args.stress_points = STRESS_POINTS if args.stress_points is None else args.stress_points
 
 
@@ -68,6 +68,9 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
     if args.preload > 0:
         pre = preload_solve(system, args.preload)
         static = rec.field(pre.x)
+    from .preload import preload_windows, window_lines
+
+    win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, args.preload, recovery=rec, unit_state=pre)
     dyn = rec.field(wp.x)
     table = stress_table(dyn, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=args.preload)
     state = f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz" + (f" + bolt preload {args.preload:g} N on "
@@ -75,6 +78,9 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
     print(f"stress, peaks over one cycle ({state}); ± est: recovered - raw element values near the peak "
           "(rows marked * peak on a singular edge: their utilisation is the off-edge peak's)")
     print(table.text())
+    print(f"preload window per ring at {wp.voltage:.4g} V amplitude (least preload keeping the ring's mean stress "
+          "compressive over the cycle .. most within the rated compressive stress):")
+    print("\n".join(window_lines(win)))
     sweep = None
     if args.stress_points:
         # the band's grid and the working frequency (a coarse grid may straddle the resonance)
@@ -108,6 +114,6 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
     data = {"working_point": table.to_dict(), "sweep": sweep.to_dict() if sweep is not None else None,
             "preload": None if pre is None else {"force_n": pre.force_n, "faces": list(pre.faces),
                                                  "areas_m2": list(pre.areas_m2)},
-            "worst": None if w is None else w.record()}
+            "worst": None if w is None else w.record(), "preload_window": win.record()}
     atomic_write_text(out / "stress.json", json_text(data, nonfinite="null"))
     return data

@@ -188,7 +188,7 @@ _DRILLING_ONLY = ("--wob", "--k-load", "--k-unload", "--f-threshold", "--rod-len
                   "--drill-time", "--no-load-ke")
 """Options of the drilling command (``--load rock``) that this one does not take."""
 
-_FEM_ONLY = ("--voltage", "--voltage-rms", "--series-resistance", "--q-mech", "--modes", "--match", "--contact", "--history",
+_FEM_ONLY = ("--voltage", "--voltage-rms", "--series-resistance", "--q-mech", "--admittance", "--modes", "--match", "--contact", "--history",
              "--history-csv", "--sample-dt", "--design", "--materials", "--select", "--mesh-size", "--refine",
              "--grade")
 """Options of the FE-transducer command (``--horn fem``) that the kinematic horn does not take."""

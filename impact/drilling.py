@@ -50,9 +50,25 @@ from .rod import ToolRod
 from .stats import Estimate, mean_ci, ratio_ci
 
 __all__ = ["DrillParams", "DrillSettings", "DrillStats", "DrillSweep", "drilling_statistics", "drilling_sweep",
-           "pack", "DRILL_QUANTITIES"]
+           "pack", "DRILL_QUANTITIES", "MODEL_STATUS", "STATUS_LINE"]
 
 log = logging.getLogger(__name__)
+
+MODEL_STATUS = {
+    "calibration": "uncalibrated: the rock law (k_load, k_unload, crushing threshold) is assumed from textbook "
+                   "sandstone values, not fitted to the article's rock or bit; only the impact contact gap is "
+                   "calibrated (to the article's ~520 Hz tool-impact rate)",
+    "assumptions": "kinematic horn at A0; rigid collar on an elastic tool rod; Lundberg's bilinear bit-rock law "
+                   "with a crushing threshold; every blow meets fresh rock (chips cleared, no re-crushing); "
+                   "depth = stationary drilling rate x drilling time (no clogging or wear)",
+    "use": "the trend with the free mass is the result to compare with the article's Fig. 14; the depths are "
+           "NOT credible as magnitudes",
+}
+"""The drilling model's assumptions and calibration status, printed, written and drawn beside
+every number it gives (the depths rest on an assumed rock law)."""
+
+STATUS_LINE = ("model status: " + MODEL_STATUS["calibration"].split(":")[0] + " rock law; " + MODEL_STATUS["use"])
+"""One line of :data:`MODEL_STATUS` for terminals and figures."""
 
 #: (name, unit, description)
 DRILL_QUANTITIES = (
@@ -214,7 +230,8 @@ class DrillStats(Result):
     def _headline(self) -> str:
         return (f"{self.m_free * 1e3:g} g, A0 {self.A0 * 1e6:.3g} um, WOB {self.params.wob:g} N: drilling rate "
                 f"{self['drilling_rate_m_s'].scaled(6e4)} mm/min, depth after {self.params.drill_time:g} s "
-                f"{self.depth_m.scaled(1e3)} mm, blows {self['blow_rate_hz']} Hz; {self.members} members (95 % CI)")
+                f"{self.depth_m.scaled(1e3)} mm, blows {self['blow_rate_hz']} Hz; {self.members} members (95 % CI); "
+                f"{STATUS_LINE}")
 
     def _arrays(self) -> dict:
         return {"members": self.raw} if self.raw is not None else {}
@@ -328,10 +345,12 @@ class DrillSweep(Result):
     params: DrillParams | None = None
 
     def _headline(self) -> str:
-        return "; ".join(f"{r.m_free * 1e3:g} g: {r.depth_m.scaled(1e3)} mm" for r in self.rows)
+        return ("; ".join(f"{r.m_free * 1e3:g} g: {r.depth_m.scaled(1e3)} mm" for r in self.rows)
+                + f" ({STATUS_LINE})")
 
     def _record(self) -> dict:
-        out = {"params": self.params.to_dict() if self.params else None, "rows": [r._record() for r in self.rows]}
+        out = {"params": self.params.to_dict() if self.params else None, "model_status": dict(MODEL_STATUS),
+               "rows": [r._record() for r in self.rows]}
         if self.no_load is not None:
             out["no_load_device"] = self.no_load.to_dict()
         return out

@@ -143,6 +143,9 @@ def main(argv) -> int:
     print(f"WOB {p.wob:g} N, A0 {p.impact.A0 * 1e6:.3g} um, {p.impact.freq:g} Hz; window "
           f"{p.t_from * 1e3:g}-{p.t_end * 1e3:g} ms, depth = rate x {p.drill_time:g} s; means ± 95 % CI")
     print_table(rows, no_load)
+    from .drilling import STATUS_LINE
+
+    print(STATUS_LINE)
     res = DrillSweep(rows=rows, no_load=no_load, params=p)
     if ns.json:
         write_json(ns.json, res.to_dict())

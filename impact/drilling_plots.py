@@ -36,4 +36,10 @@ def plot_depth_vs_mass(sweep, *, ax=None):
         handles, labels = handles + h2, labels + l2
     ax.legend(handles, labels, fontsize=8, loc="upper left")
     ax.set_title("Drilling under load vs free mass (article Fig. 14 case)")
+    import textwrap
+
+    from .drilling import STATUS_LINE
+
+    ax.text(0.99, 0.02, textwrap.fill(STATUS_LINE, 90), transform=ax.transAxes, ha="right", va="bottom", fontsize=6,
+            color="0.3")
     return ax

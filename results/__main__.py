@@ -44,6 +44,9 @@ def build_parser() -> CliParser:
     p.add_argument("--q-mech", type=float, default=None, metavar="Q",
                    help="mechanical quality factor of the assembled transducer (default: the assumed 100 of "
                         "fem.losses, its source in the report); 0 = datasheet values")
+    p.add_argument("--admittance", metavar="CSV",
+                   help="measured impedance/admittance sweep of the drill (frequency and |Z|, phase or G, B): its "
+                        "Butterworth-Van Dyke fit sets the losses (Q_m, tan delta) instead of --q-mech")
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")
     p.add_argument("--no-couple", action="store_true", help="do not load the horn tip with the impacts (A0 unloaded)")
     p.add_argument("--rel-tol", type=float, default=0.03, metavar="R",
@@ -80,6 +83,12 @@ def check_options(args) -> None:
     args.drive = drive_voltage(args)
     if args.q_mech is not None:
         check_zero_or_range("--q-mech", args.q_mech, 1.0, 1e6, "", "datasheet values")
+    if args.admittance is not None:
+        from fem.bvd import fit_bvd, read_admittance
+
+        if args.q_mech is not None:
+            raise ParameterError("--admittance", args.admittance, "sets the losses: drop --q-mech")
+        fit_bvd(read_admittance(args.admittance))          # a bad file ends here, before any solve
     from geometry.options import check_design_options
 
     check_design_options(args)
@@ -99,7 +108,8 @@ def check_options(args) -> None:
 def _inputs(design, settings, out) -> dict:
     """The run's inputs for the inputs line."""
     on = {True: "on", False: "off"}
-    items = {"design": design.name, "voltage": settings.drive().text(), "losses": settings.losses().short(),
+    items = {"design": design.name, "voltage": settings.drive().text(),
+             "losses": settings.losses().short() if not settings.admittance else f"measured ({settings.admittance})",
              "mesh": settings.mesh_options().resolved(design).label(design),
              "matching": on[settings.match], "impact load on the tip": on[settings.couple_impacts],
              "coupled model": (f"{settings.coupled_modes} modes" if settings.coupled_model and settings.coupled_modes
@@ -121,6 +131,7 @@ def _settings(args):
     losses = q_option_losses(args.q_mech)
     return PipelineSettings(voltage=args.drive.amplitude_v, voltage_given_as=args.drive.convention,
                             q_mech=losses.q_mech, losses_origin=losses.origin, losses_source=losses.source,
+                            admittance=args.admittance,
                             mesh_size=args.mesh_size, refine=1.0 if args.refine is None else args.refine,
                             grade=True if args.grade else None, mesher=args.mesher,
                             path=None if args.path == "auto" else args.path, match=not args.no_match,

@@ -98,7 +98,7 @@ class FeTransducer:
 
 def build_transducer(design, *, voltage: float, q_mech: float | None = ASSEMBLED_Q_MECH, freq_hz: float | None = None,
                      n_modes: int | None = None, match: bool = False, mesh_size: float | None = None,
-                     progress=None, refine: float = 1.0, grade: bool = False) -> FeTransducer:
+                     progress=None, refine: float = 1.0, grade: bool = False, admittance_fits=None) -> FeTransducer:
     """Mesh, (match,) modal analysis, harmonic basis and the reduced transducer of a design.
 
     Parameters
@@ -121,6 +121,9 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = ASSEMBLED
         Mesh refinement factor (geometry.sizing; < 1 refines).
     grade : bool
         Grade the mesh toward the re-entrant edges (off by default).
+    admittance_fits : list of fem.bvd.BVDFit, optional
+        A measured admittance's fits: the one nearest the working mode sets the losses in place of
+        ``q_mech`` (:func:`fem.bvd.measured_losses`).
     """
     import time
 
@@ -149,7 +152,13 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = ASSEMBLED
     f = round_sig(f_r, 6) if freq_hz is None else float(freq_hz)
     if not abs(f / f_r - 1.0) <= 0.1:
         raise ParameterError("freq", f, f"must lie within 10 % of the working resonance {f_r:.1f} Hz")
-    loss = LossModel(q_mech=q_mech)
+    loss, losses = LossModel(q_mech=q_mech), None
+    if admittance_fits:
+        from fem.bvd import measured_losses
+
+        losses, fit = measured_losses(system, modal, w, admittance_fits)
+        loss = losses.loss_model()
+        say(f"      admittance fit: {fit.text()}")
     basis = modal_basis(system, f_r, loss=loss, modes=modal)
     if n_modes is not None and n_modes > len(basis.lam):
         raise ParameterError("modes", n_modes, f"must be at most {len(basis.lam)} (the modal basis)")
@@ -160,7 +169,8 @@ def build_transducer(design, *, voltage: float, q_mech: float | None = ASSEMBLED
           f"{wp.tip_amplitude_m * 1e6:.2f} um at {voltage:g} V, {f:.1f} Hz")
     info = {"mesh": {"tetrahedra": mesh.n_cells, "nodes": mesh.n_points, "ndof": system.ndof},
             "matched": bool(match), "working_mode": int(w), "modal_f_r_hz": [float(x) for x in modal.f_r_hz],
-            "q_mech": q_mech, "materials": system.materials_block(), "fe_seconds": time.perf_counter() - t0}
+            "q_mech": loss.q_mech, "losses": None if losses is None else losses.record(),
+            "materials": system.materials_block(), "fe_seconds": time.perf_counter() - t0}
     return FeTransducer(red, f_r, f_a, f, wp.tip_amplitude_m, float(wp.power_w), info)
 
 

@@ -50,6 +50,9 @@ def _parser() -> CliParser:
     ap.add_argument("--q-mech", type=real_number, default=None, metavar="Q",
                     help="assembled-transducer quality factor (default: the assumed 100 of fem.losses; 0 = "
                          "datasheet losses)")
+    ap.add_argument("--admittance", metavar="CSV",
+                    help="measured impedance/admittance sweep of the drill: its Butterworth-Van Dyke fit sets the "
+                         "losses (Q_m, tan delta) instead of --q-mech (fem.bvd)")
     ap.add_argument("--modes", type=int, default=None, metavar="N",
                     help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
     ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
@@ -88,6 +91,13 @@ def _check(ns):
     if ns.q_mech is not None:
         check_zero_or_range("--q-mech", ns.q_mech, 1.0, 1e6, "", "datasheet values")
     ns.losses = q_option_losses(ns.q_mech)
+    ns.bvd_fits = None
+    if ns.admittance is not None:
+        from fem.bvd import fit_bvd, read_admittance
+
+        if ns.q_mech is not None:
+            raise ParameterError("--admittance", ns.admittance, "sets the losses: drop --q-mech")
+        ns.bvd_fits = fit_bvd(read_admittance(ns.admittance))
     if ns.freq is not None:
         check_range("--freq", ns.freq, 1.0, 1e6, "Hz")
     if ns.modes is not None:
@@ -130,7 +140,7 @@ def _inputs(ns, design, p, sc, settings) -> dict:
     if ns.series_resistance > 0:
         items["behind"] = quantity(ns.series_resistance, "ohm")
     items.update({"f": "the working resonance" if ns.freq is None else quantity(ns.freq, "Hz"),
-                  "losses": ns.losses.short(),
+                  "losses": ns.losses.short() if ns.admittance is None else f"measured ({ns.admittance})",
                   "modes": "tip-participation rule" if ns.modes is None else ns.modes,
                   "matching": "on" if ns.match else "off",
                   "mesher": mesh_text("free", ns.refine, ns.grade, ns.mesh_size), "contact": ns.contact})
@@ -167,7 +177,7 @@ def main(argv=None) -> int:
     echo_inputs(_inputs(ns, design, p, sc, settings), is_quiet(ns))
     say = progress_printer(ns) or (lambda msg: None)
     say("[1/3] FE transducer")
-    fe = build_transducer(design, voltage=ns.voltage, q_mech=ns.losses.q_mech,
+    fe = build_transducer(design, voltage=ns.voltage, q_mech=ns.losses.q_mech, admittance_fits=ns.bvd_fits,
                           freq_hz=ns.freq, n_modes=ns.modes, match=ns.match, mesh_size=ns.mesh_size, progress=say,
                           **mesh_options(ns))
     p = p.with_(freq=fe.freq_hz)
@@ -189,6 +199,10 @@ def main(argv=None) -> int:
     st = coupled_batch([p], horn, sc, settings, progress=progress_printer(ns), contact=contact)[0]
     if st.failed:
         raise ParameterError("gap", p.gap, st.note)
+    if fe.info.get("losses"):
+        from fem.losses import DriveLosses
+
+        ns.losses = DriveLosses.from_record(fe.info["losses"])
     print(f"drive {ns.drive.text()}; losses {ns.losses.text()}")
     print("\n".join(stats_lines(st)))
     for name, unit, text in COUPLED_QUANTITIES:

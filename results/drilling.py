@@ -53,6 +53,8 @@ def report_lines(d: dict) -> list[str]:
              f"{p['drill_time_s']:g} s; means with 95 % CIs over seeded members. The absolute depths rest on the "
              "assumed rock law (see the README); the trend with the free mass is the result to compare with the "
              "article's Fig. 14.", "",
+             f"**Model status:** {d['model_status']['calibration']}. Assumptions: {d['model_status']['assumptions']}. "
+             f"Use: {d['model_status']['use']}.", "",
              "| free mass (g) | A0 (um) | blows (Hz) | penetration per blow (um) | drilling rate (mm/min) "
              "| depth (mm) | efficiency (%) | members |", "|---|---|---|---|---|---|---|---|"]
     for r in d["rows"]:

@@ -18,7 +18,8 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["operating_point_stage", "losses_bracket", "report_lines"]
+__all__ = ["operating_point_stage", "losses_bracket", "measured_settings", "preload_stage", "thermal_stage",
+           "report_lines"]
 
 
 def _tool_energy(base, ref_m: float, A0: float, stats_settings):
@@ -59,6 +60,9 @@ def losses_bracket(settings, system, modal, basis, f_w: float, surfaces, base, s
     out = {"losses": losses.record(), "rows": [{"factor": 1.0, **default}], "note": ""}
     if losses.q_mech is None:
         out["note"] = "datasheet losses: no single Q to bracket"
+        return out
+    if losses.origin == "measured":
+        out["note"] = "measured losses (their CI in the source): no assumption to bracket"
         return out
     ref_m = settings.reference_m_free
     omega = 2 * np.pi * f_w
@@ -108,9 +112,76 @@ def operating_point_stage(settings, system, modal, basis, f_w: float, surfaces, 
     if say is not None:
         say(f"      operating point: {drive.text()} at {f_w:.1f} Hz; {losses.short()}")
     return {"drive": {**drive.record(), "text": drive.text(), "freq_hz": f_w},
+            "thermal": thermal_stage(settings, system, basis, f_w, surfaces, ref, say),
             "losses_text": losses.text(),
             "losses_bracket": losses_bracket(settings, system, modal, basis, f_w, surfaces, base, stats_settings,
                                              default, coupled_fn, say=say)}
+
+
+def thermal_stage(settings, system, basis, f_w: float, surfaces, ref, say=None) -> dict:
+    """Heat and temperature at the drill's operating state: the working point loaded by the
+    impacts of the reference free mass (the tip damper of the A0 loop), continuous drive
+    (:func:`fem.thermal.thermal_summary`); the heat is the input minus the power the impacts take."""
+    from fem.harmonic import working_point
+    from fem.thermal import thermal_summary
+
+    wp = working_point(system, f_w, settings.voltage, loss=basis.loss, surfaces=surfaces[:1], basis=basis,
+                       tip_damping=ref.tip_damping)
+    delivered = 0.5 * ref.tip_damping * (2 * np.pi * f_w * wp.tip_amplitude_m) ** 2
+    rec = thermal_summary(system, wp.x, f_w, basis.L, wp.power_w, delivered)
+    for line in rec.pop("lines"):
+        if say is not None:
+            say(f"      {line}")
+    rec["state"] = (f"working point loaded by the impacts of the {settings.reference_m_free * 1e3:g} g free mass "
+                    f"(tip damper {ref.tip_damping:.3g} N s/m), continuous drive")
+    return rec
+
+
+def measured_settings(settings, system, modal, w: int, say=None):
+    """``settings`` with the losses of its measured admittance sweep (``settings.admittance``): the
+    Butterworth-Van Dyke fit nearest the working mode ``w``, calibrated on the FE mode
+    (:func:`fem.bvd.measured_losses`)."""
+    import dataclasses
+
+    from fem.bvd import fit_bvd, measured_losses, read_admittance
+
+    losses, fit = measured_losses(system, modal, w, fit_bvd(read_admittance(settings.admittance)))
+    if say is not None:
+        say(f"      admittance fit ({settings.admittance}): {fit.text()}")
+    return dataclasses.replace(settings, q_mech=losses.q_mech, tan_delta=losses.tan_delta, losses_origin="measured",
+                               losses_source=losses.source)
+
+
+def preload_stage(design, system, wp, say=None):
+    """The bolt's static state and the preload window of every ring at the working point.
+
+    Returns ``(state, record)``: the :class:`fem.preload.PreloadState` of the design's bolt
+    (None without one; the stress stage adds it) and ``summary.json["operating_point"]
+    ["preload"]`` (the windows, the largest drive with a window, and a verdict that says why a
+    failing design fails and what would fix it)."""
+    from fem.preload import design_preload, preload_solve, preload_windows
+
+    t0 = time.perf_counter()
+    force = design_preload(design)
+    try:
+        unit = preload_solve(system, 1.0)
+    except Exception as exc:             # a design without two stack end electrodes has no bolt to model
+        from rpud_common import ParameterError
+
+        if not isinstance(exc, ParameterError):
+            raise
+        return None, {"verdict": f"no preload window: {exc}", "ok": None}
+    win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, force, unit_state=unit)
+    rec = {**win.record(), "bolt_prestress_pa": getattr(getattr(design, "stack", None), "bolt_prestress", None),
+           "seconds": time.perf_counter() - t0}
+    if say is not None:
+        say(f"      preload: {win.verdict()}")
+    state = None
+    if force > 0:
+        from fem.preload import PreloadState
+
+        state = PreloadState(unit.x * force, force, unit.faces, unit.areas_m2, unit.axis)
+    return state, rec
 
 
 def _ci(d: dict, scale: float = 1.0) -> str:
@@ -127,7 +198,7 @@ def report_lines(s: dict) -> list[str]:
         return []
     drive = op["drive"]
     br = op["losses_bracket"]
-    lines = ["## Operating point", "",
+    lines = ["## Operating point", ""] + summary_lines(s) + [
              f"**Drive:** {drive['text']} at {drive['freq_hz'] / 1e3:.3f} kHz (the voltage is read as an "
              "amplitude unless given with --voltage-rms).", "",
              f"**Losses:** {op['losses_text']}.", ""]
@@ -144,4 +215,95 @@ def report_lines(s: dict) -> list[str]:
         lines.append("")
     elif br.get("note"):
         lines += [f"Losses bracket: {br['note']}.", ""]
+    return lines + _preload_lines(op.get("preload")) + _thermal_lines(op.get("thermal"))
+
+
+def _thermal_lines(th: dict | None) -> list[str]:
+    """Heat and the lumped temperature."""
+    if not th:
+        return []
+    h = th["heat"]
+    lines = [f"**Heat** ({th['state']}): {h['total_w']:.3g} W (mechanical {h['mechanical_w']:.3g} W, dielectric "
+             f"{h['dielectric_w']:.2g} W) of {th['input_w']:.3g} W drawn, {th['delivered_w']:.3g} W to the impacts "
+             f"(balance residual {th['balance_residual_w']:.2g} W: the modal solution's).", ""]
+    t = th.get("temperature")
+    if t is None:
+        return lines
+    reach = "; ".join(f"{m} rated {t['rated_c'][m]:g} °C " + ("not reached" if v is None else f"reached after {v:.0f} s")
+                      for m, v in t["time_to_rated_s"].items())
+    hr = th["final_c_h_range"]
+    lines += [f"**Temperature** (one lumped body: {t['mass_kg'] * 1e3:.0f} g, {t['heat_capacity_j_per_k']:.0f} J/K, "
+              f"{t['area_m2'] * 1e4:.0f} cm², natural convection h {t['h_w_per_m2k']:g} W/m²/K, ambient "
+              f"{t['ambient_c']:g} °C, duty {t['duty']:g}): {t['final_c']:.0f} °C after {t['duration_s']:g} s "
+              f"({' / '.join(f'{v:.0f} °C at h {k}' for k, v in hr.items())}); time constant {t['tau_s']:.0f} s, "
+              f"steady {t['steady_c']:.0f} °C; {reach}. The ceramic, in the middle of the stack, runs hotter "
+              "than this mean.", "", f"**{th['verdict']}**", ""]
     return lines
+
+
+def _pm(v, err, unit: str, scale: float = 1.0, fmt: str = ".3g") -> str:
+    if v is None:
+        return "n/a"
+    return f"{v * scale:{fmt}}" + ("" if err is None else f" ± {err * scale:.2g}") + f" {unit}"
+
+
+def summary_lines(s: dict) -> list[str]:
+    """The operating point in one table: every number with its uncertainty (discretisation error,
+    95 % CI or the model-form bracket of the least known input)."""
+    op, h, a0 = s["operating_point"], s["harmonic"], s["A0"]
+    rows = {r["factor"]: r for r in op["losses_bracket"]["rows"]}
+    lo, hi = rows.get(0.5), rows.get(2.0)
+
+    def brk(key, scale, unit, fmt=".3g"):
+        if lo is None or hi is None:
+            return op["losses_bracket"].get("note") or "-"
+        a, b = (r[key]["mean"] if isinstance(r[key], dict) else r[key] for r in (lo, hi))
+        if a is None or b is None:
+            return "n/a"
+        return f"{a * scale:{fmt}} .. {b * scale:{fmt}} {unit} at Q_mech {lo['q_mech']:g} .. {hi['q_mech']:g}"
+
+    d, pre, th = op["drive"], op.get("preload") or {}, op.get("thermal") or {}
+    ke = rows[1.0]["mean_tool_ke_after_j"]
+    lines = ["| operating point | value | uncertainty / range |", "|---|---|---|",
+             f"| drive | {d['text']} at {d['freq_hz'] / 1e3:.3f} kHz | input (convention stated) |",
+             f"| losses | Q_mech {h['q_mech'] if h['q_mech'] is not None else 'datasheet'} "
+             f"({h.get('losses', {}).get('origin', '')}) "
+             f"| {'Q/2 .. 2Q below' if lo else op['losses_bracket'].get('note', '-')} |",
+             f"| tip amplitude, unloaded | {_pm(h['tip_amplitude_m'], h.get('tip_amplitude_m_error'), 'um', 1e6)} "
+             f"(discretisation) | {brk('tip_amplitude_m', 1e6, 'um')} |",
+             f"| A0, loaded by the impacts | {_pm(a0['used_m'], a0.get('used_m_error'), 'um', 1e6)} | "
+             f"{brk('A0_m', 1e6, 'um')} |",
+             f"| input power, unloaded | {h['power_w']:.3g} W | {brk('power_w', 1, 'W')} |"]
+    if pre.get("rings"):
+        hi_n = "-" if pre["p_max_n"] is None else f"{pre['p_max_n'] * 1e-3:.1f}"
+        vmax = "-" if pre["voltage_max_v"] is None else f"{pre['voltage_max_v']:.4g} V amplitude"
+        lines.append(f"| preload window (every ring) | {pre['p_min_n'] * 1e-3:.1f} .. {hi_n} kN, bolt "
+                     f"{pre['preload_n'] * 1e-3:.1f} kN: {'inside' if pre['ok'] else 'NOT inside'} | largest drive "
+                     f"with a window {vmax} |")
+    t = th.get("temperature")
+    if t:
+        hr = " / ".join(f"{v:.0f} °C at h {k}" for k, v in th["final_c_h_range"].items())
+        lines.append(f"| temperature after {t['duration_s']:g} s (lumped mean) | {t['final_c']:.0f} °C | {hr} W/m²/K |")
+    lines.append(f"| tool kinetic energy (headline, {a0['reference_m_free_kg'] * 1e3:g} g) | "
+                 f"{_ci(ke, 1e3)} mJ (95 % CI) | {brk('mean_tool_ke_after_j', 1e3, 'mJ') if lo else '-'} |")
+    return lines + [""]
+
+
+def _preload_lines(pre: dict | None) -> list[str]:
+    """The preload window per ring, the largest drive with a window, and the verdict."""
+    if not pre or not pre.get("rings"):
+        return [f"**Bolt preload:** {pre['verdict']}.", ""] if pre else []
+    kn = 1e-3
+    lines = [f"**Bolt preload:** {pre['verdict']}.", "",
+             "Preload window per ring at the drive (unloaded tip: the larger amplitude): the least preload that "
+             "keeps the ring's mean axial stress compressive over the cycle, the most whose static stress plus "
+             "the dynamic compression stays within the rated static compressive stress (mean stresses: the "
+             "section force over the area; the singular peaks at the bonded ring edges are in the stress table).",
+             "", "| ring | mean axial stress amplitude (MPa) | field amplitude (V/mm) | window (kN) "
+             "| largest drive with a window (V amplitude) |", "|---|---|---|---|---|"]
+    for r in pre["rings"]:
+        hi = "-" if r["p_max_n"] is None else f"{r['p_max_n'] * kn:.1f}"
+        vmax = "-" if r["drive_factor_max"] is None else f"{r['drive_factor_max'] * pre['voltage_v']:.4g}"
+        lines.append(f"| {r['region']} | {r['sigma_dyn_pa'] * 1e-6:.1f} | {r['efield_v_per_m'] * 1e-3:.0f} "
+                     f"| {r['p_min_n'] * kn:.1f} .. {hi} | {vmax} |")
+    return lines + [""]

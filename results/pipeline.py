@@ -75,6 +75,7 @@ class PipelineSettings:
         default :data:`fem.losses.ASSEMBLED_Q_MECH`, an assumption stated with its source)
     tan_delta : dielectric loss tangent of the ceramics (None: datasheet)
     losses_origin, losses_source : where q_mech and tan_delta come from (empty: derived from q_mech)
+    admittance : a measured admittance sweep (CSV, :mod:`fem.bvd`) whose fit sets q_mech and tan_delta
     mesh_size : mesh size override, m (None: the design's elements-per-wavelength rule)
     refine : mesh refinement factor scaling every size rule (geometry.sizing; < 1 refines)
     grade : grade the mesh toward the re-entrant edges (None: the path's own rule, the sector's
@@ -108,6 +109,7 @@ class PipelineSettings:
     tan_delta: float | None = None
     losses_origin: str = ""
     losses_source: str = ""
+    admittance: str | None = None
     mesh_size: float | None = None
     refine: float = 1.0
     grade: bool | None = None
@@ -271,6 +273,8 @@ class _Run:
     sweeps: dict = field(default_factory=dict)
     coupled_model: dict | None = None
     operating: dict | None = None
+    bolt: object = None
+    preload: dict | None = None
     drilling: dict | None = None
     rotor: dict | None = None
     renders: list = field(default_factory=list)
@@ -340,9 +344,17 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
     clock.took("match_s", t0)
     say(f"      working mode {m.w + 1}: f_r = {m.f_r_hz:.1f} Hz, f_a = {m.f_a_hz:.1f} Hz, k_eff = {m.k_eff:.3f}")
     t0 = clock.stage("harmonic response")
+    if st.admittance:                         # the measured losses replace the assumed ones
+        from .operating_point import measured_settings
+
+        st = run.settings = measured_settings(st, m.system, m.modal, m.w, say)
     h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
     run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
-    run.stress = stress_stage(*_field_system(m.system, h.wp), run.out, render=st.render, say=say)   # own timing
+    from .operating_point import preload_stage
+
+    run.bolt, run.preload = preload_stage(m.design, m.system, h.wp, say=say)   # the design's bolt, the window
+    run.stress = stress_stage(*_field_system(m.system, h.wp), run.out, render=st.render, say=say,
+                              preload=_field_state(m.system, run.bolt))    # own timing
     clock.took("harmonic_s", t0)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
@@ -356,6 +368,16 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
 
     run.rotor = pipeline_rotor_stage(m.design, h.wp, h.f_w, run.est, st.wob, say=say)
     clock.took("rotor_s", t0)
+
+
+def _field_state(system, state):
+    """A static state (:class:`fem.preload.PreloadState`) as a field on the mesh (the sector's
+    field on the sector path, as :func:`_field_system`); None stays None."""
+    from fem.sector_system import SectorSystem
+
+    if state is None or not isinstance(system, SectorSystem):
+        return state
+    return dataclasses.replace(state, x=system.complete(state.x))
 
 
 def _field_system(system, wp):
@@ -417,6 +439,7 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> None:
     run.operating = operating_point_stage(st, m.system, m.modal, h.basis, h.f_w, h.surfaces, base, stats_settings,
                                           h.wp, run.amps[st.reference_m_free], run.sweeps["device_fe"],
                                           coupled_amplitudes, say=say)
+    run.operating["preload"] = run.preload
     clock.took("operating_point_s", t0)
     if st.load == "rock":                # opt-in: drilling under load
         from .drilling import drilling_stage

@@ -2,8 +2,9 @@
 
 The state is the harmonic working point of the pipeline (drive voltage, working frequency,
 the assembled-transducer quality factor, no free-mass load: the unloaded tip amplitude, the
-larger one), without bolt preload (the design has no bolt; ``python -m fem.harmonic --stress
-DIR --preload N`` adds one).
+larger one), with the design's bolt preload (its static stress added; a design without a bolt
+runs without one): :func:`results.operating_point.preload_stage` solves it and reports the
+preload window of every ring beside the table.
 """
 
 from __future__ import annotations
@@ -14,29 +15,47 @@ from pathlib import Path
 
 log = logging.getLogger(__name__)
 
-__all__ = ["stress_stage", "report_lines"]
+__all__ = ["stress_stage", "report_lines", "FIXES"]
 
 
-def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None) -> dict:
+FIXES = {"principal_min": "a local peak of the bolt's static compression plus the dynamic one: a lower "
+                          "stack.bolt_prestress (toward the window's lower end) or a lower drive relieves it",
+         "principal_max": "tension in the ceramic: a higher stack.bolt_prestress (within the window) or a lower "
+                          "drive relieves it",
+         "efield": "the AC field approaches the depoling field: a lower drive voltage relieves it",
+         "von_mises": "a metal part above its fatigue strength: a lower drive, or a fillet at the peak's corner"}
+"""What relieves a utilisation above 100 %, per peak quantity (printed with it)."""
+
+
+def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None, preload=None) -> dict:
     """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its full
     solution ``wp.x``) of ``system``; writes ``renders/stress_von_mises.png`` and ``stress.vtu``
     into ``out`` when ``render``. ``coarse``: ``(system, working point, size ratio)`` of the same
     state on a coarser mesh, for the two-mesh error estimates of
-    :func:`fem.stress_table.converged_table`. Returns the JSON record (``summary.json["stress"]``)."""
+    :func:`fem.stress_table.converged_table`. ``preload``: the bolt's static state
+    (:class:`fem.preload.PreloadState`), added to the dynamic one before the peaks are taken (on
+    the coarse mesh too: the same force). Returns the JSON record (``summary.json["stress"]``)."""
+    from fem.preload import preload_solve
     from fem.stress import StressRecovery
     from fem.stress_output import node_fields, peak_title, render_stress, write_stress_vtu
     from fem.stress_table import converged_table, stress_table
 
     t0 = time.perf_counter()
-    fld = StressRecovery(system).field(wp.x)
-    table = stress_table(fld, freq_hz=wp.freq_hz, voltage=wp.voltage)
+    rec = StressRecovery(system)
+    fld = rec.field(wp.x)
+    static = rec.field(preload.x) if preload is not None and preload.force_n > 0 else None
+    preload_n = preload.force_n if static is not None else 0.0
+    table = stress_table(fld, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=preload_n)
     if coarse is not None:
         c_system, c_wp, ratio = coarse
-        c_table = stress_table(StressRecovery(c_system).field(c_wp.x), freq_hz=c_wp.freq_hz, voltage=c_wp.voltage)
+        c_rec = StressRecovery(c_system)
+        c_static = c_rec.field(preload_solve(c_system, preload_n).x) if static is not None else None
+        c_table = stress_table(c_rec.field(c_wp.x), c_static, freq_hz=c_wp.freq_hz, voltage=c_wp.voltage,
+                               preload_n=preload_n)
         table = converged_table(c_table, table, ratio)
     files = {"png": None, "vtu": None}
     if render:
-        fields = node_fields(fld)
+        fields = node_fields(fld, static)
         title, mark = peak_title(f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz", table)
         png = render_stress(system, fields["von_mises"], Path(out) / "renders" / "stress_von_mises.png",
                             title=title, mark=mark)
@@ -46,9 +65,11 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse
     if say is not None and w is not None:
         say(f"      stress: highest utilisation {100 * w.utilisation:.0f} % ({w.region}, {w.quantity}, "
             f"{w.headline * 1e-6:.1f} ± {w.error_estimate * 1e-6:.2g} {'MPa' if w.quantity != 'efield' else 'kV/mm'}"
-            f"{', off a singular edge' if w.singular else ''})")
+            f"{', off a singular edge' if w.singular else ''})"
+            + (f"; {FIXES[w.quantity]}" if w.utilisation > 1 and w.quantity in FIXES else ""))
     return {"utilisation": table.to_dict(), "markdown": table.markdown(), "files": files,
-            "state": "harmonic working point at the drive voltage, unloaded tip, no bolt preload",
+            "state": "harmonic working point at the drive voltage, unloaded tip, " + (
+                f"bolt preload {preload_n * 1e-3:.1f} kN on the stack" if static is not None else "no bolt preload"),
             "seconds": time.perf_counter() - t0}
 
 

@@ -210,6 +210,15 @@ def test_pipeline_stage_uses_the_amplitude_per_mass():
 
     table = [ln for ln in report_lines(out["json"]) if ln.startswith("| ") and ln[2].isdigit()]
     assert len(table) == 3 and table[2].startswith("| 8 | 22.00 |")
+    # the numbers travel with the model's assumptions and calibration status (JSON, report, figure)
+    from impact.drilling import MODEL_STATUS, STATUS_LINE
+    from impact.drilling_plots import plot_depth_vs_mass
+
+    assert out["json"]["model_status"] == MODEL_STATUS and "uncalibrated" in MODEL_STATUS["calibration"]
+    assert any(ln.startswith("**Model status:** uncalibrated") for ln in report_lines(out["json"]))
+    assert "NOT credible" in STATUS_LINE and "NOT credible" in repr(out["result"])
+    ax = plot_depth_vs_mass(out["result"])
+    assert any("NOT credible" in t.get_text().replace("\n", " ") for t in ax.texts)
 
 
 def test_bad_input_is_refused():
