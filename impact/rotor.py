@@ -43,7 +43,8 @@ from rpud_common import (ParameterError, check_integer, check_range, dump_toml, 
 from rpud_common.result import Result
 
 __all__ = ["TeethMotion", "RotorParams", "CycleSolution", "RotorResult", "contact_stiffness", "solve_cycle",
-           "rotor_performance", "bit_friction_torque", "hover_check"]
+           "rotor_performance", "bit_friction_torque", "hover_check",
+           "marched_mean_force"]
 
 log = logging.getLogger(__name__)
 
@@ -420,6 +421,36 @@ def solve_cycle(teeth: TeethMotion, p: RotorParams, surface_speed: float) -> Cyc
                          rotor_work=F * t.slide, friction_loss=loss,
                          elastic_change=0.5 * t.kt * (delta ** 2 - delta_start ** 2),
                          force_samples=tuple(np.concatenate(v) if v else np.zeros(0) for v in (xs, ps, qs)))
+
+
+def marched_mean_force(teeth: TeethMotion, p: RotorParams, surface_speed: float, steps: int) -> float:
+    """Mean tangential force of one tooth (N) by a second method: a return mapping (backward Euler
+    for the slider) on ``steps`` equal steps across the contact window, trapezoidal mean.
+
+    Independent of :func:`solve_cycle`'s events and quadrature: the window's half-width solves
+    ``W (sin tc - tc cos tc) / pi = F / (n_teeth k_n)`` here again. Converges to the event
+    solution at second order; the tests and ``benchmarks/bench_rotor.py`` compare the two. Opening
+    contacts only (the slider starts and ends each window unloaded).
+    """
+    from scipy.optimize import brentq
+
+    check_integer("steps", steps, 2, 10_000_000)
+    kn, kt = p.stiffness
+    mean_pen = p.preload / (p.n_teeth * kn)
+    if mean_pen >= teeth.axial:
+        raise ParameterError("preload", p.preload, "keeps the contact closed: the march needs an opening window")
+    tc = brentq(lambda x: teeth.axial * (math.sin(x) - x * math.cos(x)) / math.pi - mean_pen, 1e-12, math.pi,
+                xtol=1e-15)
+    phi = math.radians(teeth.phase_deg) + (0.0 if teeth.sense > 0 else math.pi)
+    th = np.linspace(-tc, tc, steps + 1)
+    g = teeth.tangential * np.cos(th + phi) - surface_speed / teeth.omega * th
+    lim = p.mu * kn * teeth.axial * (np.cos(th) - math.cos(tc)) / kt
+    q, delta = np.zeros(steps + 1), 0.0
+    for i in range(steps):
+        trial = delta + g[i + 1] - g[i]
+        delta = trial if abs(trial) <= lim[i + 1] else math.copysign(lim[i + 1], trial)
+        q[i + 1] = kt * delta
+    return float(np.sum(0.5 * (q[1:] + q[:-1]) * np.diff(th))) / (2 * math.pi)
 
 
 # --------------------------------------------------------------------------- torque against speed
