@@ -85,3 +85,23 @@ def test_compliant_strike_converges_where_newton_does_not(drill, bodies, m_free)
     masses = [bodies[c][0].end_mass for c in CUTS]
     assert all(b < a for a, b in zip(masses, masses[1:]))
     assert masses[-1] < 0.2 * masses[0]
+
+
+def test_wideband_horn_keeps_the_working_point(drill):
+    """The driven horn of every mode to 45 kHz (results.coupled.wideband_horn), driven at the working
+    mode's resonance, has the steady tip amplitude of the full FE harmonic solve there
+    (fem.harmonic.working_point, same losses): the modal basis' residual carries what the kept
+    modes leave; what remains is the reduced model's diagonal (per-mode) loss, which leaves out the
+    loss coupling between modes, second order in the loss factors (1e-2) at resonance, and the
+    rounding to 6 digits: 1e-4."""
+    from fem.harmonic import LossModel, working_point
+    from fem.matching import working_mode
+    from results.coupled import wideband_horn
+
+    design, system, modes = drill
+    f = float(modes.f_r_hz[working_mode(system, modes.f_r_hz, modes.vectors, float(design.target_frequency))])
+    horn, g, info = wideband_horn(system, f, 45e3, 225.0, modes=modes)
+    assert horn.n_modes == len(info["modes_hz"]) - 1                 # all but the rigid translation
+    assert g == pytest.approx(info["residual_m_per_n"])
+    wp = working_point(system, f, 225.0, loss=LossModel(q_mech=100.0), surfaces=("horn_tip",))
+    assert abs(horn.steady_tip(f)) == pytest.approx(wp.tip_amplitude_m, rel=1e-4)
