@@ -187,8 +187,8 @@ class StressTable(Result):
             loc = ", ".join(f"{1e3 * c:.1f}" for c in r.location)
             lim = "n/a" if r.limit is None else f"{r.limit * scale:.4g} {unit}"
             off = "-" if r.value_off_edges is None else f"{r.value_off_edges * scale:.4g} {unit}"
-            label = label + (" (singular edge: utilisation off it)" if r.singular else "")
-            lines.append(f"| {r.region} ({r.part}, {r.material}) | {label} | {r.value * scale:.4g} {unit} "
+            mark = " (on a singular edge: utilisation off it)" if r.singular else ""
+            lines.append(f"| {r.region} ({r.part}, {r.material}) | {label} | {r.value * scale:.4g} {unit}{mark} "
                          f"| {r.error_estimate * scale:.2g} | {loc} | {off} | {lim} | {_pct(r.utilisation)} "
                          f"| {_pct(r.utilisation_off_edges)} |")
         return "\n".join(lines)
