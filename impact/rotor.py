@@ -11,7 +11,9 @@ Model (SI units; one cycle of the drive, phase ``theta = omega t``)
   ``spring_stiffness``), axial position constant over the cycle and angular speed ``Omega``
   constant over the cycle. Both hold when the rotor's mass and inertia filter the drive
   frequency; :class:`RotorResult` reports the axial and angular ripple they leave
-  (``axial_ripple_ratio``, ``speed_ripple_ratio``) so a design that breaks them shows it.
+  (``axial_ripple_ratio``, ``speed_ripple_ratio``) and checks the constant axial position by
+  integrating the rotor's axial motion directly (:func:`hover_check`), so a design that breaks
+  them shows it: a rotor thrown off the teeth bounces, a state this model does not describe.
   The axial position follows from the mean force balance: the cycle mean of the contact force
   equals the preload. The contact window is where the tooth reaches past that position.
 * **Contact**: normal compliance of a rigid flat punch (the tooth top, area ``tooth_area``,

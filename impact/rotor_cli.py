@@ -1,8 +1,9 @@
 """``python -m impact rotor``: the rotary unit's torque-speed curve and operating point.
 
-Prints the contact data, no-load speed, stall torque, the largest mechanical power, and the
-rotor speed, power and efficiency under the load torque (given, or the drill bit's friction in
-rock from the weight on bit). SI options; bad input is one line on stderr, exit 2, no file.
+Prints the contact data, no-load speed, stall torque, the largest mechanical power, the rotor
+speed, power and efficiency under the load torque (given, or the drill bit's friction in rock
+from the weight on bit), and whether the rotor hovers on the teeth as the model assumes (direct
+integration). SI options; bad input is one line on stderr, exit 2, no file.
 """
 
 from __future__ import annotations
