@@ -208,9 +208,9 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
     graded = grade or path == "sector" or resolve_mesher(design, mesher) == "revolve"
     p = None
     if path == "sector":
-        from .convergence import NOTCH_ORDER
+        from .convergence import SECTOR_ORDER
 
-        p = NOTCH_ORDER if getattr(getattr(design, "coupler", None), "n_slots", 0) else None
+        p = SECTOR_ORDER
     return estimate_from_levels(fine, coarse, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine),
                                 order=p)
 

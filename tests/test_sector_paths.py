@@ -102,7 +102,7 @@ def test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it():
     f_r and f_a within 0.05 % of the converged (r, z) model of tests/axisym_reference.py
     (tests/test_discretisation_error.py: F_R, F_A, TIP_PER_VOLT, themselves within 0.036 % of a
     coarse level that converges as h^3-h^4, so good to ~1e-5), and the two-level error estimated on
-    the same path (order 2: no slots) at least the true error of f_r, f_a and the horn-tip
+    the same path (order 2) at least the true error of f_r, f_a and the horn-tip
     amplitude per volt at f_r (Q 100, datasheet tan delta: the pipeline's losses). The tip
     amplitude is -0.080 % off at --refine 1 (-0.057 % at 0.8, measured): the 0.05 % asked of it
     is not met by the k = 0 rule; its stated error covers it."""
