@@ -368,3 +368,28 @@ def test_matching_runs_on_the_sector(tmp_path):
     fresh = axial_sector(m.design, refine=2.0)
     res = modal_analysis(fresh, 20e3, 4)
     assert res.f_r_hz[working_mode(fresh, res.f_r_hz, res.vectors, 20e3)] == pytest.approx(20e3, rel=5e-3)
+
+
+def test_one_point_study_equals_the_pipeline_on_the_sector(sector_run, tmp_path):
+    """The same equality on the default path (the k = 0 sector), as a study runs it by default:
+    FE values to the solvers' round-off (1e-9, as above), the impact hand-off bit for bit."""
+    from results.explore import explore
+    from results.study import study_from_mapping
+
+    _, s = sector_run
+    design = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    design.save(tmp_path / "design.toml")
+    st = s["settings"]
+    study = study_from_mapping({
+        "study": {"name": "one", "design": str(tmp_path / "design.toml"), "seed": st["seed"],
+                  "stages": ["mesh", "match", "harmonic", "impact"]},
+        "settings": {"match": False, "rel_tol": st["impact_rel_tol"], "max_members": st["impact_max_members"]},
+        "parameters": {"impact.m_free": {"values": [0.008]}}})
+    row = explore(study, tmp_path / "study", workers=1, figures=False).rows[0]
+    assert row["status"] == "ok", row["error"]
+    for key in ("f_r_hz", "f_a_hz", "k_eff"):
+        assert row[key] == pytest.approx(s["working_mode"][key], rel=1e-9), key
+    assert row["tip_per_volt_m"] == pytest.approx(s["harmonic"]["tip_per_volt_m"], rel=1e-9)
+    assert row["A0_m"] == s["A0"]["per_mass"]["8 g"]
+    ke = s["kinetic_energy_table"][-1]["device_fe"]["mean_tool_ke_after_j"]
+    assert (row["tool_ke_j"], row["tool_ke_j_ci95"]) == (ke["mean"], ke["ci95_half_width"])
