@@ -25,6 +25,7 @@ _WHERE = {"ImpactParams": "params", "simulate": "model", "ImpactResult": "model"
           "plot_tool_ke_history": "plots", "ModalHorn": "horn", "simulate_coupled": "coupled",
           "CoupledResult": "coupled", "coupled_batch": "coupled", "HuntCrossley": "contact",
           "HertzLaw": "hertz", "ContactGeometry": "hertz", "ModalBody": "compliant", "strike": "compliant",
+          "simulate_compliant": "compliant_loop",
           "DrillParams": "drilling", "DrillSettings": "drilling", "drilling_sweep": "drilling",
           "drilling_statistics": "drilling", "RockLaw": "rock", "ToolRod": "rod",
           "plot_depth_vs_mass": "drilling_plots"}
