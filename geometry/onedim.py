@@ -25,7 +25,7 @@ from rpud_common import ParameterError, check_positive
 from .materials import Material, get_material
 from .piezo_forms import strain_charge
 
-__all__ = ["Mode1D", "axial_modulus", "longitudinal_modes", "design_modes", "first_longitudinal"]
+__all__ = ["Mode1D", "axial_modulus", "longitudinal_modes", "design_modes", "first_longitudinal", "mode_shape"]
 
 log = logging.getLogger(__name__)
 
@@ -131,10 +131,28 @@ def longitudinal_modes(sections: Sequence[tuple[float, float, str | Material | t
     vals = _chain(props, 2 * math.pi * freqs)
     roots = [brentq(g, freqs[i], freqs[i + 1], xtol=1e-9) for i in range(n_scan - 1)
              if np.sign(vals[i]) != np.sign(vals[i + 1]) and vals[i] != 0]
-    return [_shape(props, f, z0, samples_per_section) for f in roots]
+    return [mode_shape(props, f, z0, samples_per_section) for f in roots]
 
 
-def _shape(props, f, z0, nsamp) -> Mode1D:
+def mode_shape(props, f, z0, nsamp) -> Mode1D:
+    """The free-end displacement shape of a chain of uniform bars at ``f``, by transfer matrices.
+
+    Parameters
+    ----------
+    props : sequence of (length m, area m^2, E Pa, rho kg/m^3)
+        The bars from the free end at ``z0`` on.
+    f : float
+        Frequency, Hz (an eigenfrequency of the chain, for a mode).
+    z0 : float
+        z of the first bar's free end, m.
+    nsamp : int
+        Samples per bar.
+
+    Returns
+    -------
+    Mode1D
+        Axial displacement scaled to a largest magnitude of 1, and its nodes (sign changes).
+    """
     omega = 2 * math.pi * f
     F, v = 0j, 1.0 + 0j
     zs, us = [z0], [1.0]

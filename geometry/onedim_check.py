@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .onedim import Mode1D, _shape, axial_modulus
+from .onedim import Mode1D, axial_modulus, mode_shape
 from .piezo_forms import strain_charge
 
 __all__ = ["OneDimCheck", "check_1d", "TOLERANCE", "MEANING"]
@@ -143,7 +143,7 @@ def check_1d(design, mode: Mode1D, n_grid: int = 20001) -> OneDimCheck:
         slices, reasons = _rpud_slices(design, lib)
     # the mode's shape again, finely sampled (the 1-D mode keeps 8 samples per section)
     props = [(s.z1 - s.z0, s.area, axial_modulus(s.material, "short"), s.material.density) for s in slices]
-    fine = _shape(props, mode.frequency, slices[0].z0, max(8, n_grid // len(props)))
+    fine = mode_shape(props, mode.frequency, slices[0].z0, max(8, n_grid // len(props)))
     z, u = fine.z, fine.displacement
     du = np.gradient(u, z)
     w = np.gradient(z)                       # trapezoid-like weights
