@@ -79,7 +79,7 @@ from geometry.mesh import TaggedMesh
 from .fastasm import assemble_matrices
 from .materials import elastic_matrix, piezo_matrices, resolve
 
-__all__ = ["assemble", "PiezoSystem", "Split", "RegionData"]
+__all__ = ["assemble", "PiezoSystem", "Split", "RegionData", "default_intorder", "region_data", "submatrix"]
 
 log = logging.getLogger(__name__)
 
@@ -112,7 +112,8 @@ def _library(tm: TaggedMesh, library) -> dict:
     return {**lib, **library}
 
 
-def _region_data(tm: TaggedMesh, library) -> list[RegionData]:
+def region_data(tm: TaggedMesh, library) -> list[RegionData]:
+    """The constitutive data of every region of ``tm`` in mesh coordinates (poled ceramics rotated)."""
     out = []
     library = _library(tm, library)
     for r in tm.regions:
@@ -334,7 +335,7 @@ class PiezoSystem:
     def reduce(self, electrical: str = "short", clamp: Iterable[str] = ()):
         """``(K_r, M_r, free)``: the matrices restricted to :meth:`free_dofs`."""
         free = self.free_dofs(electrical, clamp)
-        return _sub(self.K, free), _sub(self.M, free), free
+        return submatrix(self.K, free), submatrix(self.M, free), free
 
     def split(self, clamp: Iterable[str] = ()) -> Split:
         """The driven problem (hot voltage prescribed); see :class:`Split`."""
@@ -343,7 +344,7 @@ class PiezoSystem:
         free = self.free_dofs("driven", clamp)
         kh = np.asarray(self.K[:, [self.hot_dof]].toarray()).ravel()[free]
         lh = np.asarray(self.K_loss[:, [self.hot_dof]].toarray()).ravel()[free]
-        return Split(free, _sub(self.K, free), _sub(self.M, free), _sub(self.K_loss, free), kh, lh,
+        return Split(free, submatrix(self.K, free), submatrix(self.M, free), submatrix(self.K_loss, free), kh, lh,
                      self.phi_scale)
 
     # ------------------------------------------------------------------ electrical
@@ -378,10 +379,10 @@ class PiezoSystem:
             raise ParameterError("electrodes", "none hot", "no hot electrode")
         if mechanical == "blocked":
             free = np.arange(self.n_u, self.n_u + self.n_phi)
-            A = _sub(self.K, free)
+            A = submatrix(self.K, free)
         else:
             free = self.free_dofs("driven", clamp)
-            A = (_sub(self.K, free) + (2 * np.pi) ** 2 * _sub(self.M, free)).tocsr()
+            A = (submatrix(self.K, free) + (2 * np.pi) ** 2 * submatrix(self.M, free)).tocsr()
         col = np.asarray(self.K[:, [self.hot_dof]].toarray()).ravel()[free]
         v = 1.0 / self.phi_scale
         xf = factorize(A, backend=backend)(-col * v) if len(free) else np.zeros(0)
@@ -408,7 +409,8 @@ def _stack_diagonal(A, B):
                          shape=(n, n))
 
 
-def _sub(A, idx):
+def submatrix(A, idx):
+    """``A[idx][:, idx]`` as CSR."""
     return A[idx][:, idx].tocsr()
 
 
@@ -474,7 +476,8 @@ def _compose(blocks: _Blocks, n: int, interior: np.ndarray, hot: np.ndarray):
     return K, M, L, phi_scale
 
 
-def _default_intorder(p: int, curved: bool) -> tuple[int, int]:
+def default_intorder(p: int, curved: bool) -> tuple[int, int]:
+    """(stiffness, mass) quadrature orders for fields of order ``p`` (module docstring, Quadrature)."""
     if curved:
         return (2 * p, 2 * p + 1)
     return (2 * p - 2, 2 * p)
@@ -527,7 +530,7 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
     if order not in (1, 2):
         raise ParameterError("order", order, "must be 1 or 2")
     t0 = time.perf_counter()
-    rdata = _region_data(mesh, library)
+    rdata = region_data(mesh, library)
     lib = _library(mesh, library)
     used = {r.material: resolve(r.material, lib) for r in mesh.regions}
     skmesh = mesh.to_skfem()
@@ -537,7 +540,7 @@ def assemble(mesh: TaggedMesh, *, order: int = 2, library: Mapping | None = None
             raise ParameterError("intorder", intorder, "'skfem' is for reference=True only")
         qk = qm = None
     else:
-        qk, qm = intorder or _default_intorder(order, mesh.order == 2)
+        qk, qm = intorder or default_intorder(order, mesh.order == 2)
     # the node numbering (kept by the PiezoSystem); its one-point quadrature is never used
     bk = CellBasis(skmesh, elem, intorder=1)
     t1 = time.perf_counter()

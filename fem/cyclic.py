@@ -34,7 +34,7 @@ from rpud_common import ParameterError, check_choice
 
 from .assembly import PiezoSystem
 from .eigen import block_eigs, smooth_start
-from .modal import BLOCK_MIN, _freq, own_anti_resonance
+from .modal import BLOCK_MIN, frequency_hz, own_anti_resonance
 from .solvers import blas_threads, factorize
 
 __all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "multiplicity", "nearest_modes",
@@ -264,7 +264,7 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
                 out.append(None)
                 continue
             order = np.argsort(lam_)
-            f, v = _freq(lam_[order]), vec_[:, order]
+            f, v = frequency_hz(lam_[order]), vec_[:, order]
             m = T_.shape[1]
             q = v[:m] + 1j * v[m:] if doubled else v.astype(complex)
             f, q = _collapse(f, q, doubled)

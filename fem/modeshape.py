@@ -97,8 +97,7 @@ __all__ = [
     "match_modes",
     "cylindrical_components",
     "surface_rows",
-    "surface_motion",
-]
+    "surface_motion", "mesh_context"]
 
 LABELS = ("longitudinal", "torsional", "longitudinal-torsional", "bending", "radial", "rigid")
 
@@ -146,7 +145,7 @@ def _mesh_of(mesh) -> TaggedMesh:
                          "must be a geometry.mesh.TaggedMesh or a fem.assembly.PiezoSystem")
 
 
-def _context(mesh) -> _Context:
+def mesh_context(mesh) -> _Context:
     """The context of a mesh (P2) or of a system (its own order, its own node numbering)."""
     tm = _mesh_of(mesh)
     order = mesh.order if isinstance(mesh, PiezoSystem) else 2
@@ -190,14 +189,14 @@ def _part_masses(ctx: _Context, mass_order: int, densities: Sequence[float]) -> 
 def _masses(mesh) -> dict:
     """``{part: M_part, ..., None: sum of the parts}`` for the densities and mass quadrature of
     the system (or of ``fem.assembly.assemble(mesh)`` with the built-in library)."""
-    ctx = _context(mesh)
+    ctx = mesh_context(mesh)
     if isinstance(mesh, PiezoSystem):
         key = (mesh.intorder[1], tuple(r.density for r in mesh.regions))
     else:
-        from .assembly import _default_intorder, _region_data
+        from .assembly import default_intorder, region_data
 
-        key = (_default_intorder(2, ctx.mesh.order == 2)[1],
-               tuple(r.density for r in _region_data(ctx.mesh, None)))
+        key = (default_intorder(2, ctx.mesh.order == 2)[1],
+               tuple(r.density for r in region_data(ctx.mesh, None)))
     if key not in ctx.masses:
         own = mesh.part_mass if isinstance(mesh, PiezoSystem) else None
         parts = dict(own) if own is not None else _part_masses(ctx, *key)
@@ -236,7 +235,7 @@ def mass_matrix(mesh, part: str | None = None) -> sp.csr_matrix:
 def p2_nodes(mesh) -> np.ndarray:
     """The (n_nodes, 3) node coordinates (m) the mode shapes refer to (vertices first): the P2
     nodes of a mesh, or ``system.nodes`` of a system."""
-    return _context(mesh).nodes
+    return mesh_context(mesh).nodes
 
 
 def check_shapes(mesh, shapes, name: str = "shapes", allow_complex: bool = True) -> np.ndarray:
@@ -245,7 +244,7 @@ def check_shapes(mesh, shapes, name: str = "shapes", allow_complex: bool = True)
     A single shape ``(n_nodes, 3)`` becomes ``(1, n_nodes, 3)``. Raises
     :class:`~rpud_common.errors.ParameterError` for any other shape or non-finite values.
     """
-    n = len(_context(mesh).nodes)
+    n = len(mesh_context(mesh).nodes)
     try:
         a = np.asarray(shapes)
     except Exception:  # noqa: BLE001 - ragged input
@@ -347,7 +346,7 @@ def _key(axis_point, axis_dir) -> tuple:
 
 
 def _frame(mesh, axis_point, axis_dir) -> _Frame:
-    ctx = _context(mesh)
+    ctx = mesh_context(mesh)
     key = _key(axis_point, axis_dir)
     if key in ctx.frames:
         return ctx.frames[key]
@@ -634,7 +633,7 @@ def energy_shares(mesh, shapes, *, axis_point=(0.0, 0.0), axis_dir=(0.0, 0.0, 1.
     cart = _energy(M, u)
     return ModeShares(overall=overall, parts={p: shares_in(Mp)[0] for p, Mp in parts.items()},
                       part_energy={p: _ratio(_energy(Mp, u), cart) for p, Mp in parts.items()},
-                      rigid=_rigid_fraction(M, _context(mesh).nodes, u, axisymmetric),
+                      rigid=_rigid_fraction(M, mesh_context(mesh).nodes, u, axisymmetric),
                       closure=_ratio(tot, cart, empty=1.0), energy=cart)
 
 
@@ -848,7 +847,7 @@ class _Surface:
 
 
 def _surface(mesh, surface: str, axis_point, axis_dir) -> _Surface:
-    ctx = _context(mesh)
+    ctx = mesh_context(mesh)
     if not isinstance(surface, str) or surface not in ctx.mesh.facet_sets:
         raise ParameterError("surface", surface, "unknown; known: " + ", ".join(sorted(ctx.mesh.facet_sets)))
     key = (surface, _key(axis_point, axis_dir))

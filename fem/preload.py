@@ -34,7 +34,7 @@ import numpy as np
 
 from rpud_common import ParameterError, check_finite, check_nonnegative
 
-from .assembly import PiezoSystem, _sub
+from .assembly import PiezoSystem, submatrix
 from .solvers import factorize
 
 __all__ = ["traction_load", "static_solve", "stack_end_faces", "preload_solve", "PreloadState", "face_area",
@@ -116,7 +116,7 @@ def static_solve(system: PiezoSystem, load: np.ndarray, *, clamp: Iterable[str] 
         raise ParameterError("load", f.shape, f"must be a finite vector of length {system.ndof}")
     clamp = (clamp,) if isinstance(clamp, str) else tuple(clamp)
     free = system.free_dofs("short", clamp)
-    K = _sub(system.K, free)
+    K = submatrix(system.K, free)
     if not clamp:
         R = _rigid_modes(system)
         kept = getattr(system, "kept", None)
@@ -128,7 +128,7 @@ def static_solve(system: PiezoSystem, load: np.ndarray, *, clamp: Iterable[str] 
             R = R[:, [2, 5]] * mask[:, None]
         MR = system.M @ R
         f = f - MR @ np.linalg.solve(R.T @ MR, R.T @ f)
-        K = (K + (2 * np.pi * _SHIFT_HZ) ** 2 * _sub(system.M, free)).tocsr()
+        K = (K + (2 * np.pi * _SHIFT_HZ) ** 2 * submatrix(system.M, free)).tocsr()
     xf = factorize(K.tocsr(), backend=backend)(f[free])
     x = system.expand(xf, free, 0.0)
     if not clamp:

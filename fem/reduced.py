@@ -49,7 +49,7 @@ import numpy as np
 from rpud_common import ParameterError, check_integer, check_positive, check_range
 
 from .assembly import PiezoSystem
-from .harmonic import ModalBasis, _charge_row, loss_matrix, surface_functional
+from .harmonic import ModalBasis, charge_row, loss_matrix, surface_functional
 
 __all__ = ["ReducedTransducer", "reduce_transducer", "DEFAULT_TIP_SHARE"]
 
@@ -221,7 +221,7 @@ def reduce_transducer(system: PiezoSystem, basis: ModalBasis, freq_hz: float, *,
     residual = tip_full - complex(s_all[idx] @ q_keep)
     L = basis.L if basis.L is not None else loss_matrix(system, basis.loss)
     x = system.expand(x_f, basis.free, 1.0)
-    charge_full = complex(_charge_row(system, L) @ x)
+    charge_full = complex(charge_row(system, L) @ x)
     blocked = charge_full - complex(gam @ q_keep)
     w_pos = int(np.flatnonzero(idx == working)[0])
     # a mode's sign is arbitrary (eigen-solvers may return either from run to run); the sign with a

@@ -21,10 +21,10 @@ from rpud_common import ParameterError, atomic_output
 from geometry.mesh import TaggedMesh
 from geometry.render import offscreen_plotter
 
-from .modeshape import _context, axis_frame, check_shapes
+from .modeshape import mesh_context, axis_frame, check_shapes
 
 __all__ = ["render_mode", "render_modes", "write_modes_vtu", "mode_names", "around", "add_triad",
-           "DEFAULT_WINDOW"]
+           "DEFAULT_WINDOW", "check_window_size", "screenshot", "render_surface"]
 
 DEFAULT_WINDOW = (1200, 800)
 _SCALE_FRACTION = 0.09      # auto scale: peak displacement = 9 % of the largest bounding-box side
@@ -47,12 +47,13 @@ def _pv():
     return pv
 
 
-def _surface(mesh: TaggedMesh) -> _Surface:
+def render_surface(mesh: TaggedMesh) -> _Surface:
+    """The outer surface of ``mesh`` for pyvista renders (built once per mesh, cached)."""
     cached = _SURF.get(mesh)
     if cached is not None:
         return cached
     pv = _pv()
-    sk = _context(mesh).sk
+    sk = mesh_context(mesh).sk
     grid = pv.UnstructuredGrid({pv.CellType.TETRA: np.asarray(sk.t.T, dtype=np.int64)},
                                np.asarray(sk.p.T, dtype=float))
     grid.point_data["node"] = np.arange(grid.n_points)
@@ -69,7 +70,8 @@ def _surface(mesh: TaggedMesh) -> _Surface:
     return out
 
 
-def _check_window(window_size) -> tuple[int, int]:
+def check_window_size(window_size) -> tuple[int, int]:
+    """``(width, height)`` of a render window, pixels, checked (16 to 8192 each)."""
     try:
         w, h = (int(v) for v in window_size)
     except (TypeError, ValueError):
@@ -122,14 +124,14 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
     if u.shape[0] != 1:
         raise ParameterError("shape", np.shape(shape), "must be one mode, (n_nodes, 3)")
     u = u[0]
-    w, h = _check_window(window_size)
+    w, h = check_window_size(window_size)
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ParameterError("path", str(path), "must end in .png")
-    s = _surface(mesh)
+    s = render_surface(mesh)
     us = u[s.ids]
     mag = np.linalg.norm(us, axis=1)
-    peak = float(np.linalg.norm(u[: _context(mesh).n_vertices], axis=1).max())
+    peak = float(np.linalg.norm(u[: mesh_context(mesh).n_vertices], axis=1).max())
     if scale is None:
         scale = _SCALE_FRACTION * s.extent / peak if peak > 0 else 0.0
     elif not (np.isfinite(scale) and scale >= 0):
@@ -153,7 +155,7 @@ def render_mode(mesh: TaggedMesh, shape, path, *, title: str = "", scale: float 
             pl.add_text(title, position="upper_left", font_size=14, color="black")
         pl.add_text(f"displacement x {scale:.3g}", position="lower_left", font_size=9, color="dimgray")
         add_triad(pl)
-        _shoot(pl, s, axis_dir, path)
+        screenshot(pl, s, axis_dir, path)
     finally:
         pl.close()
     return path
@@ -169,7 +171,7 @@ def add_triad(pl, *, viewport=(0.0, 0.08, 0.16, 0.32)) -> None:
     pl.add_axes(xlabel="x", ylabel="y", zlabel="z", line_width=3, color="black", viewport=viewport)
 
 
-def _shoot(pl, s, axis_dir: str, path) -> None:
+def screenshot(pl, s, axis_dir: str, path) -> None:
     """Aim the camera at the surface ``s`` along ``axis_dir`` and write the screenshot atomically."""
     view, up = _camera(axis_dir)
     center = np.asarray(s.surf.center)
@@ -262,7 +264,7 @@ def write_modes_vtu(mesh: TaggedMesh, shapes, path, *, names: Sequence[str] | No
         raise ParameterError("names", names, "must be unique and made of letters, digits, _ . + -")
     if {"region", "part"} & set(names):
         raise ParameterError("names", names, "'region' and 'part' are reserved")
-    ctx = _context(mesh)
+    ctx = mesh_context(mesh)
     cells = np.asarray(ctx.basis.element_dofs.T, dtype=np.int64)   # skfem P2 local order == VTK
     part_of_region = np.array([mesh.parts.index(r.part) for r in mesh.regions], dtype=np.int64)
     out = meshio.Mesh(

@@ -99,7 +99,7 @@ def render_stress(system, values: np.ndarray, path, *, title: str = "", label: s
     """
     from geometry.render import offscreen_plotter
 
-    from .render import _check_window, _shoot, _surface, add_triad
+    from .render import check_window_size, screenshot, render_surface, add_triad
 
     path = Path(path)
     if path.suffix.lower() != ".png":
@@ -107,8 +107,8 @@ def render_stress(system, values: np.ndarray, path, *, title: str = "", label: s
     v = np.asarray(values, float)
     if v.shape != (system.n_nodes,) or not np.all(np.isfinite(v)):
         raise ParameterError("values", v.shape, f"must be ({system.n_nodes},) finite node values")
-    w, h = _check_window(window_size)
-    s = _surface(system.mesh)
+    w, h = check_window_size(window_size)
+    s = render_surface(system.mesh)
     surf = s.surf.copy()
     surf.point_data["value"] = v[s.ids] * scale
     pl = offscreen_plotter((w, h))
@@ -126,7 +126,7 @@ def render_stress(system, values: np.ndarray, path, *, title: str = "", label: s
         if title:
             pl.add_text(title, position="upper_left", font_size=12, color="black")
         add_triad(pl)
-        _shoot(pl, s, axis_dir, path)
+        screenshot(pl, s, axis_dir, path)
     finally:
         pl.close()
     return path

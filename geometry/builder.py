@@ -36,7 +36,7 @@ from .design_stack import StackDesign
 from .cad import apply_rules, import_step
 from .tagging import parametric_model
 from .revolve import (MESHERS, orient, place_midnodes, quad_triangles, resolve_mesher, sectors_per_quarter,
-                      split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP, _VTK_EDGES)
+                      split_to_tets, straighten, swept_quality, STRAIGHTEN_STEP, VTK_EDGES)
 from .mesh import Electrode, Region, TaggedMesh
 from .sector import SectorMeshing, check_sectors, keep_periodic, set_periodic
 from .sector_sweep import mesh_swept_sector
@@ -455,7 +455,7 @@ def _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_v
         # the rounding moved the mid-nodes of straight edges off their corners' midpoint (by up to
         # one grid step): put them back on it exactly, so that fem.fastasm still finds those
         # elements affine (constant Jacobian; about two thirds of a free mesh)
-        ends = np.asarray(_VTK_EDGES)
+        ends = np.asarray(VTK_EDGES)
         mids = cells[:, 4:]
         exact = 0.5 * (coords[cells[:, ends[:, 0]]] + coords[cells[:, ends[:, 1]]])
         straight = np.abs(coords[mids] - exact).max(axis=2) <= 2 * SNAP_M

@@ -92,6 +92,33 @@ def load_design(path: str | os.PathLike, select: str | None = None,
     ``select`` picks one. A design may carry its own ``[materials]`` table; ``materials`` adds
     the records of a user's material file (``geometry.materials.load_library``). A CAD design's
     ``step`` path is relative to the TOML file's folder.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The TOML file.
+    select : str, optional
+        The design to take from a collection (its table name).
+    materials : mapping of str to Material, optional
+        Extra material records, by name.
+
+    Returns
+    -------
+    DesignBase
+        An :class:`RPUDDesign`, :class:`StackDesign` or :class:`CadDesign`, validated.
+
+    Examples
+    --------
+    A design written by :meth:`DesignBase.save` reads back equal:
+
+    >>> import os, tempfile
+    >>> from geometry.examples import k33_rod
+    >>> path = os.path.join(tempfile.mkdtemp(), "rod.toml")
+    >>> k33_rod().save(path)
+    >>> load_design(path) == k33_rod()
+    True
+    >>> load_design("geometry/examples.toml", select="k31_bar").name
+    'k31_bar'
     """
     data = load_toml(path, "design")
     known = {f.name for cls in KINDS.values() for f in dataclasses.fields(cls)}

@@ -18,7 +18,7 @@ import numpy as np
 
 from rpud_common import ParameterError, atomic_write_text, dump_toml, to_mapping
 from .design_materials import own_records, resolve_uses
-from .dotted import _child, _radial_signature, _replace_path
+from .dotted import child_named, radial_signature, replace_path
 from .materials import Material, builtin_library
 
 __all__ = ["DesignBase", "POLING_VECTORS", "MIN_WALL", "annulus"]
@@ -50,7 +50,7 @@ class DesignBase:
         """Value at a dotted path, e.g. ``"horn.length"`` or ``"segments.rod.length"`` (m)."""
         obj: Any = self
         for key in path.split("."):
-            obj = _child(obj, key, path)
+            obj = child_named(obj, key, path)
         return obj
 
     def replace(self, changes: Mapping[str, Any] | None = None, **kw: Any):
@@ -64,7 +64,7 @@ class DesignBase:
         changes = dict(changes or {}, **kw)
         new = self
         for path, value in changes.items():
-            new = _replace_path(new, path.split("."), value, path)
+            new = replace_path(new, path.split("."), value, path)
         return new
 
     def tunable_lengths(self) -> tuple[str, ...]:
@@ -194,7 +194,7 @@ class DesignBase:
         old_bp, new_bp = self.axial_breakpoints(), new.axial_breakpoints()
         if [b[0] for b in old_bp] != [b[0] for b in new_bp]:
             raise ParameterError("design", new.name, "has a different zone structure; re-mesh instead of morphing")
-        changed = _radial_signature(self) != _radial_signature(new)
+        changed = radial_signature(self) != radial_signature(new)
         if changed:
             raise ParameterError("design", new.name, "differs in more than axial lengths; re-mesh instead of morphing")
         zo = np.array([b[1] for b in old_bp])

@@ -10,10 +10,12 @@ import numpy as np
 
 from rpud_common import ParameterError
 
-__all__ = ["_child", "_replace_path", "_radial_signature", "_flatten"]
+__all__ = ["child_named", "replace_path", "radial_signature"]
 
 
-def _child(obj: Any, key: str, path: str) -> Any:
+def child_named(obj: Any, key: str, path: str) -> Any:
+    """The field ``key`` of a dataclass, or the item named ``key`` (or at index ``key``) of a tuple;
+    ``path`` names it in the error."""
     if isinstance(obj, tuple):
         for item in obj:
             if getattr(item, "name", None) == key:
@@ -27,16 +29,17 @@ def _child(obj: Any, key: str, path: str) -> Any:
     return getattr(obj, key)
 
 
-def _replace_path(obj: Any, keys: list[str], value: Any, path: str) -> Any:
+def replace_path(obj: Any, keys: list[str], value: Any, path: str) -> Any:
+    """A copy of ``obj`` with the value at the dotted ``keys`` replaced by ``value``."""
     key = keys[0]
     if isinstance(obj, tuple):
-        child = _child(obj, key, path)
+        child = child_named(obj, key, path)
         idx = obj.index(child)
-        new_child = _replace_path(child, keys[1:], value, path) if len(keys) > 1 else value
+        new_child = replace_path(child, keys[1:], value, path) if len(keys) > 1 else value
         return obj[:idx] + (new_child,) + obj[idx + 1:]
-    child = _child(obj, key, path)
+    child = child_named(obj, key, path)
     if len(keys) > 1:
-        return dataclasses.replace(obj, **{key: _replace_path(child, keys[1:], value, path)})
+        return dataclasses.replace(obj, **{key: replace_path(child, keys[1:], value, path)})
     if key == "kind":
         raise ParameterError(path, value, "the design kind cannot be replaced")
     hint = type(child) if child is not None else None
@@ -47,7 +50,7 @@ def _replace_path(obj: Any, keys: list[str], value: Any, path: str) -> Any:
     return dataclasses.replace(obj, **{key: value})
 
 
-def _radial_signature(design) -> list:
+def radial_signature(design) -> list:
     """Every non-tunable value of the design (used to refuse an inexact morph)."""
     tun = set(design.tunable_lengths())
     flat = _flatten(design.to_mapping(), "")

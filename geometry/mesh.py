@@ -83,7 +83,7 @@ def match_rows(table: np.ndarray, rows: np.ndarray) -> np.ndarray:
     return found
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class TaggedMesh:
     """A tetrahedral mesh with named regions and facet sets (SI units: metres).
 
@@ -115,6 +115,14 @@ class TaggedMesh:
     facet_sets: Mapping[str, np.ndarray] = field(default_factory=dict)
     electrodes: tuple[Electrode, ...] = ()
     materials: Mapping[str, "Material"] = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        # counts and names: the generated repr would print every node and cell
+        names = [r.name for r in self.regions]
+        regions = ", ".join(names[:6]) + (f", ... ({len(names)} in all)" if len(names) > 6 else "")
+        kind = "quadratic" if self.cells.shape[1] == 10 else "linear"
+        return (f"TaggedMesh({len(self.points)} nodes, {len(self.cells)} {kind} tetrahedra; regions {regions}; "
+                f"{len(self.facet_sets)} surfaces, {len(self.electrodes)} electrodes)")
 
     def __post_init__(self):
         object.__setattr__(self, "points", np.ascontiguousarray(self.points, dtype=np.float64))

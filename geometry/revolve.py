@@ -36,7 +36,7 @@ from .fillets import flange_horn_outlines
 
 __all__ = ["can_revolve", "resolve_mesher", "MESHERS", "sectors_per_quarter", "revolved_parts", "stack_regions", "section_outlines", "section_face", "quad_triangles", "split_to_tets", "place_midnodes",
            "swept_quality", "jacobian_ratio", "straighten", "SECTORS_PER_QUARTER", "STRAIGHTEN_BELOW",
-           "STRAIGHTEN_STEP"]
+           "STRAIGHTEN_STEP", "VTK_EDGES", "prism_tets"]
 
 SECTORS_PER_QUARTER = 3
 """Element layers per quarter turn at ``refine = 1`` (12 per circle, as the free mesh's
@@ -55,7 +55,7 @@ elements (:func:`straighten`). On the default design without slots and teeth at 
 folded elements at the coupler's bore) the working mode and the tip amplitude per volt then lie
 within 2.4e-5 / 4.2e-4 of Gmsh's high-order optimiser's, against 2.0e-4 / 3.1e-3 with whole edges."""
 
-_VTK_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
+VTK_EDGES = ((0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3))
 """Edge order of a 10-node tetrahedron in meshio/VTK (and :class:`geometry.mesh.TaggedMesh`)."""
 
 
@@ -172,7 +172,7 @@ def _pair_table(ref: np.ndarray, n_corners: int) -> dict[tuple[int, int], int]:
     return out
 
 
-def _prism_tets(tags: np.ndarray) -> np.ndarray:
+def prism_tets(tags: np.ndarray) -> np.ndarray:
     """Corner-local tetrahedra (n, 3, 4) of prisms with global corner tags ``tags`` (n, 6):
     bottom 0 1 2, top 3 4 5. The face (x, y) is cut through its lowest-tagged vertex; x goes
     before y when that vertex is t_x or b_y, and the three precedences (never cyclic) give the
@@ -232,7 +232,7 @@ def split_to_tets(etype_props: dict, elements: dict) -> dict[int, np.ndarray]:
         if n_corners == 4:
             local = np.tile(np.arange(4), (len(nodes), 1, 1))
         elif n_corners == 6:
-            local = _prism_tets(corners)
+            local = prism_tets(corners)
         elif n_corners == 5:
             local = _pyramid_tets(corners)
         else:  # pragma: no cover - the builder asks for 3-D elements only
@@ -246,7 +246,7 @@ def split_to_tets(etype_props: dict, elements: dict) -> dict[int, np.ndarray]:
             lut = np.full((n_corners, n_corners), -1, dtype=np.int64)
             for (i, j), k in pairs.items():
                 lut[i, j] = k
-            for i, j in _VTK_EDGES:
+            for i, j in VTK_EDGES:
                 k = lut[loc[:, i], loc[:, j]]
                 if (k < 0).any():  # pragma: no cover - every tetrahedron edge is an edge or a diagonal
                     raise RuntimeError("tetrahedron edge without a mid node")
@@ -273,7 +273,7 @@ def place_midnodes(points: np.ndarray, cells: np.ndarray, tol: float = 1e-12) ->
     """Points with every mid-edge node of ``cells`` (10-node, VTK order) at the midpoint of its
     edge in (r, theta, z), m (edges with an end on the axis keep the straight midpoint)."""
     out = points.copy()
-    for k, (i, j) in enumerate(_VTK_EDGES):
+    for k, (i, j) in enumerate(VTK_EDGES):
         a, b, m = points[cells[:, i]], points[cells[:, j]], cells[:, 4 + k]
         ra, rb = np.hypot(a[:, 0], a[:, 1]), np.hypot(b[:, 0], b[:, 1])
         ok = (ra > tol) & (rb > tol)
@@ -292,7 +292,7 @@ def _p2_gradients(xi: np.ndarray) -> np.ndarray:
     g = np.empty((len(xi), 10, 3))
     for i in range(4):
         g[:, i] = (4 * lam[:, i:i + 1] - 1) * dlam[i]
-    for k, (i, j) in enumerate(_VTK_EDGES):
+    for k, (i, j) in enumerate(VTK_EDGES):
         g[:, 4 + k] = 4 * (lam[:, j:j + 1] * dlam[i] + lam[:, i:i + 1] * dlam[j])
     return g
 
@@ -351,7 +351,7 @@ def straighten(points: np.ndarray, cells: np.ndarray, free: np.ndarray, below: f
             break
         share[bad] = np.minimum(1.0, share[bad] + step)
         c = cells[bad]
-        for k, (i, j) in enumerate(_VTK_EDGES):
+        for k, (i, j) in enumerate(VTK_EDGES):
             m = c[:, 4 + k]
             np.maximum.at(node_share, m, share[bad])
             mid = 0.5 * (pts[c[:, i]] + pts[c[:, j]])

@@ -34,10 +34,10 @@ from rpud_common import ParameterError
 
 from .design_rpud import RPUDDesign
 from .mesh import Electrode, Region, TaggedMesh
-from .revolve import _VTK_EDGES, _prism_tets, orient, place_midnodes, quad_triangles, section_face, section_outlines
+from .revolve import VTK_EDGES, prism_tets, orient, place_midnodes, quad_triangles, section_face, section_outlines
 from .sector import rotation, set_periodic
 from .solids import make_coupler
-from .tagging import _boundary_surfaces, _planar_at, surface_rules
+from .tagging import boundary_surfaces, planar_at, surface_rules
 
 __all__ = ["sector_layers", "check_sweepable", "sector_model", "premesh_interface", "sweep_section",
            "assemble_sector"]
@@ -70,7 +70,7 @@ def sector_model(gmsh, d: RPUDDesign, sectors: int):
     occ.synchronize()
     vols = sorted({t for m in omap[:len(coupler)] for dim, t in m if dim == 3})
     section = {o[0]: sorted(t for dim, t in m if dim == 2) for o, m in zip(outlines, omap[len(coupler):])}
-    top = [f for f in _boundary_surfaces(gmsh, vols) if _planar_at(gmsh, f, "z", 0.0, 1e-6)]
+    top = [f for f in boundary_surfaces(gmsh, vols) if planar_at(gmsh, f, "z", 0.0, 1e-6)]
     if len(top) != 1:      # pragma: no cover - check_sweepable keeps the coupler top one face
         raise ParameterError("design", d.name, f"the coupler's top face is {len(top)} faces")
     return vols, section, top[0], {o[0]: o[1:4] for o in outlines}
@@ -213,7 +213,7 @@ def sweep_section(points_rz: dict, triangles: np.ndarray, sectors: int, layers: 
         order = np.vectorize(lambda t: rank.get(int(t), top + int(t)), otypes=[np.int64])
     for j in range(layers):
         prism = np.concatenate([copies[j][idx], copies[j + 1][idx]], axis=1)
-        local = _prism_tets(order(prism) if rank else prism)
+        local = prism_tets(order(prism) if rank else prism)
         tets.append(np.take_along_axis(prism[rows], local.reshape(-1, 4), axis=1))
         source.append(rows)
     tets, source = np.concatenate(tets), np.concatenate(source)
@@ -235,7 +235,7 @@ def _edge_breaks(design: RPUDDesign, axis: str, value: float) -> np.ndarray:
 def add_midnodes(points: np.ndarray, cells4: np.ndarray, known: dict) -> tuple[np.ndarray, np.ndarray]:
     """10-node cells from 4-node ``cells4``: each edge's mid node from ``known`` (sorted corner
     pair -> node index) or a new node (appended to ``points``; placed by the caller)."""
-    ends = np.asarray(_VTK_EDGES)
+    ends = np.asarray(VTK_EDGES)
     a, b = cells4[:, ends[:, 0]], cells4[:, ends[:, 1]]
     lo, hi = np.minimum(a, b), np.maximum(a, b)
     mids = np.empty_like(lo)
@@ -272,7 +272,7 @@ def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.nd
     swept 4-node cells per region (``swept``: region -> cells), with the swept regions' facet
     sets found by :func:`geometry.tagging.surface_rules`. Returns ``(mesh, swept_mask)``."""
     known = {}
-    ends = np.asarray(_VTK_EDGES)
+    ends = np.asarray(VTK_EDGES)
     for k, (i, j) in enumerate(ends):
         a, b = coupler_cells[:, i], coupler_cells[:, j]
         for lo, hi, m in zip(np.minimum(a, b).tolist(), np.maximum(a, b).tolist(), coupler_cells[:, 4 + k].tolist()):
@@ -414,8 +414,8 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
     for name, region, axis, value, _rmin in surface_rules(d):
         if region != "coupler":
             continue
-        for f in _boundary_surfaces(gmsh, vols):
-            if _planar_at(gmsh, f, axis, value, 1e-6):
+        for f in boundary_surfaces(gmsh, vols):
+            if planar_at(gmsh, f, axis, value, 1e-6):
                 for t, e, nodes in zip(*gmsh.model.mesh.getElements(2, f)):
                     conn = index[np.asarray(nodes, dtype=np.int64).reshape(len(e), -1)[:, :3]]
                     coupler_facets[name] = np.concatenate([coupler_facets.get(name, np.zeros((0, 3), np.int64)), conn])

@@ -14,15 +14,17 @@ from .design_base import DesignBase
 from .design_rpud import RPUDDesign
 from .solids import make_rpud, make_stack
 
-__all__ = ["parametric_model", "surface_rules"]
+__all__ = ["parametric_model", "surface_rules", "boundary_surfaces", "planar_at"]
 
 
-def _boundary_surfaces(gmsh, vols):
+def boundary_surfaces(gmsh, vols):
+    """Sorted tags of the surfaces bounding the volumes ``vols`` of the Gmsh model."""
     out = gmsh.model.getBoundary([(3, v) for v in vols], combined=False, oriented=False, recursive=False)
     return sorted({abs(t) for dim, t in out if dim == 2})
 
 
-def _planar_at(gmsh, surf, axis: str, value: float, tol: float) -> bool:
+def planar_at(gmsh, surf, axis: str, value: float, tol: float) -> bool:
+    """True when surface ``surf`` is flat across ``axis`` at ``value`` (bounding box within ``tol``, m)."""
     bb = gmsh.model.getBoundingBox(2, surf)
     i = "xyz".index(axis)
     lo, hi = bb[i], bb[i + 3]
@@ -98,8 +100,8 @@ def parametric_model(gmsh, design: DesignBase, layers, revolve: int | None = Non
     tol = 1e-6 + 1e-6 * scale  # OCC boxes are padded by 1e-7 m
     facet_surfs: dict[str, list[int]] = {}
     for name, region, axis, value, rmin in surface_rules(design):
-        for sf in _boundary_surfaces(gmsh, region_vols[region]):
-            if not _planar_at(gmsh, sf, axis, value, tol):
+        for sf in boundary_surfaces(gmsh, region_vols[region]):
+            if not planar_at(gmsh, sf, axis, value, tol):
                 continue
             if rmin > 0:
                 bb = gmsh.model.getBoundingBox(2, sf)

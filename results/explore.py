@@ -110,7 +110,7 @@ def run_sequential(study: Study, points: list[dict] | None = None, threads: int 
     return rows
 
 
-@dataclass
+@dataclass(repr=False)
 class StudyResult(Result):
     """A finished study: its table and where it was written.
 

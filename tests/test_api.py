@@ -134,3 +134,42 @@ def test_plot_functions_draw_on_the_callers_axes(system, modes, tmp_path):
     assert plt.get_fignums() == before and matplotlib.get_backend() == backend
     with pytest.raises(TypeError, match="Axes"):
         impact.plot_history(r, ax="not an axes")
+
+
+def _result_classes():
+    """Every subclass of rpud_common.Result defined in the four packages."""
+    import importlib
+    import inspect
+    import pkgutil
+
+    from rpud_common.result import Result
+
+    found = []
+    for pkg in ("geometry", "fem", "impact", "results"):
+        for m in pkgutil.iter_modules(importlib.import_module(pkg).__path__):
+            if m.name.startswith("__"):
+                continue
+            mod = importlib.import_module(f"{pkg}.{m.name}")
+            found += [c for c in vars(mod).values()
+                      if inspect.isclass(c) and issubclass(c, Result) and c.__module__ == mod.__name__]
+    return found
+
+
+def test_every_result_keeps_the_short_repr():
+    """A dataclass generates a repr printing every field (the rows of a study, every array)
+    unless declared ``repr=False``: every result class uses Result's headline repr instead."""
+    from rpud_common.result import Result
+
+    classes = _result_classes()
+    assert len(classes) >= 10
+    assert [c.__qualname__ for c in classes if c.__repr__ is not Result.__repr__] == []
+
+
+def test_meshes_and_assembled_systems_have_short_reprs(system):
+    mesh = system.mesh
+    assert repr(mesh).startswith("TaggedMesh(") and len(repr(mesh)) < 300
+    assert f"{len(mesh.cells)} " in repr(mesh) and f"{len(mesh.points)} nodes" in repr(mesh)
+    assert repr(system).startswith("PiezoSystem(") and len(repr(system)) < 300
+    assert f"{system.ndof} DOFs" in repr(system)
+    split = system.split()
+    assert repr(split).startswith("Split(") and len(repr(split)) < 300

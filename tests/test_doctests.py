@@ -6,7 +6,8 @@ import importlib
 
 import pytest
 
-MODULES = ["rpud_common.errors", "rpud_common.records", "geometry", "fem.forms", "fem.assembly"]
+MODULES = ["rpud_common.errors", "rpud_common.records", "geometry", "geometry.design", "fem.forms",
+           "fem.assembly", "fem.modal", "fem.harmonic"]
 
 
 @pytest.mark.parametrize("name", MODULES)

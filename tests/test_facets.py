@@ -11,13 +11,13 @@ from skfem.quadrature import get_quadrature
 
 from geometry import build_mesh, default_design
 from fem.facets import CentroidNewtonMapping, facet_basis
-from fem.modeshape import _context
+from fem.modeshape import mesh_context
 
 
 @pytest.fixture(scope="module")
 def meshes():
     d = default_design()
-    return {m: _context(build_mesh(d, refine=2, mesher=m)).sk for m in ("revolve", "free")}
+    return {m: mesh_context(build_mesh(d, refine=2, mesher=m)).sk for m in ("revolve", "free")}
 
 
 def _points(sk, name):

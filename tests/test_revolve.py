@@ -19,7 +19,7 @@ import fem
 from geometry.builder import build
 from geometry.design import default_design
 from geometry.report import mesh_part_volumes
-from geometry.revolve import (_prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets,
+from geometry.revolve import (prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets,
                               straighten)
 from rpud_common import ParameterError
 
@@ -64,7 +64,7 @@ def test_prism_cuts_fill_the_prism_and_agree_across_shared_faces():
     for _ in range(200):
         tags = rng.permutation(8)
         glob = tags[prisms]
-        cuts = _prism_tets(glob)
+        cuts = prism_tets(glob)
         tets = [[glob[e, c] for c in cut] for e in range(2) for cut in cuts[e]]
         inv = np.argsort(tags)
         corners = points[inv[np.array(tets)]]
@@ -82,7 +82,7 @@ def test_pyramid_cut_agrees_with_the_prism_behind_it():
         tags = rng.permutation(7)
         prism = tags[[0, 1, 2, 3, 4, 5]][None]
         pyramid = tags[[1, 2, 5, 4, 6]][None]           # base = the prism's face (1, 2, 5, 4), apex 6
-        tp = [[prism[0, c] for c in cut] for cut in _prism_tets(prism)[0]]
+        tp = [[prism[0, c] for c in cut] for cut in prism_tets(prism)[0]]
         ty = [[pyramid[0, c] for c in cut] for cut in _pyramid_tets(pyramid)[0]]
         quad = pyramid[0, :4]
         assert _faces_on(tp, quad) == _faces_on(ty, quad)
