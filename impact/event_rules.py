@@ -11,6 +11,7 @@ take the same decisions on the same bits. Read :mod:`impact.model` for why each 
   flight can first touch a contact's band, leaves it for good, or is out of it and back;
 * :func:`grid_step`: the bracketing grid's step from the bound on ``|f''|``;
 * :func:`next_cross`: when the kinematic horn's acceleration next crosses the free mass's;
+* :func:`free_mass_at`: the free mass's position and velocity in each segment mode;
 * :func:`brent_start`, :func:`brent_next`: Brent's method, one step at a time (each engine
   evaluates its contact function between the steps).
 """
@@ -19,7 +20,9 @@ from __future__ import annotations
 
 import math
 
-__all__ = ["CONTACT_TOL", "H_MIN", "XTOL", "RTOL", "APEX_MIN", "sticks", "parabola_reach", "parabola_leave",
+from .columns import FREE, ON_HORN
+
+__all__ = ["free_mass_at", "CONTACT_TOL", "H_MIN", "XTOL", "RTOL", "APEX_MIN", "sticks", "parabola_reach", "parabola_leave",
            "parabola_excursion", "grid_step", "next_cross", "brent_start", "brent_next"]
 
 #: interpenetration accepted as "touching" (m): far above round-off of mm positions (~1e-19 m)
@@ -207,3 +210,15 @@ def brent_next(st: tuple) -> tuple:
     else:
         xcur += delta if sbis > 0.0 else -delta
     return False, (xpre, xcur, xblk, fpre, fcur, fblk, spre, scur)
+
+
+def free_mass_at(mode: int, s: float, w0: float, wd0: float, a: float, L0: float, uh: float, uhd: float,
+                 v: float, vd: float) -> tuple[float, float]:
+    """The free mass's position (m) and velocity (m/s) a time s (s) into a segment of ``mode``:
+    its flight from (w0, wd0) under the acceleration ``a``, or riding the horn tip (uh, uhd) or
+    the tool face (``L0 + v``, vd)."""
+    if mode == FREE:
+        return w0 + s * (wd0 + 0.5 * a * s), wd0 + a * s
+    if mode == ON_HORN:
+        return uh, uhd
+    return L0 + v, vd

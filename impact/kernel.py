@@ -25,11 +25,11 @@ from numba import njit, prange
 from .columns import (BODY_HORN, BODY_TOOL, FREE, KIND_HORN, KIND_TOOL, N_STATS, ON_HORN, ON_TOOL,
                       S_HORN_WORK, S_KE_AFTER, S_KE_GAIN, S_N_EVENTS, S_N_HORN, S_N_TOOL, S_STATUS,
                       S_T_ON_HORN, S_T_ON_TOOL, STATUS_MAX_EVENTS, STATUS_OK, STATUS_PINCHED)
-from .kernel_blocks import (C_A, C_L0, C_N, C_T0, C_UC, C_W, C_W0, C_WD0, E_N, FN_HORN, FN_PINCH,
-                            FN_RELEASE, O_B0, O_B2, O_N, PL_ROWS, count_impact, count_stick, earliest,
+from .kernel_blocks import (event_status, free_mass_at, C_A, C_L0, C_N, C_T0, C_UC, C_W, C_W0, C_WD0, E_N, FN_HORN,
+                            FN_RELEASE, O_B0, O_B2, O_N, PL_ROWS, count_impact, close_run, close_stick, earliest,
                             horn_impact_kinematic, mech_energy, next_cross, osc_pv, plan_flight,
-                            plan_on_tool, plan_pinch, record_event, record_segment, record_stick,
-                            sticks, tool_impact, tool_osc, tool_skip)
+                            plan_on_tool, plan_pinch, record_event, record_segment,
+                            sticks, tool_event, tool_osc)
 from .params import ImpactParams
 
 __all__ = ["pack", "run_events", "ensemble_stats", "warmup", "N_PARAMS", "N_STATS", "P_M_FREE", "P_A0",
@@ -102,8 +102,7 @@ def _core(pv, t_end, max_events, record, t_from, stats):
     skip_t = 0.0
     E0 = mech_energy(m_free, m_tool, k0, a, w, wd, v, vd)
     work = stick_start = stick_E = 0.0
-    n_ev = 0
-    status, t_status = STATUS_OK, 0.0
+    n_ev, status, t_status = 0, STATUS_OK, 0.0
     while t < t_end:
         # plan the contacts of this segment
         tool_osc(o, mode == ON_TOOL, m_tool, m_free, k0, c, a, v, vd)
@@ -126,24 +125,16 @@ def _core(pv, t_end, max_events, record, t_from, stats):
             have, te, name = True, t_rel, FN_RELEASE
         if not have:
             break
-        if name == FN_PINCH:
-            status, t_status = STATUS_PINCHED, te
-            break
-        n_ev += 1
-        if n_ev > max_events:
-            status, t_status = STATUS_MAX_EVENTS, te
+        status, n_ev = event_status(name, n_ev, max_events)
+        if status != STATUS_OK:
+            t_status = te
             break
         # the state at the event
         s = te - t0
         v, vd = osc_pv(o, s)
         ph = om * te
         uh, uhd = A0 * math.cos(ph), -A0 * om * math.sin(ph)
-        if mode == FREE:
-            w, wd = w0 + s * (wd0 + 0.5 * a * s), wd0 + a * s
-        elif mode == ON_HORN:
-            w, wd = uh, uhd
-        else:
-            w, wd = L0 + v, vd
+        w, wd = free_mass_at(mode, s, w0, wd0, a, L0, uh, uhd, v, vd)
         t = te
         if L0 + v <= 2.0 * A0:
             status, t_status = STATUS_PINCHED, te
@@ -156,10 +147,7 @@ def _core(pv, t_end, max_events, record, t_from, stats):
                 # the horn did the work that moved the stuck mass
                 work += (0.5 * m_free * wd * wd - m_free * a * w) - stick_E
                 skip_h = next_cross(te, True, A0, om, om2, a)
-            if record:
-                stk = record_stick(stk, n_stk, stick_start, te, body)
-                n_stk += 1
-            count_stick(stats, body, stick_start, te, t_from, t_end)
+            stk, n_stk = close_stick(stk, n_stk, record, stats, body, stick_start, te, t_from, t_end)
             mode = FREE
             continue
         if name == FN_HORN:
@@ -180,32 +168,16 @@ def _core(pv, t_end, max_events, record, t_from, stats):
             w, wd = x, wa
         else:
             kind, x, vb, wb = KIND_TOOL, L0 + v, vd, wd
-            va, wa, stuck = tool_impact(m_free, m_tool, e1, c, k0, a, v_stick, v, vd, wd)
-            if stuck:
-                mode = ON_TOOL
-                stick_start = te
-            else:
-                skip_t = tool_skip(o2, te, m_tool, k0, c, a, v, va, wa)
-                skip_h = te
+            va, wa, mode, stick_start, skip_h, skip_t = tool_event(o2, te, m_free, m_tool, e1, c, k0, a, v_stick, v, vd,
+                                                                   wd, mode, stick_start, skip_h, skip_t)
             w, wd, vd = x, wa, va
         # record
         if record:
             ev, kinds = record_event(ev, kinds, n_rec, kind, te, x, wb, wa, vb, va,
                                      mech_energy(m_free, m_tool, k0, a, w, wd, v, vd), work)
             n_rec += 1
-        if te < t_from:
-            w_from = work
-        w_last = work
-        count_impact(stats, te, t_from, t_end, kind, m_tool, vb, va)
-    if status == STATUS_OK and mode != FREE:
-        body = BODY_HORN if mode == ON_HORN else BODY_TOOL
-        if record:
-            stk = record_stick(stk, n_stk, stick_start, t_end, body)
-            n_stk += 1
-        count_stick(stats, body, stick_start, t_end, t_from, t_end)
-    stats[S_HORN_WORK] = w_last - w_from
-    stats[S_STATUS] = status
-    stats[S_N_EVENTS] = n_ev
+        w_from, w_last = count_impact(stats, te, t_from, t_end, kind, m_tool, vb, va, work, w_from), work
+    stk, n_stk = close_run(stk, n_stk, record, stats, status, mode, stick_start, t_from, t_end, w_last - w_from, n_ev)
     return ev, kinds, n_rec, segs, n_seg, stk, n_stk, E0, status, t_status, n_ev
 
 

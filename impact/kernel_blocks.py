@@ -15,11 +15,11 @@ earliest root                 :func:`earliest` -> :func:`search` (grid bracketin
                               chord / Taylor bounds, :func:`interval_safe`) -> :func:`refine`
                               (bisection) -> :func:`brent`; :func:`contact_fn` evaluates
                               the gaps, pinch and releases
-apply the law                 :func:`tool_impact`, :func:`horn_impact_kinematic`,
+apply the law                 :func:`tool_event`, :func:`tool_impact`, :func:`horn_impact_kinematic`,
                               :func:`horn_impact_modal`, :func:`tool_skip`, :func:`sticks`
 record                        :func:`record_segment`, :func:`record_event`,
-                              :func:`record_stick`, :func:`count_impact`,
-                              :func:`count_stick`, :func:`mech_energy`
+                              :func:`count_impact`, :func:`close_stick`,
+                              :func:`close_run`, :func:`mech_energy`
 ============================  ===========================================================
 
 The rules shared with the readable reference engines (tolerances, sticking rule, parabola
@@ -40,9 +40,10 @@ import numpy as np
 from numba import njit
 
 from . import event_rules, kernel_cache  # noqa: F401  (kernel_cache: drops stale caches first)
-from .columns import (BODY_HORN, KIND_TOOL, S_KE_AFTER, S_KE_GAIN, S_N_HORN, S_N_TOOL, S_T_ON_HORN,
-                      S_T_ON_TOOL)
-from .event_rules import CONTACT_TOL, H_MIN, RTOL, XTOL  # noqa: F401  (the tolerances, for the engines)
+from .columns import (BODY_HORN, BODY_TOOL, FREE, KIND_TOOL, ON_HORN, ON_TOOL, S_HORN_WORK, S_KE_AFTER, S_KE_GAIN,
+                      S_N_EVENTS, S_N_HORN, S_N_TOOL, S_STATUS, S_T_ON_HORN, S_T_ON_TOOL, STATUS_MAX_EVENTS,
+                      STATUS_OK, STATUS_PINCHED)
+from .event_rules import CONTACT_TOL, H_MIN
 from .horn import H_JQ, H_JV, H_MASS, H_TIP
 
 # the rules of impact.event_rules, compiled
@@ -54,6 +55,7 @@ grid_step = njit(cache=True)(event_rules.grid_step)
 next_cross = njit(cache=True)(event_rules.next_cross)
 brent_start = njit(cache=True)(event_rules.brent_start)
 brent_next = njit(cache=True)(event_rules.brent_next)
+free_mass_at = njit(cache=True)(event_rules.free_mass_at)
 
 #: contact functions: free mass to horn tip, tool face to free mass, tool face to horn tip (the
 #: free mass pinched), release from the tool (``a - v''``), release from the modal horn (``u'' - a``)
@@ -354,6 +356,16 @@ def earliest(plan, nf, t_hi, cp, o, tab, ho, n, stack):
     return have, te, name
 
 
+@njit(cache=True)
+def event_status(name, n_ev, max_events):
+    """Does the run end at an event of kind ``name``: a pinch, or one event over the cap?
+    Returns (``STATUS_*``, the event count with this event unless pinched)."""
+    if name == FN_PINCH:
+        return STATUS_PINCHED, n_ev
+    n_ev += 1
+    return (STATUS_MAX_EVENTS if n_ev > max_events else STATUS_OK), n_ev
+
+
 # ----------------------------------------------------------------------------- planning
 
 
@@ -448,6 +460,17 @@ def tool_skip(o2, te, m_tool, k0, c, a, v, va, wa):
 
 
 @njit(cache=True)
+def tool_event(o2, te, m_free, m_tool, e1, c, k0, a, v_stick, v, vd, wd, mode, stick_start, skip_h, skip_t):
+    """A tool impact at te: :func:`tool_impact`, then either the stick on the tool or the
+    interval on which the tool gap provably stays open. Returns (v+, w+, mode, stick_start,
+    skip_h, skip_t)."""
+    va, wa, stuck = tool_impact(m_free, m_tool, e1, c, k0, a, v_stick, v, vd, wd)
+    if stuck:
+        return va, wa, ON_TOOL, te, skip_h, skip_t
+    return va, wa, mode, stick_start, te, tool_skip(o2, te, m_tool, k0, c, a, v, va, wa)
+
+
+@njit(cache=True)
 def horn_impact_kinematic(article, e2, m_horn, m_free, wd, uhd):
     """Newton's law at the kinematic horn: the infinite-mass driver ``w+ = u' - e2 (w- - u')``, or
     eq. 21 as printed (``article``), whose remaining approach is closed plastically. Returns w+."""
@@ -537,9 +560,10 @@ def record_stick(stk, n_stk, s0, s1, body):
 
 
 @njit(cache=True)
-def count_impact(stats, te, t_from, t_end, kind, m_tool, vb, va):
+def count_impact(stats, te, t_from, t_end, kind, m_tool, vb, va, work, w_from):
     """Window statistics of one impact at te inside [t_from, t_end]: counts and, at the tool,
-    its kinetic energy after the impact and its gain (J)."""
+    its kinetic energy after the impact and its gain (J). Returns the horn work at the window's
+    start (J): ``work`` while te is before it, else ``w_from``."""
     if te >= t_from and te <= t_end:
         if kind == KIND_TOOL:
             stats[S_N_TOOL] += 1.0
@@ -547,9 +571,28 @@ def count_impact(stats, te, t_from, t_end, kind, m_tool, vb, va):
             stats[S_KE_GAIN] += 0.5 * m_tool * (va ** 2 - vb ** 2)
         else:
             stats[S_N_HORN] += 1.0
+    return work if te < t_from else w_from
 
 
 @njit(cache=True)
-def count_stick(stats, body, s0, s1, t_from, t_end):
-    """Window statistics of a sticking phase [s0, s1]: its time inside [t_from, t_end] (s)."""
+def close_stick(stk, n_stk, record, stats, body, s0, s1, t_from, t_end):
+    """A sticking phase [s0, s1] on ``body`` ends: stored (with ``record``) and its time inside
+    the window [t_from, t_end] counted (s). Returns (stk, n_stk)."""
+    if record:
+        stk = record_stick(stk, n_stk, s0, s1, body)
+        n_stk += 1
     stats[S_T_ON_HORN if body == BODY_HORN else S_T_ON_TOOL] += max(0.0, min(s1, t_end) - max(s0, t_from))
+    return stk, n_stk
+
+
+@njit(cache=True)
+def close_run(stk, n_stk, record, stats, status, mode, stick_start, t_from, t_end, horn_work, n_ev):
+    """The run ends (``STATUS_*``): a stick still on at t_end is closed there; the window's horn
+    work (J), status and event count go into ``stats``. Returns (stk, n_stk)."""
+    if status == STATUS_OK and mode != FREE:
+        stk, n_stk = close_stick(stk, n_stk, record, stats, BODY_HORN if mode == ON_HORN else BODY_TOOL,
+                                 stick_start, t_end, t_from, t_end)
+    stats[S_HORN_WORK] = horn_work
+    stats[S_STATUS] = status
+    stats[S_N_EVENTS] = n_ev
+    return stk, n_stk

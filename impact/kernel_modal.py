@@ -32,16 +32,15 @@ import numpy as np
 from numba import njit, prange
 
 from .columns import (BODY_HORN, BODY_TOOL, C_DAMP, C_DRIVE, C_ELEC, C_FUND_IM, C_FUND_RE, C_SOURCE_LOSS,
-                      FREE, KIND_HORN, KIND_TOOL, N_CSTATS, ON_HORN, ON_TOOL, S_HORN_WORK, S_N_EVENTS,
-                      S_STATUS, STATUS_CONTACT, STATUS_MAX_EVENTS, STATUS_OK, STATUS_PINCHED)
+                      FREE, KIND_HORN, KIND_TOOL, N_CSTATS, ON_HORN, ON_TOOL, STATUS_CONTACT, STATUS_OK, STATUS_PINCHED)
 from .horn import H_A, H_B, H_JV, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_RC, X_RS, X_SERIES, X_STEADY, X_UC, X_US, X_W, ModalHorn
 from .kernel import (N_PARAMS, P_C, P_E1, P_E2, P_G, P_GAP, P_K0, P_M_FREE, P_M_TOOL, P_SPRING_FORCE, P_V0,
                      P_V_STICK, pack)
-from .kernel_blocks import (C_A, C_L0, C_N, C_T0, C_UC, C_US, C_W, C_W0, C_WD0, E_N, FN_HORN, FN_HREL,
-                            FN_PINCH, FN_RELEASE, O_B0, O_B2, O_B4, O_N, PL_ROWS, count_impact,
-                            count_stick, earliest, grid_step, horn_impact_modal, mech_energy, osc_eval,
+from .kernel_blocks import (event_status, free_mass_at, C_A, C_L0, C_N, C_T0, C_UC, C_US, C_W, C_W0, C_WD0, E_N, FN_HORN, FN_HREL,
+                            FN_RELEASE, O_B0, O_B2, O_B4, O_N, PL_ROWS, count_impact,
+                            close_run, close_stick, earliest, grid_step, horn_impact_modal, mech_energy, osc_eval,
                             osc_make, osc_pv, plan_add, plan_flight, plan_on_tool, plan_pinch, record_event,
-                            record_segment, record_stick, sticks, tip, tool_impact, tool_osc, tool_skip)
+                            record_segment, sticks, tip, tool_event, tool_osc)
 from .kernel_contact import hc_contact
 from .kernel_energy import window_integrals
 from .params import ImpactParams
@@ -143,6 +142,23 @@ def _riding_work(m_free, a, wd, w, stick_E):
     return (0.5 * m_free * wd * wd - m_free * a * w) - stick_E
 
 
+@njit(cache=True)
+def _horn_event(te, x, wd, uhd, cp, tab, ho, n, xs, e2, m_free, a, v_stick, Sg, series, q, qd, t_from, t_end, stats,
+                mode, stick_start, stick_E, skip_rel):
+    """A Newton impact on the modal horn at te (:func:`impact.kernel_blocks.horn_impact_modal`, the
+    modes updated in place), the source's work through the residual, then the sticking rule.
+    Returns (J, w+, u'+, mode, stick_start, stick_E, skip_rel)."""
+    J, wa, ua = horn_impact_modal(e2, m_free, Sg, series, tab, n, q, qd, wd, uhd)
+    if te >= t_from and te <= t_end:
+        # the residual is a driven displacement: the source does its work on the free mass
+        W = xs[X_W]
+        stats[C_DRIVE] += J * W * (-xs[X_RC] * math.sin(W * te) + xs[X_RS] * math.cos(W * te))
+    if sticks(wa - ua, tip(te, cp, tab, ho, n, 2)[0] - a, v_stick):
+        wa = ua
+        return J, wa, ua, ON_HORN, te, 0.5 * m_free * wa * wa - m_free * a * x, skip_rel
+    return J, wa, ua, mode, stick_start, stick_E, 2.0 * (wa - ua)
+
+
 # ----------------------------------------------------------------------------- the event loop
 
 
@@ -206,12 +222,9 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
             # the last segment runs to t_end: its share of the window integrals
             window_integrals(tab, xs, n, t0, t_end, q, qd, t_from, t_end, stats, lam, G1, G2, cw)
             break
-        if name == FN_PINCH:
-            status, t_status = STATUS_PINCHED, te
-            break
-        n_ev += 1
-        if n_ev > max_events:
-            status, t_status = STATUS_MAX_EVENTS, te
+        status, n_ev = event_status(name, n_ev, max_events)
+        if status != STATUS_OK:
+            t_status = te
             break
         # the state at the event
         window_integrals(tab, xs, n, t0, te, q, qd, t_from, t_end, stats, lam, G1, G2, cw)
@@ -219,12 +232,7 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
         v, vd = osc_pv(o, s)
         _modal_at(ho, tab, n, W, t0, te, q, qd)
         uh, uhd = tip(te, cp, tab, ho, n, 0)
-        if mode == FREE:
-            w, wd = w0 + s * (wd0 + 0.5 * a * s), wd0 + a * s
-        elif mode == ON_HORN:
-            w, wd = uh, uhd
-        else:
-            w, wd = L0 + v, vd
+        w, wd = free_mass_at(mode, s, w0, wd0, a, L0, uh, uhd, v, vd)
         t = te
         if L0 + v <= 2.0 * B0:
             status, t_status = STATUS_PINCHED, te
@@ -236,10 +244,7 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
                 # the horn did the work that moved the riding mass (its reaction on the modes is neglected)
                 work += _riding_work(m_free, a, wd, w, stick_E)
             skip_h, skip_t = te, te
-            if record:
-                stk = record_stick(stk, n_stk, stick_start, te, body)
-                n_stk += 1
-            count_stick(stats, body, stick_start, te, t_from, t_end)
+            stk, n_stk = close_stick(stk, n_stk, record, stats, body, stick_start, te, t_from, t_end)
             mode = FREE
             continue
         if name == FN_HORN and hc[0] > 0.0:
@@ -259,30 +264,17 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
             vb, va = vd, vd
         elif name == FN_HORN:
             kind, x, wb, vb, va, ub = KIND_HORN, uh, wd, vd, vd, uhd
-            J, wa, ua = horn_impact_modal(e2, m_free, Sg, series, tab, n, q, qd, wd, uhd)
+            J, wa, ua, mode, stick_start, stick_E, skip_rel = _horn_event(
+                te, x, wd, uhd, cp, tab, ho, n, xs, e2, m_free, a, v_stick, Sg, series, q, qd, t_from, t_end, stats,
+                mode, stick_start, stick_E, skip_rel)
             work += J * 0.5 * (uhd + ua)
-            if te >= t_from and te <= t_end:
-                # the residual is a driven displacement: the source does its work on the free mass
-                stats[C_DRIVE] += J * W * (-xs[X_RC] * math.sin(W * te) + xs[X_RS] * math.cos(W * te))
-            if sticks(wa - ua, tip(te, cp, tab, ho, n, 2)[0] - a, v_stick):
-                wa = ua
-                mode = ON_HORN
-                stick_start = te
-                stick_E = 0.5 * m_free * wa * wa - m_free * a * x
-            else:
-                skip_rel = 2.0 * (wa - ua)
             skip_t = te
             w, wd = x, wa
         else:
             kind, x, vb, wb, ub, ua = KIND_TOOL, L0 + v, vd, wd, uhd, uhd
-            va, wa, stuck = tool_impact(m_free, m_tool, e1, c, k0, a, v_stick, v, vd, wd)
+            va, wa, mode, stick_start, skip_h, skip_t = tool_event(o2, te, m_free, m_tool, e1, c, k0, a, v_stick, v, vd,
+                                                                   wd, mode, stick_start, skip_h, skip_t)
             J = m_free * (wa - wd)
-            if stuck:
-                mode = ON_TOOL
-                stick_start = te
-            else:
-                skip_t = tool_skip(o2, te, m_tool, k0, c, a, v, va, wa)
-                skip_h = te
             w, wd, vd = x, wa, va
         # record
         if record:
@@ -290,19 +282,8 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
                                      mech_energy(m_free, m_tool, k0, a, w, wd, v, vd), work)
             ev[n_rec, 8], ev[n_rec, 9], ev[n_rec, 10] = J, ub, ua
             n_rec += 1
-        if te < t_from:
-            w_from = work
-        w_last = work
-        count_impact(stats, te, t_from, t_end, kind, m_tool, vb, va)
-    if status == STATUS_OK and mode != FREE:
-        body = BODY_HORN if mode == ON_HORN else BODY_TOOL
-        if record:
-            stk = record_stick(stk, n_stk, stick_start, t_end, body)
-            n_stk += 1
-        count_stick(stats, body, stick_start, t_end, t_from, t_end)
-    stats[S_HORN_WORK] = w_last - w_from
-    stats[S_STATUS] = status
-    stats[S_N_EVENTS] = n_ev
+        w_from, w_last = count_impact(stats, te, t_from, t_end, kind, m_tool, vb, va, work, w_from), work
+    stk, n_stk = close_run(stk, n_stk, record, stats, status, mode, stick_start, t_from, t_end, w_last - w_from, n_ev)
     return ev, kinds, n_rec, segs, n_seg, stk, n_stk, E0, status, t_status, n_ev
 
 

@@ -112,7 +112,7 @@ class ImpactParams:
         check_range("m_horn", self.m_horn, 1e-6, 100.0, "kg")
         check_range("m_tool", self.m_tool, 1e-6, 100.0, "kg")
         check_range("k0", self.k0, 0.0, 1e10, "N/m", lo_open=True)
-        # under-, critically and over-damped tools are all supported (impact.model._Osc)
+        # under-, critically and over-damped tools are all supported (impact.oscillator.Oscillator)
         check_range("c", self.c, 0.0, 1e6, "N s/m")
         check_range("gap", self.gap, 0.0, 1.0, "m", lo_open=True)
         if not self.gap > 2.0 * self.A0:

@@ -381,7 +381,7 @@ class EnsembleStats(Result):
                 **{k: v.to_dict() for k, v in self.estimates.items()}}
 
 
-def _estimates(raw: np.ndarray, window: float, level: float) -> dict:
+def window_estimates(raw: np.ndarray, window: float, level: float) -> dict:
     from . import kernel as K
 
     n_tool = raw[:, K.S_N_TOOL]
@@ -410,7 +410,7 @@ def _summarise(params, scenario, settings, raw_all) -> EnsembleStats:
         return EnsembleStats(params=params, scenario=scenario, estimates=est, members=int(raw_all.shape[0]),
                              failed=failed, converged=False, settings=settings, note=why,
                              events=int(raw_all[:, K.S_N_EVENTS].sum()), raw=raw_all)
-    est = _estimates(raw_all, scenario.window_s, settings.level)
+    est = window_estimates(raw_all, scenario.window_s, settings.level)
     rel = [est[q].rel_half_width for q in DRIVING]
     converged = bool(raw_all.shape[0] >= 2 and all(math.isfinite(r) and r <= settings.rel_tol for r in rel))
     note = ""

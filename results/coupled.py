@@ -299,7 +299,7 @@ def history_csv(res) -> str:
     (m/s), free mass and tool face positions (m), drive voltage (V) and current (A)."""
     import io
 
-    from impact.coupled import _states_on
+    from impact.coupled_result import states_on as _states_on
 
     t = res.t_grid
     W = 2 * np.pi * res.freq_hz

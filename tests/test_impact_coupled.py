@@ -155,7 +155,7 @@ def test_energy_balance_closes_over_0p1_s():
     assert win[C_DAMP] == pytest.approx(whole["damping_j"], rel=1e-9)
     # and the numpy closed forms agree with a plain quadrature of the sampled integrand (1e-5)
     t = np.linspace(0.0, 0.01, 400_001)
-    from impact.coupled import _states_on
+    from impact.coupled_result import states_on as _states_on
     q, qd, _ = _states_on(res, t)
     fc, fs = horn.forcing()
     f = np.outer(np.cos(W * t), fc) + np.outer(np.sin(W * t), fs)
@@ -468,7 +468,7 @@ def test_hunt_crossley_kernel_equals_python_engine_and_balances_energy():
     ``HC_EPS`` of the contacts' work and the drive work."""
     from impact import kernel_modal as KM
     from impact.contact import HuntCrossley
-    from impact.coupled import _propagate
+    from impact.coupled_result import propagate as _propagate
 
     h = _horn(2, "steady", seed=1)
     p = ImpactParams(m_free=0.008, t_end=0.01, spring_force=5.0)
@@ -507,7 +507,7 @@ def test_hunt_crossley_energy_closes_where_the_damping_would_pull(e2, seed):
     the first events within ``_hc_tolerances``."""
     from impact import kernel_modal as KM
     from impact.contact import HuntCrossley
-    from impact.coupled import _propagate
+    from impact.coupled_result import propagate as _propagate
 
     h = _horn(2, "steady", seed=seed)
     p = ImpactParams(m_free=0.008, t_end=0.02, spring_force=5.0, e2=e2)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 from scipy.integrate import solve_ivp
 
-from .params import ImpactParams
+from ..params import ImpactParams
 
 __all__ = ["simulate_ivp"]
 
