@@ -196,6 +196,8 @@ class _System:
                 out.append((lambda t, y, k=k: self.approaches(t, y)[k], con, "touch", 1))
             elif con.state == _LOADING:
                 out.append((lambda t, y, k=k: self.approaches(t, y)[k + 1], con, "peak", -1))
+                # a touch that starts receding (re-touch right after a separation) leaves elastically
+                out.append((lambda t, y, k=k: self.approaches(t, y)[k], con, "separate", -1))
             else:
                 out.append((lambda t, y, k=k, con=con: self.approaches(t, y)[k] - con.total_max, con, "reload", 1))
                 out.append((lambda t, y, k=k: self.approaches(t, y)[k], con, "separate", -1))
@@ -271,10 +273,25 @@ class _Flight:
                 k = 0 if Dh[i] > 0.0 else 2
                 lo = t_a if i == 0 else float(ts[i - 1])
                 fn = (lambda t: self.gaps(t0, y, [t])[k // 2][0])
-                hit = (brentq(fn, lo, float(ts[i]), xtol=1e-15, rtol=8.9e-16), k)
+                hit = (self._touch(fn, lo, float(ts[i])), k)
             t_a = float(ts[-1])
         t1 = hit[0] if hit else t_end
         return t1, self._advance(t0, y, t1), (hit[1] if hit else None)
+
+    @staticmethod
+    def _touch(fn, lo: float, hi: float) -> float:
+        """The first zero of the approach ``fn`` in ``[lo, hi]`` (``fn(hi) > 0``). Only at a flight's
+        start can ``fn(lo)`` be above zero (a separation leaves the approach at zero to round-off):
+        the bodies then part if the approach dips below zero in between (the touch is after the
+        dip), else they touch again at ``lo``."""
+        from scipy.optimize import brentq, minimize_scalar
+
+        if fn(lo) > 0.0:
+            dip = minimize_scalar(fn, bounds=(lo, hi), method="bounded", options={"xatol": 1e-15})
+            if not dip.fun < 0.0:
+                return lo
+            lo = float(dip.x)
+        return brentq(fn, lo, hi, xtol=1e-15, rtol=8.9e-16)
 
     def _advance(self, t0, y, t1):
         from .horn import segment_integrals
