@@ -42,7 +42,8 @@ from .explore_cluster import (WORKER_ENV, SCHEDULER_TIMEOUT_S, check_scheduler_a
 from .explore_cost import MAX_HOURS, CostEstimate, check_cost, estimate_cost
 from .explore_store import (MAX_RECORD_BYTES, check_store, make_row, point_id, read_store, reset_store, resume_store,
                             write_record)
-from .explore_tasks import guard, record, split_point, task_harmonic, task_impact, task_key, task_match, task_mesh
+from .explore_tasks import (guard, record, rotor_values, split_point, task_harmonic, task_impact, task_key,
+                            task_match, task_mesh, task_rotor)
 from .study import OUTPUTS, Study
 
 log = logging.getLogger(__name__)
@@ -75,6 +76,10 @@ def _submit(client, study: Study, todo: list[tuple[int, dict]], store: str | Non
         if "impact" in stages:
             ik = f"impact-{fp}-{task_key(point)}-{index}"
             futs.append(once(ik, lambda h, v=voltage, i=impact: task_impact(study, h, v, i), futs[2]))
+        if "rotor" in stages:
+            rk = f"rotor-{fp}-{task_key(point)}-{index}"
+            futs.append(once(rk, lambda h, d=design, v=voltage, r=rotor_values(point): task_rotor(study, h, d, v, r),
+                             futs[2]))
         recs = [once(f"rec-{f.key}", record, f) for f in futs]
         rows.append(client.submit(make_row, study, index, point, recs, store, key=f"row-{fp}-{index}", pure=False))
     return rows
@@ -105,6 +110,10 @@ def run_sequential(study: Study, points: list[dict] | None = None, threads: int 
                             lambda m, q=q_mech: task_harmonic(study, m, q), out[1]))
         if "impact" in study.stages:
             out.append(guard("impact", lambda h, v=voltage, i=impact: task_impact(study, h, v, i), out[2],
+                             threads=threads))
+        if "rotor" in study.stages:
+            rotor = rotor_values(point)
+            out.append(guard("rotor", lambda h, d=design, v=voltage, r=rotor: task_rotor(study, h, d, v, r), out[2],
                              threads=threads))
         rows.append(make_row(study, index, point, [record(x) for x in out]))
     return rows

@@ -44,6 +44,8 @@ from it."""
 FE_COST_EXPONENT = 1.3
 """FE stage time ~ estimated DOFs ** 1.3 (default design at mesh_size 2.5 and 2 mm: 2.7x and
 5.1x the DOFs took 2.6-3.1x and 7.0-8.6x the modal and harmonic time)."""
+ROTOR_SECONDS = 0.15
+"""The rotor stage of one point (torque-speed curve and hovering check), s (measured 0.12 s warm)."""
 STARTUP_SECONDS = 5.0
 """Starting a local cluster and writing the results folder, s."""
 MAX_HOURS = 2.0
@@ -104,6 +106,8 @@ def estimate_cost(study: Study, points: list[dict], workers: int) -> CostEstimat
     core = (meshes * (MESH_SECONDS + match_s) + harmonics * HARMONIC_SECONDS) * scale
     if "impact" in study.stages:
         core += len(points) * (IMPACT_SECONDS + IMPACT_MEMBER_SECONDS * study.settings.max_members)
+    if "rotor" in study.stages:
+        core += len(points) * ROTOR_SECONDS
     workers = max(workers, 1)
     return CostEstimate(seconds=STARTUP_SECONDS + core / workers, core_seconds=core, points=len(points),
                         meshes=meshes, harmonics=harmonics, workers=workers, dofs=dofs)

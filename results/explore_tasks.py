@@ -1,6 +1,6 @@
 """The tasks of a design study: the pipeline's stage functions on one point.
 
-A point's chain is mesh -> match -> harmonic -> impact, each task the stage function the
+A point's chain is mesh -> match -> harmonic -> impact (and rotor after harmonic), each task the stage function the
 end-to-end run calls (:mod:`results.stage_fe`, :mod:`results.stage_harmonic`,
 :mod:`results.stage_impacts`), with the mesh options, losses and impact rule of the study's settings
 (:class:`results.study.StudySettings`). The harmonic task works per volt (the drive voltage
@@ -19,12 +19,12 @@ from contextlib import nullcontext
 from dataclasses import dataclass
 from typing import Any, Callable
 
-from .study import Study
+from .study import GROUPS, Study
 
 log = logging.getLogger(__name__)
 
 __all__ = ["Failed", "guard", "split_point", "task_key", "task_mesh", "task_match", "task_harmonic", "task_impact",
-           "record", "HANDOFF_DIGITS"]
+           "task_rotor", "rotor_values", "record", "HANDOFF_DIGITS"]
 
 HANDOFF_DIGITS = 4
 """Significant digits of the amplitude handed to the impacts (the pipeline's default)."""
@@ -63,7 +63,7 @@ def guard(stage: str, fn: Callable, *inputs, threads: int | None = 1):
 
 def split_point(study: Study, point: dict) -> tuple[dict, float, float, dict]:
     """A point's design values, ``q_mech``, drive voltage (V) and impact parameters."""
-    design = {k: v for k, v in point.items() if k.split(".", 1)[0] not in ("drive", "impact")}
+    design = {k: v for k, v in point.items() if k.split(".", 1)[0] not in GROUPS}
     q_mech = point.get("drive.q_mech", study.settings.q_mech)
     voltage = point.get("drive.voltage", study.settings.voltage)
     impact = {k.split(".", 1)[1]: v for k, v in point.items() if k.startswith("impact.")}
@@ -125,6 +125,25 @@ def task_impact(study: Study, harm, voltage: float, impact_values: dict) -> dict
         rec[out] = est[q].mean
         rec[f"{out}_ci95"] = est[q].half_width
     rec["impact_s"] = time.perf_counter() - t0
+    return rec
+
+
+def rotor_values(point: dict) -> dict:
+    """A point's :class:`impact.rotor.RotorParams` fields (``rotor.<field>`` parameters)."""
+    return {k.split(".", 1)[1]: v for k, v in point.items() if k.startswith("rotor.")}
+
+
+def task_rotor(study: Study, harm, design_values: dict, voltage: float, values: dict) -> dict:
+    """The rotor's speed and torque of one point (:func:`results.rotor_stage.study_rotor`): the
+    per-volt teeth motion at the point's voltage, the load the pipeline's default weight on bit
+    gives."""
+    from .pipeline import PipelineSettings
+    from .rotor_stage import study_rotor
+
+    t0 = time.perf_counter()
+    design = study.base_design().replace(design_values) if design_values else study.base_design()
+    rec = study_rotor(design, harm.wp, harm.f_w, voltage, values, PipelineSettings().wob)
+    rec["rotor_s"] = time.perf_counter() - t0
     return rec
 
 

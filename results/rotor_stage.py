@@ -22,12 +22,12 @@ import logging
 import math
 from dataclasses import dataclass
 
-from impact.rotor import RotorParams, TeethMotion, rotor_performance
+from impact.rotor import RotorParams, TeethMotion, bit_friction_torque, rotor_performance
 from rpud_common import ParameterError, check_nonnegative, check_range
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TeethReport", "rotor_params_from_design", "rotor_stage", "OUTPUTS"]
+__all__ = ["TeethReport", "rotor_params_from_design", "rotor_stage", "study_rotor", "OUTPUTS", "BIT"]
 
 _RPM = 30.0 / math.pi
 
@@ -41,6 +41,9 @@ OUTPUTS = (
     ("contact_efficiency", "-", "mechanical power / teeth power under the load torque"),
 )
 """(key, unit, meaning) of the stage's outputs, each reported with ``<key>_error``."""
+
+BIT = (3e-3, 0.4)
+"""The load's bit: diameter (m) of a flat bit and its friction coefficient in rock (assumed)."""
 
 
 @dataclass(frozen=True)
@@ -180,16 +183,14 @@ def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> d
     antinode); the ellipse ratio its own estimated error; the phase has no estimate in
     :mod:`fem.errors`, which the JSON states (``phase_error_note``) rather than hiding.
     """
-    from impact.rotor import bit_friction_torque
-
     if "teeth_tops" not in getattr(wp, "surfaces", {}) or not getattr(design.coupler, "n_teeth", 0):
         return None
-    axial = abs(wp.surfaces["teeth_tops"]["axial"])
+    axial = _teeth_axial(wp, 1.0)
     rel = est.relative("tip_per_volt_m") if est is not None else None
     ratio_err = est.error("teeth_ellipse_ratio") if est is not None and "teeth_ellipse_ratio" in est.errors else None
     teeth = TeethReport(freq_hz=f_w, axial_m=axial, axial_error_m=axial * (rel or 0.0), ratio=wp.teeth_ellipse_ratio,
                         ratio_error=ratio_err or 0.0, phase_deg=wp.teeth_phase_deg, phase_error_deg=0.0)
-    out = rotor_stage(teeth, rotor_params_from_design(design), bit_friction_torque(wob, 3e-3, 0.4),
+    out = rotor_stage(teeth, rotor_params_from_design(design), bit_friction_torque(wob, *BIT),
                       float(wp.power_w), say=say)
     j = out["json"]
     j["axial_error_note"] = ("the tip amplitude's relative discretisation error" if rel is not None
@@ -198,5 +199,32 @@ def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> d
         j["ratio_error_note"] = "not estimated (no discretisation-error estimate of the ellipse ratio in this run)"
     j["phase_error_note"] = ("the teeth phase has no discretisation-error estimate (fem.errors does not estimate it): "
                              "the errors above exclude it")
-    j["load_note"] = f"the bit's friction in rock: flat 3 mm bit, weight on bit {wob:g} N, mu_rock 0.4 (assumed)"
+    j["load_note"] = (f"the bit's friction in rock: flat {BIT[0] * 1e3:g} mm bit, weight on bit {wob:g} N, "
+                      f"mu_rock {BIT[1]:g} (assumed)")
     return out
+
+
+def _teeth_axial(wp, scale: float) -> float:
+    """The teeth tops' axial amplitude (m) of the working point ``wp`` times ``scale`` (the
+    harmonic response is linear in the drive voltage)."""
+    if "teeth_tops" not in getattr(wp, "surfaces", {}):
+        raise ParameterError("coupler.n_teeth", 0, "must be >= 1: the working point has no teeth tops to drive "
+                                                   "the rotor")
+    return abs(wp.surfaces["teeth_tops"]["axial"]) * scale
+
+
+def study_rotor(design, wp, f_w: float, scale: float, rotor_values: dict, wob: float) -> dict:
+    """One design-study point's rotor outputs (``rotor_*`` of :data:`results.study.OUTPUTS`).
+
+    The teeth motion of the working point ``wp`` at ``f_w`` (Hz) scaled by ``scale`` (the drive
+    voltage over the working point's: the point's voltage for a study's 1 V working point),
+    the rotor data of ``design``
+    (:func:`rotor_params_from_design`) with ``rotor_values`` (RotorParams fields) set, and the
+    bit's friction torque under ``wob`` (N) as the load: the nominal results of
+    :func:`rotor_stage`, without its error box (a study's harmonic task has no error estimate).
+    """
+    params = rotor_params_from_design(design).with_(**rotor_values)
+    teeth = TeethMotion.from_ellipse(f_w, _teeth_axial(wp, scale), wp.teeth_ellipse_ratio, wp.teeth_phase_deg)
+    res = rotor_performance(teeth, params, bit_friction_torque(wob, *BIT))
+    return {"rotor_no_load_rpm": float(res.no_load_speed * _RPM), "rotor_stall_torque_n_m": float(res.stall_torque),
+            "rotor_load_rpm": float(res.load_speed * _RPM), "rotor_hovers": float(bool(res.hover["holds"]))}

@@ -8,7 +8,7 @@ points that :mod:`results.explore` runs::
     name = "slot_angle"
     design = "default"            # or a design TOML, relative to the study file
     select = ""                   # the design's name in a file of several designs
-    stages = ["mesh", "match", "harmonic"]   # a prefix of mesh -> match -> harmonic -> impact
+    stages = ["mesh", "match", "harmonic"]   # a prefix of mesh -> match -> harmonic -> impact, + "rotor"
     sampling = "grid"             # grid | lhs | list | tolerance
     samples = 8                   # lhs / tolerance: number of points
     seed = 1                      # lhs / tolerance sampling and the impact ensembles
@@ -32,8 +32,12 @@ points that :mod:`results.explore` runs::
     tolerance = 0.02              # tolerance sampling: +-2 % around the base value
 
 Parameter names: a dotted design path (``horn.length``), ``drive.voltage`` (V) or
-``drive.q_mech``, or ``impact.<field>`` of :class:`impact.params.ImpactParams` (``m_free`` kg,
-``e1``, ``gap`` m...). Sampling ``list`` takes ``[[points]]`` tables instead of ranges.
+``drive.q_mech``, ``impact.<field>`` of :class:`impact.params.ImpactParams` (``m_free`` kg,
+``e1``, ``gap`` m...), or ``rotor.<field>`` of :class:`impact.rotor.RotorParams` (``preload`` N,
+``mu``, ``rotor_mass`` kg...; the ``rotor`` stage, which needs ``harmonic``, turns the teeth
+motion into the rotor's speed and torque, :func:`results.rotor_stage.study_rotor`). The coupler's
+dimensions reach the rotor through the design (contact radius, teeth, tooth area). Sampling
+``list`` takes ``[[points]]`` tables instead of ranges.
 
 Every key is checked by type and range on loading, before anything runs; a key the sampling
 does not read (a tolerance under grid sampling, ``[parameters]`` tables under list sampling) is
@@ -59,7 +63,9 @@ from fem.losses import ASSEMBLED_Q_MECH
 
 __all__ = ["Study", "StudyParameter", "StudySettings", "load_study", "STAGES", "SAMPLINGS", "OUTPUTS"]
 
-STAGES = ("mesh", "match", "harmonic", "impact")
+CHAIN = ("mesh", "match", "harmonic", "impact")
+STAGES = CHAIN + ("rotor",)
+"""Every stage name: a prefix of :data:`CHAIN`, plus ``rotor`` (after ``harmonic``) if named."""
 SAMPLINGS = ("grid", "lhs", "list", "tolerance")
 MAX_POINTS = 100_000
 
@@ -81,9 +87,16 @@ OUTPUTS = {
     "tool_power_w": ("impact", "W", "kinetic energy delivered to the tool per second (95 % CI)"),
     "tool_rate_hz": ("impact", "Hz", "free-mass/tool impacts per second (95 % CI)"),
     "horn_power_w": ("impact", "W", "work of the horn on the free mass per second (95 % CI)"),
+    "rotor_no_load_rpm": ("rotor", "rpm", "rotor speed without load (hovering model)"),
+    "rotor_stall_torque_n_m": ("rotor", "N m", "rotor's mean driving torque at rest"),
+    "rotor_load_rpm": ("rotor", "rpm", "rotor speed under the bit's friction torque"),
+    "rotor_hovers": ("rotor", "-", "direct integration keeps the rotor on the teeth (1) or it bounces (0)"),
 }
 IMPACT_FIELDS = ("m_free", "e1", "e2", "m_tool", "k0", "c", "gap", "v0", "spring_force")
 DRIVE_FIELDS = ("voltage", "q_mech")
+ROTOR_FIELDS = ("preload", "spring_stiffness", "mu", "rotor_mass", "rotor_inertia", "k_normal", "k_tangential")
+GROUPS = ("drive", "impact", "rotor")
+"""Parameter groups that are not design paths."""
 
 
 @dataclass(frozen=True)
@@ -93,7 +106,7 @@ class StudyParameter:
     Attributes
     ----------
     name : str
-        Dotted design path, ``drive.<voltage|q_mech>`` or ``impact.<field>``.
+        Dotted design path, ``drive.<voltage|q_mech>``, ``impact.<field>`` or ``rotor.<field>``.
     values : tuple of float
         Explicit levels (grid sampling).
     low, high : float or None
@@ -113,9 +126,9 @@ class StudyParameter:
 
     @property
     def group(self) -> str:
-        """``design``, ``drive`` or ``impact``: which stage the parameter first reaches."""
+        """``design``, ``drive``, ``impact`` or ``rotor``: which stage the parameter first reaches."""
         head = self.name.split(".", 1)[0]
-        return head if head in ("drive", "impact") else "design"
+        return head if head in GROUPS else "design"
 
     def levels(self) -> list[float]:
         if self.values:
@@ -203,10 +216,8 @@ class Study:
         group, _, rest = p.name.partition(".")
         if p.group == "drive":
             return float(getattr(self.settings, rest))
-        if p.group == "impact":
-            from impact.params import ImpactParams
-
-            return float(getattr(ImpactParams(), rest))
+        if p.group in ("impact", "rotor"):
+            return _base_of(p, self.settings)
         return float((design or self.base_design()).get(p.name))
 
     def points(self, design=None) -> list[dict[str, float]]:
@@ -305,9 +316,11 @@ def _study_table(data: Mapping[str, Any]) -> dict[str, Any]:
     if select and design == "default":
         raise ParameterError("study.select", select, "picks a design out of a design file; the default design has "
                                                      "no choice (remove select or name a file in design)")
-    stages = _names("study.stages", s.get("stages", list(STAGES)), STAGES)
-    if not stages or stages != STAGES[:len(stages)]:
-        raise ParameterError("study.stages", list(stages), f"must be a prefix of {list(STAGES)}")
+    stages = _names("study.stages", s.get("stages", list(CHAIN)), STAGES)
+    chain = tuple(x for x in stages if x != "rotor")
+    if not chain or chain != CHAIN[:len(chain)] or ("rotor" in stages and "harmonic" not in chain):
+        raise ParameterError("study.stages", list(stages), f"must be a prefix of {list(CHAIN)}, plus 'rotor' if "
+                                                           "'harmonic' is in it")
     sampling = s.get("sampling", "grid")
     check_choice("study.sampling", sampling, SAMPLINGS)
     seed = s.get("seed", 1)
@@ -359,7 +372,7 @@ def _settings(raw: Any) -> StudySettings:
 
 
 def _parameter_name(where: str, name: Any) -> str:
-    """A dotted design path, ``drive.<field>`` or ``impact.<field>``."""
+    """A dotted design path, ``drive.<field>``, ``impact.<field>`` or ``rotor.<field>``."""
     parts = name.split(".") if isinstance(name, str) and len(name) <= 200 else [""]
     if not all(_NAME_PART.match(part) for part in parts):
         raise ParameterError(where, name, "must be a dotted design path such as horn.length, drive.voltage or "
@@ -369,6 +382,8 @@ def _parameter_name(where: str, name: Any) -> str:
         raise ParameterError(where, name, f"drive parameters are {', '.join('drive.' + f for f in DRIVE_FIELDS)}")
     if group == "impact" and rest not in IMPACT_FIELDS:
         raise ParameterError(where, name, f"impact parameters are {', '.join('impact.' + f for f in IMPACT_FIELDS)}")
+    if group == "rotor" and rest not in ROTOR_FIELDS:
+        raise ParameterError(where, name, f"rotor parameters are {', '.join('rotor.' + f for f in ROTOR_FIELDS)}")
     return name
 
 
@@ -462,7 +477,7 @@ def _listed(pts: Any) -> tuple[tuple[StudyParameter, ...], tuple[dict, ...]]:
 
 
 def _base_of(p: StudyParameter, settings: StudySettings) -> float | None:
-    """The base value of a drive or impact parameter (None for a design one: known on loading)."""
+    """The base value of a drive, impact or rotor parameter (None for a design one: known on loading)."""
     group, _, rest = p.name.partition(".")
     if group == "drive":
         return float(getattr(settings, rest))
@@ -470,6 +485,10 @@ def _base_of(p: StudyParameter, settings: StudySettings) -> float | None:
         from impact.params import ImpactParams
 
         return float(getattr(ImpactParams(), rest))
+    if group == "rotor":
+        from impact.rotor import RotorParams
+
+        return float(getattr(RotorParams(), rest))
     return None
 
 
@@ -501,10 +520,18 @@ def _check_physical(p: StudyParameter, values: list[float]) -> None:
                 ImpactParams(A0=0.0).with_(**{rest: v})
             except ParameterError as exc:
                 raise ParameterError(where, v, exc.allowed) from None
+    elif group == "rotor":
+        from impact.rotor import RotorParams
+
+        for v in values:
+            try:
+                RotorParams().with_(**{rest: v})
+            except ParameterError as exc:
+                raise ParameterError(where, v, exc.allowed) from None
 
 
 def _check_reach(params, stages: tuple[str, ...]) -> None:
-    needed = {"design": "mesh", "drive": "harmonic", "impact": "impact"}
+    needed = {"design": "mesh", "drive": "harmonic", "impact": "impact", "rotor": "rotor"}
     for p in params:
         if needed[p.group] not in stages:
             raise ParameterError(f"parameters.{p.name}", p.name, f"needs the {needed[p.group]!r} stage in study.stages")

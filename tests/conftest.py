@@ -80,6 +80,7 @@ SLOW: tuple[str, ...] = (
     "tests/test_explore_hostile.py::test_valid_and_foreign_records_resume_without_a_cluster",
     "tests/test_facets.py::test_swept_flange_is_inverted_exactly",
     "tests/test_explore.py",
+    "tests/test_rotor_study.py::test_study_rotor_row_is_the_rotor_stage",
     "tests/test_fem_assembly.py::test_solver_backends_agree_real_and_complex",
     "tests/test_fem_convergence.py",
     "tests/test_fem_eigen.py::test_block_modal_equals_arpack",
