@@ -21,7 +21,8 @@ References and tolerances:
 - bad input: one line, exit 2, nothing written.
 
 A published ultrasonic-motor case is not reproduced here: no case with its dimensions, preload,
-friction and vibration amplitudes and a model result was reachable.
+friction and vibration amplitudes and a result of stated accuracy was reachable (the sources
+searched and why each fails: docs/theory/rotor.md, "Verification").
 """
 
 import json
