@@ -102,6 +102,103 @@ def _momentum(Mh, V, mc, vc, m_w, wd, Z, dt, ringA, ringB):
 
 
 @njit(cache=True)
+def _horn_blow(te, X, V, wd, A0, om, e2, v_stick, mu_h, Mh, m_w, housing_free, work_horn, started, stats):
+    """The free mass meets the horn at te: Newton's law between it and the housing that carries
+    the horn (effective mass mu; the horn's vibration is imposed): momentum and, for e2 = 1 and a
+    still horn, energy are exact. Returns (w, w', V, horn work)."""
+    hx = X + A0 * math.cos(om * te)
+    hv = V - A0 * om * math.sin(om * te)
+    ap = hv - wd
+    w = hx
+    if ap > 0.0:
+        ee = e2 if e2 * ap >= v_stick else 0.0
+        J = mu_h * (1.0 + ee) * ap
+        work_horn += J * hv
+        if housing_free:
+            V -= J / Mh
+        wd = wd + J / m_w
+        if started:
+            stats[S_HORN] += 1.0
+    return w, wd, V, work_horn
+
+
+@njit(cache=True)
+def _collar_blow(xc, vc, wd, m_w, mc, e1, v_stick, fpeak, started, stats, rock_on, rs, kl, ku, fth):
+    """The free mass strikes the collar: Newton's law (restitution e1, plastic below v_stick), the
+    blow's statistics, and the rock's memory cleared (each blow meets fresh rock). Returns (w, w',
+    the collar's velocity, the peak rock force since the blow)."""
+    ap = wd - vc
+    w = xc
+    if ap > 0.0:
+        M = m_w + mc
+        if e1 * ap < v_stick:
+            vn = (m_w * wd + mc * vc) / M
+            wn = vn
+        else:
+            vn = vc + m_w / M * (1.0 + e1) * ap
+            wn = wd - mc / M * (1.0 + e1) * ap
+        if started:
+            stats[S_BLOWS] += 1.0
+            stats[S_KE_COLLAR] += 0.5 * mc * (vn * vn - vc * vc)
+            stats[S_FPEAK_SUM] += fpeak
+        fpeak = 0.0
+        vc, wd = vn, wn
+        if rock_on:
+            rock_new_blow(rs, kl, ku, fth)
+    return w, wd, vc, fpeak
+
+
+@njit(cache=True)
+def _record_row(row, t_rec, Z, dt, a0, b0, n_bit, vc, dd, rs, X, V, w, wd, xc, f_rock_end, racc, work_horn, mc, k0, L0,
+                kl, ku, fth, wob, Mh, housing_free, free_on, m_w, g, Fs, ringA, ringB):
+    """One recorded row (columns ``C_*``) at the end of a step, t_rec (s)."""
+    row[C_T] = t_rec
+    row[C_N_TOP] = Z * (a0 - b0)
+    row[C_N_BIT] = n_bit
+    row[C_V_COLLAR] = vc
+    row[C_V_BIT] = dd / dt
+    row[C_D] = rs[R_E] + rs[R_P]
+    row[C_P] = rs[R_P]
+    row[C_X_HOUSING] = X
+    row[C_W] = w
+    row[C_F_ROCK] = f_rock_end
+    # mechanical energy (J): kinetic, spring k0, rod waves, rock's elastic energy (the
+    # elastic curve), potentials of the WOB, gravity on the free mass, restoring spring
+    q = xc - X - L0
+    e = rs[R_E]
+    if e <= 0.0:
+        er = 0.0
+    elif e <= fth / kl:
+        er = 0.5 * kl * e * e
+    else:
+        eth = fth / kl
+        er = 0.5 * fth * eth + fth * (e - eth) + 0.5 * ku * (e - eth) ** 2
+    en = (0.5 * mc * vc * vc + 0.5 * k0 * q * q + Z * dt * ((ringA * ringA).sum() + (ringB * ringB).sum())
+          + er - wob * X)
+    if housing_free:
+        en += 0.5 * Mh * V * V
+    if free_on:
+        en += 0.5 * m_w * wd * wd - m_w * g * w + Fs * (w - X)
+    row[C_ENERGY] = en
+    row[C_ROCK_WORK] = racc[0]
+    row[C_HORN_WORK] = work_horn
+
+
+@njit(cache=True)
+def _close_plastic(X, V, w, wd, xc, vc, A0, om, t1):
+    """A chattering step closed plastically at its end t1 (s): no interpenetration left with the
+    horn (on the housing X, V) or the collar (xc, vc). Returns the free mass's (w, w')."""
+    hp = X + A0 * math.cos(om * t1)
+    if w < hp:
+        w = hp
+        wd = V - A0 * om * math.sin(om * t1)
+    if w > xc:
+        w = xc
+        wd = vc
+    return w, wd
+
+
+@njit(cache=True)
 def _core(pv, t_from, t_end, stats, rec_every, rec):
     m_w, A0, om, e1, e2 = pv[D_M_FREE], pv[D_A0], pv[D_OM], pv[D_E1], pv[D_E2]
     mc, k0, c, L0, g = pv[D_M_COLLAR], pv[D_K0], pv[D_C], pv[D_GAP], pv[D_G]
@@ -211,14 +308,7 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
                     w, wd = we, wd + aw * h
                     if n_ev >= _MAX_EV:
                         status = STATUS_PLASTIC
-                        # chattering step: closed plastically (no interpenetration left)
-                        hp = X + A0 * math.cos(om * (t + dt))
-                        if w < hp:
-                            w = hp
-                            wd = V - A0 * om * math.sin(om * (t + dt))
-                        if w > xc:
-                            w = xc
-                            wd = vc
+                        w, wd = _close_plastic(X, V, w, wd, xc, vc, A0, om, t + dt)
                 break
             sh = _root(0, tt, xc, vc, fext, lam, mc, X, V, Ah, w, wd, aw, A0, om, free_on, h) if gh < 0.0 else math.inf
             sc = _root(1, tt, xc, vc, fext, lam, mc, X, V, Ah, w, wd, aw, A0, om, free_on, h) if gc < 0.0 else math.inf
@@ -230,41 +320,11 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
             te = t + s
             n_ev += 1
             if sh <= sc:
-                hx = X + A0 * math.cos(om * te)
-                hv = V - A0 * om * math.sin(om * te)
-                ap = hv - wd
-                w = hx
-                if ap > 0.0:
-                    # Newton's law between the free mass and the housing that carries the horn
-                    # (effective mass mu; the horn's vibration is imposed): momentum and, for
-                    # e2 = 1 and a still horn, energy are exact
-                    ee = e2 if e2 * ap >= v_stick else 0.0
-                    J = mu_h * (1.0 + ee) * ap
-                    work_horn += J * hv
-                    if housing_free:
-                        V -= J / Mh
-                    wd = wd + J / m_w
-                    if started:
-                        stats[S_HORN] += 1.0
+                w, wd, V, work_horn = _horn_blow(te, X, V, wd, A0, om, e2, v_stick, mu_h, Mh, m_w, housing_free,
+                                                 work_horn, started, stats)
             else:
-                ap = wd - vc
-                w = xc
-                if ap > 0.0:
-                    M = m_w + mc
-                    if e1 * ap < v_stick:
-                        vn = (m_w * wd + mc * vc) / M
-                        wn = vn
-                    else:
-                        vn = vc + m_w / M * (1.0 + e1) * ap
-                        wn = wd - mc / M * (1.0 + e1) * ap
-                    if started:
-                        stats[S_BLOWS] += 1.0
-                        stats[S_KE_COLLAR] += 0.5 * mc * (vn * vn - vc * vc)
-                        stats[S_FPEAK_SUM] += fpeak
-                    fpeak = 0.0
-                    vc, wd = vn, wn
-                    if rock_on:
-                        rock_new_blow(rs, kl, ku, fth)      # each blow meets fresh rock
+                w, wd, vc, fpeak = _collar_blow(xc, vc, wd, m_w, mc, e1, v_stick, fpeak, started, stats, rock_on, rs,
+                                                kl, ku, fth)
         n_ev_total += n_ev
         vbar = (xc - xc_start) / dt
         if unilateral and in_contact and vbar - 2.0 * b0 < 0.0:
@@ -288,36 +348,8 @@ def _core(pv, t_from, t_end, stats, rec_every, rec):
             if f_rock_end > 0.0:
                 stats[S_T_CONTACT] += dt
         if rec_every > 0 and (n + 1) % rec_every == 0 and n_rec < rec.shape[0]:
-            rec[n_rec, C_T] = t + dt
-            rec[n_rec, C_N_TOP] = Z * (a0 - b0)
-            rec[n_rec, C_N_BIT] = n_bit
-            rec[n_rec, C_V_COLLAR] = vc
-            rec[n_rec, C_V_BIT] = dd / dt
-            rec[n_rec, C_D] = rs[R_E] + rs[R_P]
-            rec[n_rec, C_P] = rs[R_P]
-            rec[n_rec, C_X_HOUSING] = X
-            rec[n_rec, C_W] = w
-            rec[n_rec, C_F_ROCK] = f_rock_end
-            # mechanical energy (J): kinetic, spring k0, rod waves, rock's elastic energy (the
-            # elastic curve), potentials of the WOB, gravity on the free mass, restoring spring
-            q = xc - X - L0
-            e = rs[R_E]
-            if e <= 0.0:
-                er = 0.0
-            elif e <= fth / kl:
-                er = 0.5 * kl * e * e
-            else:
-                eth = fth / kl
-                er = 0.5 * fth * eth + fth * (e - eth) + 0.5 * ku * (e - eth) ** 2
-            en = (0.5 * mc * vc * vc + 0.5 * k0 * q * q + Z * dt * ((ringA * ringA).sum() + (ringB * ringB).sum())
-                  + er - wob * X)
-            if housing_free:
-                en += 0.5 * Mh * V * V
-            if free_on:
-                en += 0.5 * m_w * wd * wd - m_w * g * w + Fs * (w - X)
-            rec[n_rec, C_ENERGY] = en
-            rec[n_rec, C_ROCK_WORK] = racc[0]
-            rec[n_rec, C_HORN_WORK] = work_horn
+            _record_row(rec[n_rec], t + dt, Z, dt, a0, b0, n_bit, vc, dd, rs, X, V, w, wd, xc, f_rock_end, racc,
+                        work_horn, mc, k0, L0, kl, ku, fth, wob, Mh, housing_free, free_on, m_w, g, Fs, ringA, ringB)
             n_rec += 1
     if t_from <= 0.0:
         stats[S_P_FROM] = m_w * pv[D_V0] + mc * pv[D_COLLAR_V0]
