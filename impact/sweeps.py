@@ -166,6 +166,18 @@ def sweep(params: ImpactParams | None, m_free_values, *, scenario: str | Scenari
         Horn amplitude per free mass, m (e.g. the FE amplitude loaded by that mass).
     progress : callable(str), optional
         Called with one line per round of members.
+
+    Returns
+    -------
+    SweepResult
+        One :class:`~impact.stats.EnsembleStats` per free mass (``rows``) and the line of mean
+        tool KE against mass (``fit``: slope J/kg with its 95 % CI).
+
+    Examples
+    --------
+    >>> from impact import ImpactParams, StatsSettings, sweep
+    >>> sweep(ImpactParams(), [0.004, 0.008], settings=StatsSettings(n_start=16, n_max=16))
+    SweepResult(article, 2 masses 4-8 g: tool KE slope 3.229 J/kg, NOT converged (95 % CI))
     """
     base = params if params is not None else ImpactParams()
     sc = get_scenario(scenario)

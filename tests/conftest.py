@@ -65,6 +65,8 @@ SLOW: tuple[str, ...] = (
     "tests/test_doctests.py::test_examples_run[fem.assembly]",
     "tests/test_doctests.py::test_examples_run[fem.harmonic]",
     "tests/test_doctests.py::test_examples_run[fem.modal]",
+    "tests/test_doctests.py::test_examples_run[impact.model]",
+    "tests/test_doctests.py::test_examples_run[impact.stats]",
     "tests/test_doctests.py::test_examples_run[geometry]",
     "tests/test_entry_points.py::test_installed_command_runs_like_python_m[rpud-modal---modes=abc]",
     "tests/test_entry_points.py::test_installed_command_runs_like_python_m[rpud-harmonic---voltage=inf]",

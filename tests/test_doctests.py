@@ -7,7 +7,7 @@ import importlib
 import pytest
 
 MODULES = ["rpud_common.errors", "rpud_common.records", "geometry", "geometry.design", "fem.forms",
-           "fem.assembly", "fem.modal", "fem.harmonic"]
+           "fem.assembly", "fem.modal", "fem.harmonic", "impact.model", "impact.stats", "impact.sweeps"]
 
 
 @pytest.mark.parametrize("name", MODULES)

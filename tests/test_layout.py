@@ -258,6 +258,14 @@ def test_commands_may_import_any_package_but_not_in_a_cycle():
     assert any("import cycle" in p and "impact.__main__" in p for p in problems(g))
 
 
+def test_no_private_name_crosses_modules():
+    """What another module uses is public: named without the underscore, in ``__all__``."""
+    mods = _modules()
+    found = [line for name, path in mods.items()
+             for line in private_imports(name, path.read_text(encoding="utf-8"), mods)]
+    assert found == []
+
+
 def test_the_private_import_check_catches_both_forms():
     mods = _modules()
     src = ("from .kernel import _grid_step, plan\n"
