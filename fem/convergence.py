@@ -31,7 +31,7 @@ API
     teeth), with the pipeline's Q = 100.
 
 Quantities are named as in the JSON of the other modules: ``f_r_hz``, ``f_a_hz``, ``k_eff``,
-``tip_per_volt_m``, ``teeth_ellipse_ratio``. The estimates that the CLIs and the pipeline print
+``tip_per_volt_m``, ``teeth_ellipse_ratio``, ``teeth_phase_deg``, ``teeth_axial_per_volt_m``. The estimates that the CLIs and the pipeline print
 beside these values are :mod:`fem.errors`'.
 """
 
@@ -49,12 +49,37 @@ from rpud_common import ParameterError, check_integer, check_range
 from .losses import ASSEMBLED_Q_MECH
 
 __all__ = ["Level", "ConvergenceStudy", "study", "two_level_error", "working_mode_level", "estimator_order",
-           "ESTIMATOR_ORDER", "ESTIMATOR_ORDER_UNGRADED", "SECTOR_ORDER", "ESTIMATOR_RATIO", "ORDER_RANGE", "QUANTITIES"]
+           "ESTIMATOR_ORDER", "ESTIMATOR_ORDER_UNGRADED", "SECTOR_ORDER", "ESTIMATOR_RATIO", "ORDER_RANGE", "QUANTITIES",
+           "ANGLES", "harmonic_quantities", "wrapped_difference"]
 
 log = logging.getLogger(__name__)
 
-QUANTITIES = ("f_r_hz", "f_a_hz", "k_eff", "tip_per_volt_m", "teeth_ellipse_ratio")
+QUANTITIES = ("f_r_hz", "f_a_hz", "k_eff", "tip_per_volt_m", "teeth_ellipse_ratio", "teeth_phase_deg",
+              "teeth_axial_per_volt_m")
 """Quantities of the working mode followed by a study (those a level computed)."""
+
+ANGLES = ("teeth_phase_deg",)
+"""Quantities in degrees defined modulo 360: two levels differ by the wrapped difference."""
+
+
+def harmonic_quantities(wp) -> dict[str, float]:
+    """The estimated quantities of a harmonic working point (:class:`fem.harmonic.WorkingPoint`):
+    ``tip_per_volt_m`` (m/V) and, where ``teeth_tops`` is among its surfaces, the teeth's
+    ``teeth_ellipse_ratio`` (tangential / axial), ``teeth_phase_deg`` (tangential relative to
+    axial, degrees) and ``teeth_axial_per_volt_m`` (axial mean amplitude per volt, m/V)."""
+    out = {"tip_per_volt_m": float(wp.tip_per_volt_m)}
+    teeth = wp.surfaces.get("teeth_tops")
+    if teeth is not None:
+        out["teeth_ellipse_ratio"] = float(wp.teeth_ellipse_ratio)
+        out["teeth_phase_deg"] = float(wp.teeth_phase_deg)
+        out["teeth_axial_per_volt_m"] = float(abs(teeth["axial"]) / wp.voltage)
+    return out
+
+
+def wrapped_difference(q: str, a: float, b: float) -> float:
+    """``a - b``, wrapped into [-180, 180) degrees for the angles of :data:`ANGLES`."""
+    d = float(a) - float(b)
+    return (d + 180.0) % 360.0 - 180.0 if q in ANGLES else d
 
 ORDER_RANGE = (0.5, 8.0)
 """Observed orders outside this range mean the levels are not in the asymptotic range."""
@@ -193,7 +218,8 @@ class ConvergenceStudy:
         """Plain-text table: one row per level, then order / Richardson / error per quantity."""
         qs = self.quantities
         fmt = {"f_r_hz": ("f_r Hz", 1.0, "{:.2f}"), "f_a_hz": ("f_a Hz", 1.0, "{:.2f}"), "k_eff": ("k_eff", 1.0, "{:.5f}"),
-               "tip_per_volt_m": ("tip um/V", 1e6, "{:.5f}"), "teeth_ellipse_ratio": ("ellipse", 1.0, "{:.5f}")}
+               "tip_per_volt_m": ("tip um/V", 1e6, "{:.5f}"), "teeth_ellipse_ratio": ("ellipse", 1.0, "{:.5f}"),
+               "teeth_phase_deg": ("phase deg", 1.0, "{:.3f}"), "teeth_axial_per_volt_m": ("teeth um/V", 1e6, "{:.5f}")}
         head = f"{'refine':>7} {'DOFs':>8} " + " ".join(f"{fmt.get(q, (q, 1.0, ''))[0]:>12}" for q in qs) + f" {'time s':>7}"
         lines = [head]
         for l in self.levels:
@@ -325,9 +351,7 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
 
                 basis = modal_basis(system, values["f_r_hz"], loss=loss, modes=res)
             wp = working_point(system, values["f_r_hz"], 1.0, surfaces=surfaces, loss=loss, basis=basis)
-            values["tip_per_volt_m"] = wp.tip_per_volt_m
-            if "teeth_tops" in surfaces:
-                values["teeth_ellipse_ratio"] = wp.teeth_ellipse_ratio
+            values.update(harmonic_quantities(wp))
     elif "teeth_tops" in mesh.facet_sets:
         from .modeshape import surface_motion
 

@@ -4,8 +4,10 @@ JSON and report uses.
 What is estimated
 -----------------
 ``f_r_hz``, ``f_a_hz``, ``k_eff`` (modal), ``tip_per_volt_m`` (horn-tip axial amplitude per volt
-at the mode's own f_r) and ``teeth_ellipse_ratio``: the quantities of
-:data:`QUANTITIES`. The amplitudes derived from the tip amplitude per volt (the tip amplitude at
+at the mode's own f_r), and the teeth's motion: ``teeth_ellipse_ratio`` (tangential / axial),
+``teeth_phase_deg`` (phase of the tangential relative to the axial motion, compared modulo 360)
+and ``teeth_axial_per_volt_m``: the quantities of :data:`QUANTITIES`
+(:func:`harmonic_quantities` reads the harmonic ones off a working point). The amplitudes derived from the tip amplitude per volt (the tip amplitude at
 the drive voltage, the pipeline's A0 with or without the impact load) carry its relative error
 (:meth:`ErrorEstimate.scaled`): the FE model enters them only through that factor.
 
@@ -53,14 +55,16 @@ from typing import Callable
 
 from rpud_common import ParameterError, check_range
 
-from .convergence import ESTIMATOR_RATIO, Level, estimator_order, two_level_error
+from .convergence import QUANTITIES as CONVERGENCE_QUANTITIES
+from .convergence import ESTIMATOR_RATIO, Level, estimator_order, harmonic_quantities, two_level_error, wrapped_difference
 from .losses import ASSEMBLED_Q_MECH
 
 __all__ = ["QUANTITIES", "ErrorEstimate", "estimate", "estimate_from_levels", "has_reentrant_edges",
-           "plus_minus", "annotate", "ESTIMATOR_RATIO"]
+           "plus_minus", "annotate", "ESTIMATOR_RATIO", "harmonic_quantities"]
 
-QUANTITIES = ("f_r_hz", "f_a_hz", "k_eff", "tip_per_volt_m", "teeth_ellipse_ratio")
-"""Quantities with an estimated discretisation error (the keys of the JSON of every module)."""
+QUANTITIES = CONVERGENCE_QUANTITIES
+"""Quantities with an estimated discretisation error (the keys of the JSON of every module;
+the teeth's phase and axial amplitude per volt feed the rotary unit's error box)."""
 
 ERROR_DIGITS = 2
 """Significant digits of an error estimate (all it means; also what makes it reproducible)."""
@@ -158,7 +162,7 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
     p = estimator_order(grade, corners) if order is None else float(order)
     # the coarse value enters through its difference from the fine one, kept to DIFFERENCE_DIGITS,
     # and the error to ERROR_DIGITS: an estimate has no more digits
-    near = {q: (float(fine.values[q]) + _round_sig(float(v) - float(fine.values[q]), DIFFERENCE_DIGITS)
+    near = {q: (float(fine.values[q]) + _round_sig(wrapped_difference(q, v, fine.values[q]), DIFFERENCE_DIGITS)
                 if q in fine.values and math.isfinite(fine.values[q]) and math.isfinite(v) else float(v))
             for q, v in coarse.values.items()}
     errors = {q: _round_sig(two_level_error(fine.values[q], near[q], ratio, p), ERROR_DIGITS)

@@ -370,11 +370,11 @@ def _error(args, design, modal, w, wp, system, near, loss, surfaces):
     """``--error``: the two-level estimate of the driven mode's values, printed."""
     from geometry.options import mesher_of
 
-    from .errors import estimate
+    from .errors import estimate, harmonic_quantities
     from .errors_cli import error_lines
 
     values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": float(modal.f_a_hz[w]), "k_eff": float(modal.k_eff[w]),
-              "tip_per_volt_m": wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
+              **harmonic_quantities(wp)}
     est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
                    near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode,
                    mesher=mesher_of(args, design), path=args.fe_path)

@@ -6,7 +6,7 @@ mesh's own f_r with the pipeline's losses, on those modes + residual as the fine
 puts the errors beside the values (``X`` -> ``X_error``, same units; :mod:`fem.errors`):
 
 - ``working_mode``: ``f_r_hz``, ``f_a_hz``, ``k_eff``; ``matching``: ``matched_hz``;
-- ``harmonic``: ``tip_per_volt_m``, ``teeth_ellipse_ratio`` (estimated), and the amplitudes
+- ``harmonic``: ``tip_per_volt_m``, ``teeth_ellipse_ratio``, ``teeth_phase_deg`` (estimated), and the amplitudes
   proportional to the tip amplitude per volt (at the voltage, with datasheet losses, after the
   ring-up), which carry its relative error;
 - ``A0``: ``per_volt_m``, ``used_m``, ``unloaded_m`` and ``per_mass_error``; each row of
@@ -34,13 +34,13 @@ def estimate_stage(design, options, settings, system, modal, w: int, wp, surface
     """The two-level estimate of the working mode's outputs (:class:`fem.errors.ErrorEstimate`) on
     the path that ran (``options``: the resolved :class:`results.stage_fe.MeshOptions`), or None
     when ``options.refine`` leaves no room for a coarser mesh."""
-    from fem.errors import ESTIMATOR_RATIO, estimate, plus_minus
+    from fem.errors import ESTIMATOR_RATIO, estimate, harmonic_quantities, plus_minus
 
     if options.refine * ESTIMATOR_RATIO > 5.0:
         log.warning("no discretisation-error estimate: refine %g x %g exceeds 5", options.refine, ESTIMATOR_RATIO)
         return None
     values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": float(modal.f_a_hz[w]), "k_eff": float(modal.k_eff[w]),
-              TIP: wp.tip_per_volt_m, "teeth_ellipse_ratio": wp.teeth_ellipse_ratio}
+              **harmonic_quantities(wp)}
     est = estimate(design, values, system.ndof, refine=options.refine, mesh_size=options.mesh_size,
                    grade=options.grade, near_hz=near_hz, loss=settings.losses().loss_model(),
                    surfaces=tuple(surfaces), n_modes=4, mesher=options.mesher, path=options.path)
@@ -63,7 +63,7 @@ def annotate_summary(summary: dict, est) -> dict:
         m = summary["matching"]
         m["matched_hz_error"] = est.error("f_r_hz") if est is not None else None
     annotate(summary["harmonic"], est, {TIP: TIP, "tip_amplitude_m": TIP, "teeth_ellipse_ratio": "teeth_ellipse_ratio",
-                                        "tip_per_volt_datasheet_losses_m": TIP,
+                                        "teeth_phase_deg": "teeth_phase_deg", "tip_per_volt_datasheet_losses_m": TIP,
                                         "tip_amplitude_datasheet_losses_m": TIP, "ring_up_steady_m": TIP})
     a0 = summary["A0"]
     annotate(a0, est, {"per_volt_m": TIP, "used_m": TIP, "unloaded_m": TIP})

@@ -175,7 +175,7 @@ def report_lines(s: dict) -> list[str]:
         f"{_pm(h['tip_per_volt_datasheet_losses_m'], h.get('tip_per_volt_datasheet_losses_m_error'), 'nm/V', 1e9)} |",
         f"| drive | {h['voltage_v']:g} V amplitude at {wm['f_r_hz'] / 1e3:.3f} kHz: {h['current_a']:.2f} A, {h['power_w']:.1f} W |",
         f"| teeth ellipse (tangential/axial, phase) | {_pm(h['teeth_ellipse_ratio'], h.get('teeth_ellipse_ratio_error'))}, "
-        f"{_f(h['teeth_phase_deg'], 1, '.1f', 'deg')} |",
+        f"{_pm(h['teeth_phase_deg'], h.get('teeth_phase_deg_error'), 'deg')} |",
         f"| admittance peak / dip | {_f(h['admittance_f_r_hz'], 1e-3, '.3f', 'kHz')} / {_f(h['admittance_f_a_hz'], 1e-3, '.3f', 'kHz')} |",
         f"| ring-up | time constant {h['ring_up_tau_s'] * 1e3:.2f} ms, steady {h['ring_up_steady_m'] * 1e6:.2f} um |",
         f"| **A0 used** ({a0['reference_m_free_kg'] * 1e3:g} g free mass, impact-loaded) | "

@@ -179,26 +179,26 @@ def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> d
     ``wp``: the harmonic working point (``teeth_tops`` among its surfaces), ``f_w`` its frequency
     (Hz), ``est`` the discretisation-error estimate (:func:`results.errors.estimate_stage`, or
     None), ``wob`` the weight on bit (N) whose bit friction is the load. The teeth's axial
-    amplitude carries the tip amplitude's relative error (the same mode's amplitude at its other
-    antinode); the ellipse ratio its own estimated error; the phase has no estimate in
-    :mod:`fem.errors`, which the JSON states (``phase_error_note``) rather than hiding.
+    amplitude carries the relative error of ``teeth_axial_per_volt_m``, the ellipse ratio and the
+    phase their own estimated errors (:mod:`fem.errors`).
     """
     if "teeth_tops" not in getattr(wp, "surfaces", {}) or not getattr(design.coupler, "n_teeth", 0):
         return None
+
+    def error_of(q):
+        return est.error(q) if est is not None and q in est.errors else None
+
     axial = _teeth_axial(wp, 1.0)
-    rel = est.relative("tip_per_volt_m") if est is not None else None
-    ratio_err = est.error("teeth_ellipse_ratio") if est is not None and "teeth_ellipse_ratio" in est.errors else None
+    rel = est.relative("teeth_axial_per_volt_m") if error_of("teeth_axial_per_volt_m") is not None else None
+    ratio_err, phase_err = error_of("teeth_ellipse_ratio"), error_of("teeth_phase_deg")
     teeth = TeethReport(freq_hz=f_w, axial_m=axial, axial_error_m=axial * (rel or 0.0), ratio=wp.teeth_ellipse_ratio,
-                        ratio_error=ratio_err or 0.0, phase_deg=wp.teeth_phase_deg, phase_error_deg=0.0)
+                        ratio_error=ratio_err or 0.0, phase_deg=wp.teeth_phase_deg, phase_error_deg=phase_err or 0.0)
     out = rotor_stage(teeth, rotor_params_from_design(design), bit_friction_torque(wob, *BIT),
                       float(wp.power_w), say=say)
     j = out["json"]
-    j["axial_error_note"] = ("the tip amplitude's relative discretisation error" if rel is not None
-                             else "not estimated (no discretisation-error estimate in this run)")
-    if ratio_err is None:
-        j["ratio_error_note"] = "not estimated (no discretisation-error estimate of the ellipse ratio in this run)"
-    j["phase_error_note"] = ("the teeth phase has no discretisation-error estimate (fem.errors does not estimate it): "
-                             "the errors above exclude it")
+    for name, err in (("axial", rel), ("ratio", ratio_err), ("phase", phase_err)):
+        if err is None:
+            j[f"{name}_error_note"] = "not estimated (no discretisation-error estimate in this run): the errors exclude it"
     j["load_note"] = (f"the bit's friction in rock: flat {BIT[0] * 1e3:g} mm bit, weight on bit {wob:g} N, "
                       f"mu_rock {BIT[1]:g} (assumed)")
     return out

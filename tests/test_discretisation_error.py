@@ -92,6 +92,10 @@ def test_annotate_and_plus_minus():
     a, b = (estimate_from_levels(Level(1.0, 8000, {"f_r_hz": 20000.0}), Level(1.4, 1000, {"f_r_hz": 20061.23 + j}),
                                  grade=False, corners=True) for j in (0.0, 0.04))
     assert a.coarse == b.coarse == {"f_r_hz": 20061.0} and a.errors == b.errors == {"f_r_hz": 61.0}
+    # an angle's levels differ modulo 360: 179 and -179 degrees are 2 degrees apart, not 358
+    ph = estimate_from_levels(Level(1.0, 8000, {"teeth_phase_deg": 179.0}), Level(1.4, 1000, {"teeth_phase_deg": -179.0}),
+                              grade=True, corners=True)
+    assert ph.error("teeth_phase_deg") == 0.67 and ph.coarse["teeth_phase_deg"] == 181.0
     assert rec["k_eff_error"] is None                                    # not estimated: stated as such
     assert annotate({"f_r_hz": 1.0}, None, {"f_r_hz": "f_r_hz"}) == {"f_r_hz": 1.0, "f_r_hz_error": None}
     assert plus_minus(19996.8, 90.4, "Hz") == "19 997 ± 90 Hz"

@@ -272,9 +272,16 @@ def test_pipeline_adapter_reads_the_working_point():
 
     wp = SimpleNamespace(surfaces={"teeth_tops": {"axial": 5e-6 + 0j, "tangential": 1e-6 + 0j}},
                          teeth_ellipse_ratio=0.2, teeth_phase_deg=150.0, power_w=200.0)
-    est = SimpleNamespace(errors={"teeth_ellipse_ratio": 0.01}, relative=lambda q: 0.02, error=lambda q: 0.01)
+    errors = {"teeth_ellipse_ratio": 0.01, "teeth_phase_deg": 2.0, "teeth_axial_per_volt_m": 1e-9}
+    est = SimpleNamespace(errors=errors, relative=lambda q: {"teeth_axial_per_volt_m": 0.02}[q],
+                          error=lambda q: errors[q])
     out = pipeline_rotor_stage(default_design(), wp, 20e3, est, 7.0)["json"]
     assert out["teeth"]["axial_m_error"] == pytest.approx(1e-7) and out["teeth"]["ellipse_ratio_error"] == 0.01
+    assert out["teeth"]["phase_deg_error"] == 2.0 and not any(k.endswith("_error_note") for k in out)
     assert out["load_torque_n_m"] == pytest.approx(bit_friction_torque(7.0, 3e-3, 0.4))
-    assert "phase_error_note" in out and out["no_load_speed_rpm_error"] > 0
+    assert out["no_load_speed_rpm_error"] > 0
+    # an estimate without the teeth's phase: the phase's error is left out and said so
+    errors.pop("teeth_phase_deg")
+    out = pipeline_rotor_stage(default_design(), wp, 20e3, est, 7.0)["json"]
+    assert out["teeth"]["phase_deg_error"] == 0.0 and "phase_error_note" in out
     assert pipeline_rotor_stage(default_design().replace({"coupler.n_teeth": 0}), wp, 20e3, est, 7.0) is None
