@@ -148,14 +148,28 @@ def write_report_html(s: dict, path, *, asset_dir, lines: list[str] | None = Non
 
 def report_lines(s: dict) -> list[str]:
     """The Markdown lines of the report (see :func:`write_report`)."""
-    d, wm, h, a0 = s["design"], s["working_mode"], s["harmonic"], s["A0"]
-    lines = [f"# RPUD end-to-end run: {d.get('name', 'design')}", ""]
+    from .stress_stage import report_lines as stress_lines
+
+    lines = _heading_lines(s) + _summary_table_lines(s) + _kinetic_energy_lines(s)
+    lines += _coupled_model_lines(s.get("coupled_model"))
+    if s.get("drilling"):                      # opt-in stage (python -m results --load rock)
+        from .drilling import report_lines as drilling_lines
+
+        lines += drilling_lines(s["drilling"])
+    lines += [""] + stress_lines(s.get("stress"))
+    lines += _figure_lines(s) + _timing_lines(s["timings"]) + _provenance_lines(s)
+    return escape_table_pipes("\n".join(lines)).split("\n")
+
+
+def _heading_lines(s: dict) -> list[str]:
+    """The title, the headline, the operating point and the resonance matching."""
+    from .operating_point import report_lines as operating_point_lines
+
+    lines = [f"# RPUD end-to-end run: {s['design'].get('name', 'design')}", ""]
     head = headline_text(s)
     if head:
         name, _, rest = head.partition(": ")
         lines += [f"**{name}:** {rest}", ""]
-    from .operating_point import report_lines as operating_point_lines
-
     lines += operating_point_lines(s)
     m = s["matching"]
     if m:
@@ -164,7 +178,13 @@ def report_lines(s: dict) -> list[str]:
                   f"{m['n_iterations']} iterations, {'converged' if m['converged'] else 'NOT converged'} "
                   f"(error {m['error_rel'] * 100:+.3f} %). Flange axial motion / tip: "
                   f"{m['flange_to_tip_axial_ratio']:.3f}.", ""]
-    lines += [
+    return lines
+
+
+def _summary_table_lines(s: dict) -> list[str]:
+    """The quantity / value table of the transducer (mesh, working mode, drive, A0) and its error note."""
+    wm, h, a0 = s["working_mode"], s["harmonic"], s["A0"]
+    return [
         "| quantity | value |", "|---|---|",
         f"| mesh | {s['mesh'].get('label') or s['mesh'].get('mesher')}: {s['mesh']['tetrahedra']} second-order "
         f"tetrahedra, {s['mesh']['ndof']} DOFs |",
@@ -184,6 +204,12 @@ def report_lines(s: dict) -> list[str]:
         f"article: {a0['article_assumption_m'] * 1e6:g} um) |",
         f"| impact load on the tip | {a0['impact_tip_damping_ns_per_m']:.2f} N s/m, {a0['impact_power_w']:.1f} W |",
         "", _error_note(s), "",
+    ]
+
+
+def _kinetic_energy_lines(s: dict) -> list[str]:
+    """The drill-tool kinetic energy table against the free mass and its line fits."""
+    lines = [
         "## Drill-tool kinetic energy vs free mass", "",
         "Means over converged ensembles with their 95 % confidence intervals "
         f"(members added until every CI is within {100 * s['settings']['impact_rel_tol']:g} % of its mean). "
@@ -215,40 +241,43 @@ def report_lines(s: dict) -> list[str]:
             lines.append(f"- line fit of tool KE against mass ({text}): {fit['slope']:.3g}{ci} J/kg{r2}")
         if not imp[key]["converged"]:
             lines.append("  (not every mass reached the CI target: see `summary.json`)")
-    cm = s.get("coupled_model")
-    if cm:
-        red = cm["reduced_transducer"]
-        modes = ", ".join(f"{w / 2e3 / math.pi:.2f} kHz" for w in red["omega"])
-        lines += ["", "## Coupled model: the transducer in the impact loop", "",
-                  f"The FE modes that carry tip motion ({red['rule']}: {modes}; effective tip mass "
-                  f"{cm['tip_mass_kg'] * 1e3:.1f} g) driven at the working voltage exchange impulses with the free "
-                  "mass, event by event (exact closed-form modal motion between impacts). Device scenario, modes "
-                  "started on their steady response; means with 95 % CIs. Beside it: the kinematic horn at the "
-                  "unloaded FE amplitude, and at the damper-corrected amplitude of the A0 loop above.", "",
-                  "| free mass (g) | tip amplitude, coupled (um) | A0, damper (um) | tool KE: coupled (mJ) "
-                  "| tool KE: damper A0 (mJ) | tool KE: kinematic, unloaded A0 (mJ) | drive power (W) | horn -> free mass (W) |",
-                  "|---|---|---|---|---|---|---|---|"]
-        for r in cm["rows"]:
-            c = r["coupled"]
-            lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_ci(c['tip_amplitude_m'], 1e6)} | {r['damper']['A0_m'] * 1e6:.2f} "
-                         f"| {_ci(c['mean_tool_ke_after_j'], 1e3)} | {_ci(r['damper']['mean_tool_ke_after_j'], 1e3)} "
-                         f"| {_ci(r['kinematic_unloaded']['mean_tool_ke_after_j'], 1e3)} | {_ci(c['drive_power_w'])} "
-                         f"| {_ci(c['horn_power_w'])} |")
-        tail = cm["history"]["tail"]
-        lines += ["", f"Ring-up from rest with the reference free mass in place ({cm['history']['t_end_s'] * 1e3:g} ms, "
-                  f"one sample): tip amplitude over the last {(tail['t_to_s'] - tail['t_from_s']) * 1e3:.0f} ms "
-                  f"{tail['tip_amplitude_m'] * 1e6:.2f} um, drive {tail['drive_power_w']:.1f} W, "
-                  f"{tail['drive_current_rms_a']:.3f} A rms; energy balance per interval in `summary.json`."]
-    if s.get("drilling"):                      # opt-in stage (python -m results --load rock)
-        from .drilling import report_lines as drilling_lines
+    return lines
 
-        lines += drilling_lines(s["drilling"])
-    from .stress_stage import report_lines
 
-    lines += [""] + report_lines(s.get("stress"))
-    lines += ["", "The same command on the same machine repeats these numbers exactly: seeded ensembles, "
-              f"and A0 handed to the impacts rounded to {imp['handoff']['A0_digits']} significant digits.", "",
-              "## Figures", ""]
+def _coupled_model_lines(cm: dict | None) -> list[str]:
+    """The coupled transducer / impact model's table and ring-up (nothing without that stage)."""
+    if not cm:
+        return []
+    red = cm["reduced_transducer"]
+    modes = ", ".join(f"{w / 2e3 / math.pi:.2f} kHz" for w in red["omega"])
+    lines = ["", "## Coupled model: the transducer in the impact loop", "",
+             f"The FE modes that carry tip motion ({red['rule']}: {modes}; effective tip mass "
+             f"{cm['tip_mass_kg'] * 1e3:.1f} g) driven at the working voltage exchange impulses with the free "
+             "mass, event by event (exact closed-form modal motion between impacts). Device scenario, modes "
+             "started on their steady response; means with 95 % CIs. Beside it: the kinematic horn at the "
+             "unloaded FE amplitude, and at the damper-corrected amplitude of the A0 loop above.", "",
+             "| free mass (g) | tip amplitude, coupled (um) | A0, damper (um) | tool KE: coupled (mJ) "
+             "| tool KE: damper A0 (mJ) | tool KE: kinematic, unloaded A0 (mJ) | drive power (W) | horn -> free mass (W) |",
+             "|---|---|---|---|---|---|---|---|"]
+    for r in cm["rows"]:
+        c = r["coupled"]
+        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_ci(c['tip_amplitude_m'], 1e6)} | {r['damper']['A0_m'] * 1e6:.2f} "
+                     f"| {_ci(c['mean_tool_ke_after_j'], 1e3)} | {_ci(r['damper']['mean_tool_ke_after_j'], 1e3)} "
+                     f"| {_ci(r['kinematic_unloaded']['mean_tool_ke_after_j'], 1e3)} | {_ci(c['drive_power_w'])} "
+                     f"| {_ci(c['horn_power_w'])} |")
+    tail = cm["history"]["tail"]
+    lines += ["", f"Ring-up from rest with the reference free mass in place ({cm['history']['t_end_s'] * 1e3:g} ms, "
+              f"one sample): tip amplitude over the last {(tail['t_to_s'] - tail['t_from_s']) * 1e3:.0f} ms "
+              f"{tail['tip_amplitude_m'] * 1e6:.2f} um, drive {tail['drive_power_w']:.1f} W, "
+              f"{tail['drive_current_rms_a']:.3f} A rms; energy balance per interval in `summary.json`."]
+    return lines
+
+
+def _figure_lines(s: dict) -> list[str]:
+    """The reproducibility note, the figures, the mode-shape renders and the ParaView file."""
+    lines = ["", "The same command on the same machine repeats these numbers exactly: seeded ensembles, "
+             f"and A0 handed to the impacts rounded to {s['impacts']['handoff']['A0_digits']} significant digits.", "",
+             "## Figures", ""]
     for name, rel in s["files"]["figures"].items():
         lines.append(f"![{name}]({rel})")
         lines.append("")
@@ -258,11 +287,13 @@ def report_lines(s: dict) -> list[str]:
         lines.append("")
     if s["files"]["vtu"]:
         lines += [f"Every computed mode as point data for ParaView: `{s['files']['vtu']}` (not committed).", ""]
-    t = s["timings"]
-    lines += ["## Timings (s)", "", "| " + " | ".join(t) + " |", "|" + "---|" * len(t),
-              "| " + " | ".join(f"{v:.1f}" for v in t.values()) + " |", ""]
-    lines += _provenance_lines(s)
-    return escape_table_pipes("\n".join(lines)).split("\n")
+    return lines
+
+
+def _timing_lines(t: dict) -> list[str]:
+    """The stage timings, s, as a one-row table."""
+    return ["## Timings (s)", "", "| " + " | ".join(t) + " |", "|" + "---|" * len(t),
+            "| " + " | ".join(f"{v:.1f}" for v in t.values()) + " |", ""]
 
 
 def _error_note(s: dict) -> str:
