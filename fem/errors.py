@@ -144,11 +144,14 @@ class ErrorEstimate:
 
 
 def has_reentrant_edges(design, mesh_size: float | None = None, refine: float = 1.0) -> bool:
-    """The design has major re-entrant circular edges (:func:`geometry.sizing.graded_edges`)."""
+    """The design has major re-entrant circular edges or a narrowing bore's edge
+    (:func:`geometry.sizing.graded_edges` with the swept rule, which lists both whatever the free
+    mesh grades): a filleted corner is not one, but the stack's bore edge on the flange face
+    (a bonded bimaterial re-entrant edge) stays singular and lowers the order."""
     from geometry.sizing import graded_edges, region_sizes
 
     try:
-        return bool(graded_edges(design, region_sizes(design, mesh_size, refine=refine), refine))
+        return bool(graded_edges(design, region_sizes(design, mesh_size, refine=refine), refine, revolve=True))
     except (AttributeError, TypeError):          # a design kind without graded edges (a stack)
         return False
 

@@ -61,16 +61,15 @@ class HornDesign:
         Stepped profile only: back-section length as a fraction of ``length``, dimensionless
         (0.5 = the classic two quarter-wave sections).
     flange_fillet : float
-        Radius of the concave fillet where the horn's back meets the flange's front face, m
-        (0, the default: a sharp corner, whose elastic stress is singular). A horn maker would
-        give :data:`HORN_MAKER_FILLET` (2 mm): turned titanium horns of this size carry 1-2 mm
+        Radius of the concave fillet where the horn's back meets the flange's front face, m.
+        The default is what a horn maker would give, :data:`HORN_MAKER_FILLET` (2 mm): turned titanium horns of this size carry 1-2 mm
         radii at their shoulders (a sharp inner corner is a fatigue-crack starter, and the tool
         nose leaves at least its own radius), and 2 mm keeps the step's stress concentration
         near 1.8 (on the default horn's step, tests/test_fillets.py). With it the stress there is finite and
-        converges with the mesh.
+        converges with the mesh; 0 is a sharp corner, whose elastic stress is singular.
     step_fillet : float
-        Stepped profile only: radius of the concave fillet at the step, m (0, the default: sharp;
-        :data:`HORN_MAKER_FILLET` as above; on the default horn r / d = 2 / 11).
+        Stepped profile only: radius of the concave fillet at the step, m (default
+        :data:`HORN_MAKER_FILLET` as above, r / d = 2 / 11 on the default horn; 0: sharp).
     """
 
     _prefix: ClassVar[str] = "horn"
@@ -80,8 +79,8 @@ class HornDesign:
     back_diameter: float = 0.024
     tip_diameter: float = 0.011
     step_fraction: float = 0.5
-    flange_fillet: float = 0.0
-    step_fillet: float = 0.0
+    flange_fillet: float = HORN_MAKER_FILLET
+    step_fillet: float = HORN_MAKER_FILLET
 
     def __post_init__(self):
         p = self._prefix

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 
 from rpud_common import ParameterError
 
-__all__ = ["Estimate", "estimate", "sector_estimate", "check_budget", "MAX_ELEMENTS", "MAX_DOFS", "TETS_PER_CUBE"]
+__all__ = ["Estimate", "estimate", "sector_estimate", "fillet_sector_dofs", "check_budget", "MAX_ELEMENTS", "MAX_DOFS", "TETS_PER_CUBE"]
 
 log = logging.getLogger(__name__)
 
@@ -229,8 +229,39 @@ def sector_estimate(design, sectors: int, mesh_size: float | None = None, refine
 
     whole = estimate(design, mesh_size, 2, None, AXIAL_RULE[0], True, "revolve")
     dofs = int(whole.dofs * SECTOR_FACTOR / sectors * refine ** -SECTOR_EXPONENT)
+    dofs += fillet_sector_dofs(design, sectors, mesh_size, refine)
     return Estimate(elements=int(whole.elements * dofs / max(whole.dofs, 1)), nodes=dofs // 4, dofs=dofs,
                     memory_bytes=_memory(dofs), smallest_size=whole.smallest_size * refine)
+
+
+def fillet_sector_dofs(design, sectors: int, mesh_size: float | None = None, refine: float = 1.0) -> int:
+    """DOFs the fillet arcs' graded zones add to the ``k = 0`` swept sector at ``refine`` (the
+    calibration of :data:`SECTOR_FACTOR` is on sharp corners, whose grading it holds).
+
+    Each arc's (r, z) section zone, where the size grows from the arc's ``h`` at ``g`` per m up to
+    the horn's size ``H`` (:func:`geometry.sizing.fillet_sizes`), holds
+    ``T = (pi / 2) / c * int_0^(d*) (rho + x) (1 / (h + g x)^2 - 1 / H^2) dx`` triangles beyond
+    the background (a quarter turn around the arc of radius ``rho``, equilateral triangles of
+    area ``c h^2``, ``c = sqrt(3) / 4``, ``d* = (H - h) / g``); a P2 section has ~2 nodes per
+    triangle, swept into ``2 L + 1`` node planes over the sector's ``L`` element layers, 4 DOFs
+    each."""
+    from .revolve import sectors_per_quarter
+    from .sector import AXIAL_RULE
+    from .sizing import fillet_sizes, region_sizes
+
+    rule_refine, rule = AXIAL_RULE[0] * refine, AXIAL_RULE[1]
+    sizes = region_sizes(design, mesh_size, refine=rule_refine)
+    per_quarter = max(sectors_per_quarter(rule_refine), math.ceil(90.0 / (rule.layer_deg * rule_refine) - 1e-9))
+    layers = max(1, math.ceil(per_quarter * 4 / sectors - 1e-9))
+    c, T = math.sqrt(3) / 4, 0.0
+    for h, g, _rc, _zc, rho in fillet_sizes(design, sizes, rule_refine, True):
+        H = sizes.get("horn", h)
+        if H <= h:
+            continue
+        ds = (H - h) / g
+        inner = ((rho - h / g) * (1 / h - 1 / H) + math.log(H / h) / g) / g - (rho * ds + ds * ds / 2) / H ** 2
+        T += math.pi / 2 / c * inner
+    return int(4 * 2 * T * (2 * layers + 1))
 
 
 def check_budget(design, mesh_size: float | None = None, order: int = 2,

@@ -56,7 +56,7 @@ alone: a bound on it (+0.055 % f_r, +0.008 % f_a on that mesh), not an accuracy 
 
 
 def no_slots():
-    return geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    return geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
 
 
 # ---------------------------------------------------------------------------- exact checks

@@ -195,7 +195,7 @@ def test_matching_reuse_gives_identical_results():
     from fem.matching import MatchSettings, match
 
     # a coarse plain-coupler drill started near its matched coupler length (3 evaluations)
-    d = geometry.default_design().replace(
+    d = geometry.filleted(geometry.default_design(), 0.0).replace(
         {"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006, "coupler.length": 0.0416})
     mesh = geometry.build_mesh(d, mesh_size=0.008)
     runs = [match(d, MatchSettings(tune=("coupler.length",), xtol=5e-4, mesh_size=0.008, reuse=reuse),

@@ -23,7 +23,7 @@ COARSE = dict(mesh_size=0.008)
 
 
 def _coarse_design():
-    return geometry.default_design().replace(
+    return geometry.filleted(geometry.default_design(), 0.0).replace(
         {"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006})
 
 

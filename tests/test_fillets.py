@@ -53,7 +53,10 @@ def test_fillets_round_trip_through_toml(tmp_path):
     d.save(tmp_path / "d.toml")
     back = geometry.load_design(tmp_path / "d.toml")
     assert back == d and back.horn.flange_fillet == back.horn.step_fillet == 0.0015
-    assert geometry.default_design().fillets() == {}          # sharp by default
+    d0 = geometry.default_design()                            # a horn maker's radii by default
+    assert d0.horn.flange_fillet == d0.horn.step_fillet == geometry.HORN_MAKER_FILLET == 0.002
+    assert set(d0.fillets()) == {"flange", "step"}
+    assert geometry.filleted(d0, 0.0).fillets() == {}         # 0: sharp
 
 
 def test_fillet_arcs_are_tangent_and_their_volumes_exact():
@@ -84,7 +87,8 @@ def test_fillet_arcs_are_tangent_and_their_volumes_exact():
 
 
 def test_reference_section_has_no_singular_point_at_a_fillet():
-    sharp = ar.singular_points(ar.section(geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})))
+    sharp = ar.singular_points(ar.section(geometry.filleted(geometry.default_design(), 0.0).replace(
+        {"coupler.n_slots": 0, "coupler.n_teeth": 0})))
     round_ = ar.singular_points(ar.section(plain()))
     h = plain().horn
     corners = np.array([a.corner for a in plain().fillets().values()])

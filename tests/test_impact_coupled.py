@@ -309,7 +309,7 @@ def test_fem_horn_cli_end_to_end_on_a_coarse_drill(tmp_path):
 
     import geometry
 
-    design = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+    design = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
                                                 "stack.ring_thickness": 0.006})
     d = tmp_path / "d.toml"
     d.write_text(design.to_toml())

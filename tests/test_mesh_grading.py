@@ -33,16 +33,20 @@ from fem.convergence import ESTIMATOR_ORDER, Level, estimator_order, study, two_
 from fem.modal import modal_analysis
 from fem.modeshape import energy_shares
 from geometry.design import Segment, StackDesign, default_design
+from geometry.design_rpud import filleted
 from geometry.guard import estimate
 from geometry.sizing import graded_edges, region_sizes
 from rpud_common import ParameterError
 
 F_R_AXISYM, F_A_AXISYM = 19682.31, 21410.33
-"""Converged working mode of default_design() with coupler.n_slots = coupler.n_teeth = 0 (tests/axisym_reference.py)."""
+"""Converged working mode of default_design() with sharp horn corners and coupler.n_slots =
+coupler.n_teeth = 0 (tests/axisym_reference.py)."""
 
 
 def test_reentrant_edges_of_the_default_design():
-    d = default_design()
+    # filleted shoulders are not re-entrant edges (their arcs have their own sizes)
+    assert graded_edges(default_design(), region_sizes(default_design())) == []
+    d = filleted(default_design(), 0.0)                                       # sharp horn corners
     edges = graded_edges(d, region_sizes(d))
     got = sorted((round(e.z * 1e3, 4), round(e.r * 1e3, 4)) for e in edges)
     zf = d.stack.length + d.flange.thickness                                  # flange/horn face, 23 mm
@@ -124,7 +128,7 @@ def test_study_table_and_stop_rules():
 
 
 def test_graded_default_design_without_slots_and_teeth_against_the_axisymmetric_answer():
-    d = default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    d = filleted(default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
     s = assemble(geometry.build_mesh(d, grade=True))
     r = modal_analysis(s, 20e3, 8)
     from fem.modal import working_mode

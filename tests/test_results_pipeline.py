@@ -13,7 +13,7 @@ from results.pipeline import PipelineSettings, run_pipeline
 
 # started at the lengths this coarse variant matches to (test_fem_matching covers matching from
 # 10 %-off starts): the match confirms them in a few solves instead of 16
-DESIGN = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006,
+DESIGN = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006,
                                             "horn.length": 0.064545, "coupler.length": 0.044374})
 # the whole drill's free mesh, ungraded and coarse: the stages' machinery, fast (the sector path below)
 SETTINGS = PipelineSettings(mesh_size=0.008, mesher="free", grade=False, m_free_values=(0.0, 0.002, 0.008),
@@ -222,7 +222,7 @@ def test_swept_pipeline_states_an_error_that_covers_the_converged_answer(tmp_pat
     slots and teeth, whose converged f_r / f_a the (r, z) model of tests/axisym_reference.py gives:
     19 682.31 / 21 410.33 Hz. The swept mesh is within 0.05 % of them (measured +0.041 % /
     +0.044 %) and the printed +- (two levels, order 2) covers that error."""
-    design = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    design = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
     settings = PipelineSettings(mesher="revolve", grade=False, match=False, m_free_values=(0.008,),
                                 impact_rel_tol=0.1, impact_max_members=256, n_points=30, render=False,
                                 coupled_model=False)
@@ -294,7 +294,7 @@ own error is below 1e-5, so the 0.05 % asked of the pipeline is the pipeline's a
 def sector_run(tmp_path_factory):
     """The default path (no mesher, no path given) on the design without slots and teeth, as it
     is (no matching), a short impact stage."""
-    design = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    design = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
     settings = PipelineSettings(match=False, m_free_values=(0.008,), impact_rel_tol=0.1, impact_max_members=256,
                                 n_points=30, coupled_model=False)
     out = tmp_path_factory.mktemp("sector")
@@ -377,7 +377,7 @@ def test_one_point_study_equals_the_pipeline_on_the_sector(sector_run, tmp_path)
     from results.study import study_from_mapping
 
     _, s = sector_run
-    design = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    design = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
     design.save(tmp_path / "design.toml")
     st = s["settings"]
     study = study_from_mapping({

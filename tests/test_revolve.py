@@ -18,6 +18,7 @@ import pytest
 import fem
 from geometry.builder import build
 from geometry.design import default_design
+from geometry.design_rpud import filleted
 from geometry.report import mesh_part_volumes
 from geometry.revolve import (prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets,
                               straighten)
@@ -128,7 +129,7 @@ def test_sectors_scale_with_refine():
 
 @pytest.fixture(scope="module")
 def axisymmetric_build():
-    design = default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    design = filleted(default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
     return design, *build(design, mesher="revolve")
 
 

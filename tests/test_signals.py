@@ -198,7 +198,7 @@ def coarse_design(tmp_path_factory) -> Path:
     import geometry
 
     path = tmp_path_factory.mktemp("design") / "coarse.toml"
-    geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+    geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
                                        "stack.ring_thickness": 0.006}).save(path)
     return path
 
