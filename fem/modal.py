@@ -227,16 +227,6 @@ def frequency_hz(lam):
     return np.sign(lam) * np.sqrt(np.abs(lam)) / (2 * np.pi)
 
 
-
-
-
-
-
-
-
-
-
-
 def _pair(system, shapes, vec_o, free_o, f_o, mac_min):
     """Hungarian MAC pairing of short-circuit shapes with open-circuit vectors."""
     from scipy.optimize import linear_sum_assignment
@@ -302,6 +292,64 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     >>> modal_analysis(system, near_hz=40e3, n_modes=2)
     ModalResult(2 modes 38.24-46.19 kHz; nearest 40 kHz: mode 0 longitudinal, f_r 38235.1 Hz, f_a 50681.9 Hz, k_eff 0.656; 12895 DOF)
     """
+    plan = _plan(near_hz, n_modes, clamp, sigma, rigid_hz, tol, open_circuit, mac_min, eigen)
+    t0 = time.perf_counter()
+    Ks, Ms, free_s = system.reduce("short", plan.clamp)
+    F = _short_factor(Ks, Ms, len(free_s), plan.sigma, factor, backend)
+    t1 = time.perf_counter()
+    info = {}
+    lam_s, vec_s, run, border = _short_circuit(system, F, Ks, Ms, free_s, plan, info)
+    t2 = time.perf_counter()
+    rigid_f, f_r, Vs = _keep_nonrigid(lam_s, vec_s, plan)
+    n_found = len(f_r)
+    full_s = np.zeros((system.ndof, n_found))
+    full_s[free_s] = Vs
+    shapes = system.displacement(full_s) if n_found else np.zeros((0, system.n_nodes, 3))
+    f_a, pair_mac, full_o, t3 = np.full(n_found, np.nan), np.full(n_found, np.nan), None, t2
+    if plan.open_circuit and system.hot_dof is not None and n_found:
+        found = _open_circuit(system, F, Ms, free_s, shapes, Vs, run, border, plan, info)
+        t3 = time.perf_counter()
+        f_a, pair_mac, full_o = _partners(*found, plan.mac_min, system.ndof, n_found)
+    elif system.hot_dof is None:
+        f_a = f_r.copy()
+        pair_mac = np.ones(n_found)
+    f_a = own_anti_resonance(f_r, f_a)
+    k_eff = _coupling(f_r, f_a)
+    # the shares and labels of fem.modeshape, on the matrix the shapes are normalised with
+    mode_shares = energy_shares(system, shapes) if n_found else None
+    shares = mode_shares.overall.table() if n_found else np.zeros((0, 3))
+    timings = _timings(system, F, factor, (t0, t1, t2, t3, time.perf_counter()))
+    log.info("modal: %d modes near %.1f Hz, %d DOFs, %s, factor %.2f s, eigen %.2f s (%s, open circuit %s) %s",
+             n_found, near_hz, system.ndof, F.backend, timings["factorisation_s"], timings["eigen_s"], eigen,
+             plan.open_circuit, info)
+    return ModalResult(f_r_hz=f_r, f_a_hz=f_a, k_eff=k_eff, mac=pair_mac, shapes=shapes, vectors=full_s,
+                       vectors_open=full_o, shares=shares, rigid_hz=rigid_f,
+                       ndof=system.ndof, backend=F.backend, sigma=float(plan.sigma),
+                       near_hz=float(near_hz), clamp=plan.clamp, timings=timings, system=system,
+                       mode_shares=mode_shares)
+
+
+@dataclass(frozen=True)
+class _Plan:
+    """The checked settings of one modal analysis (frequencies Hz, shift rad^2/s^2)."""
+
+    near_hz: float
+    n_modes: int
+    clamp: tuple[str, ...]
+    sigma: float
+    rigid_hz: float
+    tol: float
+    open_circuit: bool | str
+    mac_min: float
+    eigen: str
+    deflate: bool
+    """A free body solved above 1 kHz: its rigid-body modes are projected out."""
+    n_req: int
+    """Modes asked of the eigensolver: ``n_modes``, plus six rigid-body ones when not deflated."""
+
+
+def _plan(near_hz, n_modes, clamp, sigma, rigid_hz, tol, open_circuit, mac_min, eigen) -> _Plan:
+    """The arguments of :func:`modal_analysis` checked, with their defaults resolved."""
     check_nonnegative("near_hz", near_hz, "Hz")
     if isinstance(n_modes, bool) or not isinstance(n_modes, (int, np.integer)) or n_modes < 1:
         raise ParameterError("n_modes", n_modes, "must be an integer >= 1")
@@ -313,7 +361,6 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     if open_circuit == "joint" and eigen != "block":
         raise ParameterError("open_circuit", open_circuit, "needs eigen='block'")
     clamp = (clamp,) if isinstance(clamp, str) else tuple(clamp)
-    t0 = time.perf_counter()
     if sigma is None:
         sigma = (2 * np.pi * near_hz) ** 2 if near_hz > 0 else -(2 * np.pi * 1e3) ** 2
     if rigid_hz is None:
@@ -324,133 +371,147 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     # followed by the M-orthogonal projector away from the exact rigid-body vectors.
     deflate = free_body and near_hz >= 1e3
     n_req = n_modes + (6 if free_body and not deflate else 0)
+    return _Plan(near_hz, n_modes, clamp, sigma, rigid_hz, tol, open_circuit, mac_min, eigen, deflate, n_req)
 
-    Ks, Ms, free_s = system.reduce("short", clamp)
-    ns = len(free_s)
+
+def _short_factor(Ks, Ms, ns, sigma, factor, backend):
+    """The factorisation of ``Ks - sigma Ms``: ``factor`` if given (checked on its size), else a new one."""
     if factor is None:
         # the shifted pencil has a full non-zero diagonal: no weighted matching needed
-        F = factorize((Ks - sigma * Ms).tocsr(), backend=backend, matching=False)
-    elif getattr(factor, "n", ns) != ns:
+        return factorize((Ks - sigma * Ms).tocsr(), backend=backend, matching=False)
+    if getattr(factor, "n", ns) != ns:
         raise ParameterError("factor", getattr(factor, "n", None), f"must factorise the {ns} short-circuit DOFs")
-    else:
-        F = factor
-    t1 = time.perf_counter()
-    Rs, Ms_ = _rigid_basis(system, free_s, Ms) if deflate else (None, None)
-    info = {}
-    if eigen == "arpack":
-        lam_s, vec_s = _eig(Ks, Ms, n_req, sigma, _deflated(F, Rs, Ms_), tol, ns)
-    else:
-        # block size: 8 for 12 modes measured best (9 solves of 8 vs 7 of 16 or 6 of 24: the
-        # per-vector price of a block solve falls slower than the vector count grows)
-        b = min(max(BLOCK_MIN, n_req // 2 + 2), max(ns - 2, 1))
-        start = smooth_start(system.nodes, free_s, system.ndof, b, n_random=max(2, b // 4))
-        border = None
-        if open_circuit == "joint" and system.hot_dof is not None:
-            # the open-circuit operator is the short-circuit one plus z z^T M / delta (z: the
-            # response to the hot column), so the block Krylov space of the short circuit
-            # started with z holds the open-circuit one: both from one run
-            krow = system.K.getrow(system.hot_dof).toarray().ravel()   # = the hot column
-            a_hot = krow[free_s]
-            z_hot = np.asarray(F(a_hot)).ravel()
-            border = (a_hot, float(krow[system.hot_dof]), z_hot)
-            start = np.column_stack([start, z_hot / np.linalg.norm(z_hot)])
+    return factor
+
+
+def _short_circuit(system, F, Ks, Ms, free_s, plan: _Plan, info: dict):
+    """Short-circuit eigenpairs: ``(lam, vectors, block run or None, border or None)``.
+
+    The block run started with the response to the hot electrode (``border``) also holds the
+    open-circuit modes (``open_circuit="joint"``).
+    """
+    ns = len(free_s)
+    Rs, Ms_ = _rigid_basis(system, free_s, Ms) if plan.deflate else (None, None)
+    if plan.eigen == "arpack":
+        lam_s, vec_s = _eig(Ks, Ms, plan.n_req, plan.sigma, _deflated(F, Rs, Ms_), plan.tol, ns)
+        return lam_s, vec_s, None, None
+    # block size: 8 for 12 modes measured best (9 solves of 8 vs 7 of 16 or 6 of 24: the
+    # per-vector price of a block solve falls slower than the vector count grows)
+    b = min(max(BLOCK_MIN, plan.n_req // 2 + 2), max(ns - 2, 1))
+    start = smooth_start(system.nodes, free_s, system.ndof, b, n_random=max(2, b // 4))
+    border = None
+    if plan.open_circuit == "joint" and system.hot_dof is not None:
+        # the open-circuit operator is the short-circuit one plus z z^T M / delta (z: the
+        # response to the hot column), so the block Krylov space of the short circuit
+        # started with z holds the open-circuit one: both from one run
+        krow = system.K.getrow(system.hot_dof).toarray().ravel()   # = the hot column
+        a_hot = krow[free_s]
+        z_hot = np.asarray(F(a_hot)).ravel()
+        border = (a_hot, float(krow[system.hot_dof]), z_hot)
+        start = np.column_stack([start, z_hot / np.linalg.norm(z_hot)])
+    with blas_threads(1):
+        res = block_eigs(F, Ks, Ms, plan.sigma, start, n_wanted=min(plan.n_req, ns - 2), locked=Rs, tol=plan.tol,
+                         border=border)
+    info["short_block_solves"], info["short_vectors"] = res.n_solves, res.n_vectors
+    return res.lam, res.vectors, res, border
+
+
+def _keep_nonrigid(lam, vec, plan: _Plan, limit: bool = True):
+    """``(rigid-body frequencies, elastic frequencies, their vectors)``, Hz: the ``n_modes``
+    elastic modes nearest the target (all of them if not ``limit``), in ascending frequency."""
+    f = frequency_hz(lam)
+    rigid = np.abs(f) < plan.rigid_hz
+    f_ok, v_ok = f[~rigid], vec[:, ~rigid]
+    sel = np.argsort(np.abs(f_ok - max(plan.near_hz, 0.0)))
+    sel = np.sort(sel[:plan.n_modes] if limit else sel)
+    return f[rigid], f_ok[sel], v_ok[:, sel]
+
+
+def _open_circuit(system, F, Ms, free_s, shapes, Vs, run, border, plan: _Plan, info: dict):
+    """Open-circuit modes paired with the short-circuit ``shapes``: ``(f_o, rows, cols, MAC, vectors)``.
+
+    Tried in turn until every mode has a partner: the joint block run's own open-circuit modes,
+    the seeded block solve, ARPACK from scratch (``plan.open_circuit`` names where to start).
+    """
+    hot = system.hot_dof
+    free_o = np.append(free_s, hot)
+    krow = system.K.getrow(hot).toarray().ravel()      # = the hot column (K symmetric)
+    joint = plan.open_circuit == "joint"
+    solve_open, z = bordered_solve(F, krow[free_s], float(krow[hot]), z=border[2] if joint else None)
+    if joint and run.vectors_open is not None and run.converged_open:
+        info["open_from_short_run"] = True
+        f_o = frequency_hz(run.lam_open)
+        ok, *pairs = _pair(system, shapes, run.vectors_open, free_o, f_o, plan.mac_min)
+        if ok:
+            return (f_o, *pairs)
+    if joint:
+        log.info("modal: joint open-circuit solve did not pair every mode; seeded solve")
+    Mo = _bordered_mass(Ms)
+    Ro = _rigid_basis(system, free_o, Mo)[0] if plan.deflate else None
+    if plan.open_circuit != "scratch":
+        # the open-circuit pencil is the short-circuit one plus a rank-1 stiffening through
+        # the hot electrode: its modes lie in the span of the short-circuit ones and the
+        # static response z, refined by a few block solves
+        seeds = np.vstack([Vs, np.zeros((1, Vs.shape[1]))])
+        start = np.column_stack([seeds, np.append(z, 0.0)])
         with blas_threads(1):
-            res = block_eigs(F, Ks, Ms, sigma, start, n_wanted=min(n_req, ns - 2), locked=Rs, tol=tol,
-                             border=border)
-        lam_s, vec_s = res.lam, res.vectors
-        info["short_block_solves"], info["short_vectors"] = res.n_solves, res.n_vectors
-    t2 = time.perf_counter()
+            res_o = block_eigs(solve_open, _restricted(system.K, free_o), Mo, plan.sigma, start,
+                               targets=seeds, locked=Ro, tol=plan.tol)
+        info["open_block_solves"], info["open_vectors"] = res_o.n_solves, res_o.n_vectors
+        f_o = frequency_hz(res_o.lam)
+        ok, *pairs = _pair(system, shapes, res_o.vectors, free_o, f_o, plan.mac_min)
+        if ok:
+            return (f_o, *pairs)
+        log.info("modal: seeded open-circuit solve left a mode unpaired; solving from scratch")
+    return _open_from_scratch(system, solve_open, free_o, Mo, Ro, shapes, len(free_s), plan)
 
-    def keep_nonrigid(lam, vec, limit=True):
-        f = frequency_hz(lam)
-        rigid = np.abs(f) < rigid_hz
-        f_ok, v_ok = f[~rigid], vec[:, ~rigid]
-        # the n_modes nearest the target, in ascending frequency
-        sel = np.argsort(np.abs(f_ok - max(near_hz, 0.0)))
-        sel = np.sort(sel[:n_modes] if limit else sel)
-        return f[rigid], f_ok[sel], v_ok[:, sel]
 
-    rigid_f, f_r, Vs = keep_nonrigid(lam_s, vec_s)
-    n_found = len(f_r)
-    full_s = np.zeros((system.ndof, n_found))
-    full_s[free_s] = Vs
-    shapes = system.displacement(full_s) if n_found else np.zeros((0, system.n_nodes, 3))
+def _open_from_scratch(system, solve_open, free_o, Mo, Ro, shapes, ns, plan: _Plan):
+    """Open-circuit modes by ARPACK from a random start: ``(f_o, rows, cols, MAC, vectors)``.
 
+    Anti-resonances lie above their resonances (by up to ~1/sqrt(1-k^2)): the open-circuit
+    window is widened until every short-circuit mode has a partner (MAC >= ``mac_min``).
+    """
+    k_open = plan.n_req + 2
+    Ko = system.K[free_o][:, free_o].tocsr()
+    for attempt in range(3):
+        lam_o, vec_o = _eig(Ko, Mo, k_open, plan.sigma, _deflated(solve_open, Ro, Mo), plan.tol, ns + 1)
+        _, f_o, Vo = _keep_nonrigid(lam_o, vec_o, plan, limit=False)
+        ok, *pairs = _pair(system, shapes, Vo, free_o, f_o, plan.mac_min)
+        if ok or k_open >= ns - 2:
+            break
+        k_open = min(2 * k_open, ns - 2)
+    return (f_o, *pairs)
+
+
+def _partners(f_o, rows, cols, MAC, full_o_all, mac_min, ndof, n_found):
+    """Per short-circuit mode: its anti-resonance, Hz (NaN below ``mac_min``), pairing MAC and
+    open-circuit vector (NaN columns when unpaired)."""
     f_a = np.full(n_found, np.nan)
     pair_mac = np.full(n_found, np.nan)
-    full_o = None
-    t3 = t2
-    if open_circuit and system.hot_dof is not None and n_found:
-        hot = system.hot_dof
-        free_o = np.append(free_s, hot)
-        krow = system.K.getrow(hot).toarray().ravel()      # = the hot column (K symmetric)
-        joint = open_circuit == "joint" and eigen == "block"
-        solve_open, z = bordered_solve(F, krow[free_s], float(krow[hot]), z=border[2] if joint else None)
-        ok = False
-        if joint and res.vectors_open is not None and res.converged_open:
-            info["open_from_short_run"] = True
-            ok, rows, cols, MAC, full_o_all = _pair(system, shapes, res.vectors_open, free_o,
-                                                    frequency_hz(res.lam_open), mac_min)
-            f_o = frequency_hz(res.lam_open)
-        if joint and not ok:
-            log.info("modal: joint open-circuit solve did not pair every mode; seeded solve")
-        if not ok:
-            Mo = _bordered_mass(Ms)
-            Ro = _rigid_basis(system, free_o, Mo)[0] if deflate else None
-        if open_circuit == "seeded" or (joint and not ok):
-            # the open-circuit pencil is the short-circuit one plus a rank-1 stiffening through
-            # the hot electrode: its modes lie in the span of the short-circuit ones and the
-            # static response z, refined by a few block solves
-            seeds = np.vstack([Vs, np.zeros((1, n_found))])
-            start = np.column_stack([seeds, np.append(z, 0.0)])
-            with blas_threads(1):
-                res_o = block_eigs(solve_open, _restricted(system.K, free_o), Mo, sigma, start,
-                                   targets=seeds, locked=Ro, tol=tol)
-            info["open_block_solves"], info["open_vectors"] = res_o.n_solves, res_o.n_vectors
-            f_o = frequency_hz(res_o.lam)
-            ok, rows, cols, MAC, full_o_all = _pair(system, shapes, res_o.vectors, free_o, f_o, mac_min)
-        if open_circuit == "scratch" or not ok:
-            if open_circuit != "scratch":
-                log.info("modal: seeded open-circuit solve left a mode unpaired; solving from scratch")
-            # anti-resonances lie above their resonances (by up to ~1/sqrt(1-k^2)): widen the
-            # open-circuit window until every short-circuit mode has a partner (MAC >= mac_min)
-            k_open = n_req + 2
-            Ko = system.K[free_o][:, free_o].tocsr()
-            for attempt in range(3):
-                lam_o, vec_o = _eig(Ko, Mo, k_open, sigma, _deflated(solve_open, Ro, Mo), tol, ns + 1)
-                _, f_o, Vo = keep_nonrigid(lam_o, vec_o, limit=False)
-                ok, rows, cols, MAC, full_o_all = _pair(system, shapes, Vo, free_o, f_o, mac_min)
-                if ok or k_open >= ns - 2:
-                    break
-                k_open = min(2 * k_open, ns - 2)
-        t3 = time.perf_counter()
-        full_o = np.full((system.ndof, n_found), np.nan)
-        for r_, c_ in zip(rows, cols):
-            pair_mac[r_] = MAC[r_, c_]
-            if MAC[r_, c_] >= mac_min:
-                f_a[r_] = f_o[c_]
-                full_o[:, r_] = full_o_all[:, c_]
-    elif system.hot_dof is None:
-        f_a = f_r.copy()
-        pair_mac = np.ones(n_found)
-    f_a = own_anti_resonance(f_r, f_a)
+    full_o = np.full((ndof, n_found), np.nan)
+    for r_, c_ in zip(rows, cols):
+        pair_mac[r_] = MAC[r_, c_]
+        if MAC[r_, c_] >= mac_min:
+            f_a[r_] = f_o[c_]
+            full_o[:, r_] = full_o_all[:, c_]
+    return f_a, pair_mac, full_o
+
+
+def _coupling(f_r, f_a):
+    """Effective coupling ``k_eff = sqrt(1 - (f_r / f_a)^2)``, 0 where round-off puts ``f_a`` below
+    ``f_r``, NaN without an anti-resonance."""
     with np.errstate(invalid="ignore"):
         ratio = np.where(np.isfinite(f_a), f_r / f_a, np.nan)
-        k_eff = np.sqrt(np.clip(1 - ratio ** 2, 0.0, None))
-    # the shares and labels of fem.modeshape, on the matrix the shapes are normalised with
-    mode_shares = energy_shares(system, shapes) if n_found else None
-    shares = mode_shares.overall.table() if n_found else np.zeros((0, 3))
-    t4 = time.perf_counter()
+        return np.sqrt(np.clip(1 - ratio ** 2, 0.0, None))
+
+
+def _timings(system, F, factor, marks):
+    """Stage times, s, from the marks (start, factorised, short circuit, open circuit, end)."""
+    t0, t1, t2, t3, t4 = marks
     timings = {"assembly_s": float(system.timings.get("assembly_s", np.nan)),
                "factorisation_s": F.seconds if factor is None else 0.0,
                "eigen_s": (t2 - t1) + (t3 - t2), "eigen_short_s": t2 - t1, "eigen_open_s": t3 - t2,
                "modal_s": t4 - t0}
     timings["total_s"] = timings["assembly_s"] + timings["modal_s"]
-    log.info("modal: %d modes near %.1f Hz, %d DOFs, %s, factor %.2f s, eigen %.2f s (%s, open circuit %s) %s",
-             n_found, near_hz, system.ndof, F.backend, timings["factorisation_s"], timings["eigen_s"], eigen,
-             open_circuit, info)
-    return ModalResult(f_r_hz=f_r, f_a_hz=f_a, k_eff=k_eff, mac=pair_mac, shapes=shapes, vectors=full_s,
-                       vectors_open=full_o, shares=shares, rigid_hz=rigid_f,
-                       ndof=system.ndof, backend=F.backend, sigma=float(sigma),
-                       near_hz=float(near_hz), clamp=clamp, timings=timings, system=system,
-                       mode_shares=mode_shares)
+    return timings
