@@ -24,7 +24,8 @@ What is reused between iterations
 ---------------------------------
 The mesh is never rebuilt: :meth:`geometry.design_base.DesignBase.morph_points` maps it exactly onto
 the design with the new length (piecewise-linear in z between the zone breakpoints), so an
-iteration is one fast assembly, one factorisation and a few eigenvectors near the target; the
+iteration is one fast assembly, one factorisation (with the fill-reducing ordering of the stage's
+first one: the morph keeps the pattern) and a few eigenvectors near the target; the
 half model's cell selection is computed once. The working mode is followed from iteration to
 iteration by the modal assurance criterion (same mesh topology), not by index. (Interpolating
 the matrices in the stretch factor is exact only for cells inside one zone; cells that straddle a
@@ -183,13 +184,15 @@ def _shift(near_hz: float) -> float:
     return (2 * np.pi * near_hz) ** 2 * (1 - 1e-3)
 
 
-def _modes(system: PiezoSystem, free: np.ndarray, near_hz: float, k: int, keep: bool = False):
+def _modes(system: PiezoSystem, free: np.ndarray, near_hz: float, k: int, keep: bool = False, ordering=None):
     """Short-circuit modes near ``near_hz`` on the given free set: (f_hz, full vectors), and
-    with ``keep`` also the factorisation (for reuse by the final modal analysis)."""
+    with ``keep`` also the factorisation (for reuse by the final modal analysis). ``ordering``:
+    a factorisation's fill-reducing ordering of the same model on a morphed mesh (same pattern;
+    :func:`fem.solvers.factorize`)."""
     K = system.K[free][:, free].tocsr()
     M = system.M[free][:, free].tocsr()
     sigma = _shift(near_hz)
-    F = factorize((K - sigma * M).tocsr(), matching=False)    # as fem.modal: reuse is bit-identical
+    F = factorize((K - sigma * M).tocsr(), matching=False, ordering=ordering)   # as fem.modal: reuse is bit-identical
     b = max(8, k // 2 + 2)
     start = smooth_start(system.nodes, free, system.ndof, b, n_random=max(2, b // 4))
     with blas_threads(1):
@@ -363,6 +366,7 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         prev = {"shape": None}
         cache = {}
         best = {}
+        ordering = {}          # the morphs keep the mesh's pattern: one METIS ordering per stage
 
         def evaluate(value):
             value = snap(value)
@@ -374,7 +378,9 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
                     idx["keep"] = select(m)
                 m = _select(m, idx["keep"])
             sy = system_of(m)
-            f, vec, F = _modes(sy, free_of(sy), target, n_modes, keep=True)
+            f, vec, F = _modes(sy, free_of(sy), target, n_modes, keep=True, ordering=ordering.get("perm"))
+            if "perm" not in ordering and hasattr(F, "ordering"):
+                ordering["perm"] = F.ordering
             i = working_mode(sy, f, vec, target, prev["shape"])
             prev["shape"] = sy.displacement(vec[:, i])
             record(name, path, value, f[i])
