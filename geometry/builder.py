@@ -278,6 +278,55 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
     check_choice("algorithm", algorithm, tuple(ALGORITHMS))
     if not isinstance(design, (RPUDDesign, StackDesign, CadDesign)):
         raise ParameterError("design", type(design).__name__, "must be an RPUDDesign, a StackDesign or a CadDesign")
+    sizes, per_quarter = _sizes(design, mesh_size, elements_per_wavelength, refine, mesher, sectors, sector_meshing)
+    report = BuildReport(design=design.name, order=order, algorithm=algorithm, mesher=mesher, sectors=sectors,
+                         region_sizes={k: float(v) for k, v in sizes.items()})
+    t_start = time.perf_counter()
+    # initialised by build() in the main thread (not interruptible: Gmsh would set SIGINT to
+    # SIG_DFL, death by the signal; the waiting main thread handles signals instead)
+    try:
+        _gmsh_options(gmsh, design.name, verbose)
+        if sectors and per_quarter:
+            tm = _swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter, algorithm,
+                               sector_meshing, report)
+            return _finish(tm, report, t_start)
+        layers = mesh_layers(design, mesh_size, elements_per_wavelength, refine)
+        model = _solids(gmsh, design, layers, per_quarter, sectors, report)
+        apply_fields(gmsh, design, sizes, model.region_vols, refine, layers=layers, grade=grade,
+                     revolve=bool(per_quarter))
+        free_tags = _mesh_linear(gmsh, design, model, algorithm, report)
+        folded = _curve(gmsh, free_tags, report) if order == 2 else False
+        if msh_path is not None:
+            gmsh.write(str(msh_path))
+        tm, swept = _extract_straightened(gmsh, design, model, order, sectors, folded, report)
+        _report_quality(gmsh, tm, swept, model, report)
+    finally:
+        gmsh.finalize()
+    return _finish(tm, report, t_start)
+
+
+@dataclass(frozen=True)
+class _Model:
+    """The tagged Gmsh model of a design: volumes and facet surfaces by name, which are swept."""
+
+    region_vols: dict
+    """Region name -> its Gmsh volume tags."""
+    region_meta: dict
+    """Region name -> (part, material, poling)."""
+    facet_surfs: dict
+    """Surface group name -> its Gmsh surface tags."""
+    layer_vols: frozenset
+    """Volumes of the structured layers (flat by design: no quality checks or optimisation)."""
+    swept_vols: frozenset
+    """Volumes swept from a section (every region but the coupler of a revolved build)."""
+
+    def free(self) -> list[tuple[int, int]]:
+        """Gmsh dim-tags of the freely meshed volumes."""
+        return [(3, v) for vs in self.region_vols.values() for v in vs if v not in self.layer_vols | self.swept_vols]
+
+
+def _sizes(design, mesh_size, elements_per_wavelength, refine, mesher, sectors, sector_meshing):
+    """``(region sizes, m; sectors per quarter turn of a revolved build or None)``."""
     sizes = region_sizes(design, mesh_size, elements_per_wavelength, refine)
     per_quarter = sectors_per_quarter(refine) if mesher == "revolve" else None
     if per_quarter and sectors and sector_meshing is not None and sector_meshing.layer_deg is not None:
@@ -285,127 +334,144 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         per_quarter = max(per_quarter, math.ceil(90.0 / sector_meshing.layer_deg - 1e-9))
     if per_quarter:
         sizes = revolve_sizes(design, sizes, per_quarter)
-    report = BuildReport(design=design.name, order=order, algorithm=algorithm, mesher=mesher, sectors=sectors,
-                         region_sizes={k: float(v) for k, v in sizes.items()})
-    t_start = time.perf_counter()
-    # initialised by build() in the main thread (not interruptible: Gmsh would set SIGINT to
-    # SIG_DFL, death by the signal; the waiting main thread handles signals instead)
-    try:
-        gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
-        gmsh.option.setNumber("General.Verbosity", 5 if verbose else 1)
-        gmsh.option.setNumber("General.NumThreads", 1)
-        for dim in ("1D", "2D", "3D"):
-            gmsh.option.setNumber(f"Mesh.MaxNumThreads{dim}", 1)
-        gmsh.option.setNumber("Mesh.RandomSeed", 1)
-        gmsh.model.add(design.name)
+    return sizes, per_quarter
 
-        if sectors and per_quarter:
-            t0 = time.perf_counter()
-            tm, swept = mesh_swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter,
-                                          ALGORITHMS[algorithm], SNAP_M, sector_meshing or SectorMeshing())
-            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=1.0)
-            tm = tm.replace(points=keep_periodic(tm.points, points, sectors))
-            report.quality.update(swept_quality(tm, swept))
-            report.timings["mesh"] = time.perf_counter() - t0
-            return _finish(tm, report, t_start)
 
-        # ---- solids and their names
-        t0 = time.perf_counter()
-        layers = mesh_layers(design, mesh_size, elements_per_wavelength, refine)
-        if isinstance(design, CadDesign):
-            vols, labels = import_step(gmsh, design.step)
-            region_vols, region_meta, facet_surfs = apply_rules(gmsh, design, vols, labels)
-        else:
-            region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers, per_quarter, sectors)
-            if sectors:
-                set_periodic(gmsh, [v for vs in region_vols.values() for v in vs], sectors)
-        report.timings["geometry"] = time.perf_counter() - t0
-        clash = sorted(set(region_vols) & set(facet_surfs))
-        if clash:
-            raise ParameterError("design", design.name, f"region name(s) {', '.join(clash)} clash with surface names")
-        for region, vols in region_vols.items():
-            gmsh.model.addPhysicalGroup(3, vols, name=region)
-        for name, surfs in facet_surfs.items():
-            gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
+def _gmsh_options(gmsh, name: str, verbose: bool) -> None:
+    """Gmsh's output, one thread and a fixed seed (identical builds give identical meshes); a new model."""
+    gmsh.option.setNumber("General.Terminal", 1 if verbose else 0)
+    gmsh.option.setNumber("General.Verbosity", 5 if verbose else 1)
+    gmsh.option.setNumber("General.NumThreads", 1)
+    for dim in ("1D", "2D", "3D"):
+        gmsh.option.setNumber(f"Mesh.MaxNumThreads{dim}", 1)
+    gmsh.option.setNumber("Mesh.RandomSeed", 1)
+    gmsh.model.add(name)
 
-        # ---- sizes (geometry.sizing: region sizes, feature caps, layer rims, graded edges)
-        apply_fields(gmsh, design, sizes, region_vols, refine, layers=layers, grade=grade,
-                     revolve=bool(per_quarter))
-        gmsh.option.setNumber("Mesh.Algorithm", 6)
-        gmsh.option.setNumber("Mesh.Algorithm3D", ALGORITHMS[algorithm])
-        gmsh.option.setNumber("Mesh.Optimize", 1)
-        gmsh.option.setNumber("Mesh.ElementOrder", 1)
 
-        # ---- mesh
-        t0 = time.perf_counter()
-        gmsh.model.mesh.generate(3)
-        report.timings["mesh_linear"] = time.perf_counter() - t0
-        # Slivers the default optimiser left (seen at some sizes near the slot ends): one
-        # Netgen pass, only when needed, keeps the default run fast. Layers are flat by design
-        # and structured: the checks and optimisers see the freely meshed volumes only.
-        t0 = time.perf_counter()
-        layer_vols = {v for name in layers for v in region_vols[name]}
-        swept_vols = {v for name, vs in region_vols.items() if per_quarter and name != "coupler" for v in vs}
-        free = [(3, v) for vs in region_vols.values() for v in vs if v not in layer_vols | swept_vols]
+def _swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter, algorithm, sector_meshing,
+                  report: BuildReport) -> TaggedMesh:
+    """A swept sector (:mod:`geometry.sector_sweep`), its free elements straightened, its quality in ``report``."""
+    t0 = time.perf_counter()
+    tm, swept = mesh_swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarter,
+                                  ALGORITHMS[algorithm], SNAP_M, sector_meshing or SectorMeshing())
+    points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=1.0)
+    tm = tm.replace(points=keep_periodic(tm.points, points, sectors))
+    report.quality.update(swept_quality(tm, swept))
+    report.timings["mesh"] = time.perf_counter() - t0
+    return tm
+
+
+def _solids(gmsh, design, layers, per_quarter, sectors, report: BuildReport) -> _Model:
+    """The design's solids (parametric or imported), fragmented, with named physical groups."""
+    t0 = time.perf_counter()
+    if isinstance(design, CadDesign):
+        vols, labels = import_step(gmsh, design.step)
+        region_vols, region_meta, facet_surfs = apply_rules(gmsh, design, vols, labels)
+    else:
+        region_vols, region_meta, facet_surfs = parametric_model(gmsh, design, layers, per_quarter, sectors)
+        if sectors:
+            set_periodic(gmsh, [v for vs in region_vols.values() for v in vs], sectors)
+    report.timings["geometry"] = time.perf_counter() - t0
+    clash = sorted(set(region_vols) & set(facet_surfs))
+    if clash:
+        raise ParameterError("design", design.name, f"region name(s) {', '.join(clash)} clash with surface names")
+    for region, vols in region_vols.items():
+        gmsh.model.addPhysicalGroup(3, vols, name=region)
+    for name, surfs in facet_surfs.items():
+        gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
+    layer_vols = frozenset(v for name in layers for v in region_vols[name])
+    swept_vols = frozenset(v for name, vs in region_vols.items() if per_quarter and name != "coupler" for v in vs)
+    return _Model(region_vols, region_meta, facet_surfs, layer_vols, swept_vols)
+
+
+def _mesh_linear(gmsh, design, model: _Model, algorithm, report: BuildReport) -> np.ndarray:
+    """The first-order mesh, with a Netgen pass where slivers remain; the free tetrahedra's tags.
+
+    The sizes are already set (:func:`geometry.sizing.apply_fields`).
+    """
+    gmsh.option.setNumber("Mesh.Algorithm", 6)
+    gmsh.option.setNumber("Mesh.Algorithm3D", ALGORITHMS[algorithm])
+    gmsh.option.setNumber("Mesh.Optimize", 1)
+    gmsh.option.setNumber("Mesh.ElementOrder", 1)
+    t0 = time.perf_counter()
+    gmsh.model.mesh.generate(3)
+    report.timings["mesh_linear"] = time.perf_counter() - t0
+    # Slivers the default optimiser left (seen at some sizes near the slot ends): one
+    # Netgen pass, only when needed, keeps the default run fast. Layers are flat by design
+    # and structured: the checks and optimisers see the freely meshed volumes only.
+    t0 = time.perf_counter()
+    free = model.free()
+    free_tags = _element_tags(gmsh, free, tets_only=True)
+    gamma = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "gamma"))
+    if len(gamma) and (gamma.min() < OPTIMISE_BELOW or isinstance(design, CadDesign)):
+        log.info("min gamma %.3g: Netgen optimisation pass", gamma.min())
+        gmsh.model.mesh.optimize("Netgen", dimTags=free)
+        gmsh.model.mesh.optimize("", dimTags=free)
         free_tags = _element_tags(gmsh, free, tets_only=True)
-        gamma = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "gamma"))
-        if len(gamma) and (gamma.min() < OPTIMISE_BELOW or isinstance(design, CadDesign)):
-            log.info("min gamma %.3g: Netgen optimisation pass", gamma.min())
-            gmsh.model.mesh.optimize("Netgen", dimTags=free)
-            gmsh.model.mesh.optimize("", dimTags=free)
-            free_tags = _element_tags(gmsh, free, tets_only=True)
-        report.timings["optimise"] = time.perf_counter() - t0
-        folded = False
-        if order == 2:
-            t0 = time.perf_counter()
-            gmsh.model.mesh.setOrder(2)
-            # Curving the edges onto the geometry can fold an element near the slots at some
-            # lengths (seen: SICN 4e-4): such elements are pulled toward straight edges
-            # (revolve.straighten, after the extraction). Gmsh's high-order optimiser repairs them too, but it is not
-            # deterministic (it moved nodes by ~3e-8 m from one identical build to the next) and
-            # stalls on the pyramids of swept builds.
-            sicn = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "minSICN"))
-            folded = bool(len(sicn) and sicn.min() < MIN_SICN_DEFAULT)
-            if folded:
-                log.info("min SICN %.3g < %.3g after curving: folded elements straightened", sicn.min(),
-                         MIN_SICN_DEFAULT)
-            report.timings["order_2"] = time.perf_counter() - t0
-        if msh_path is not None:
-            gmsh.write(str(msh_path))
+    report.timings["optimise"] = time.perf_counter() - t0
+    return free_tags
 
-        # ---- extract
-        t0 = time.perf_counter()
-        tm, tags, swept = _extract(gmsh, design, region_vols, region_meta, facet_surfs, order, swept_vols)
-        if order == 2 and (swept.any() or folded):
-            # swept builds straighten whole edges (their measured error tables); a free build
-            # keeps what curvature it can
-            step = 1.0 if swept.any() else STRAIGHTEN_STEP
-            points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=step)
-            if sectors:
-                points = keep_periodic(tm.points, points, sectors)
-            # the free elements' quality below is Gmsh's: hand it the nodes moved here
-            moved = np.unique(tm.cells[~swept])
-            moved = moved[np.any(points[moved] != tm.points[moved], axis=1)]
-            for k in moved:
-                gmsh.model.mesh.setNode(int(tags[k]), points[k].tolist(), [])
-            tm = tm.replace(points=points)
-        report.timings["extract"] = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        unswept = [(3, v) for vs in region_vols.values() for v in vs if v not in swept_vols]
-        report.quality.update(_quality(gmsh, _element_tags(gmsh, unswept, tets_only=True),
-                                       _element_tags(gmsh, [(3, v) for v in sorted(layer_vols)])))
-        if swept.any():
-            report.quality.update(swept_quality(tm, swept))
-        report.timings["quality"] = time.perf_counter() - t0
-        for name, vols in region_vols.items():
-            report.physical_groups[name] = {"dim": 3, "entities": len(vols),
-                                            "elements": int(len(tm.cells_in(region=name)))}
-        for name, surfs in facet_surfs.items():
-            report.physical_groups[name] = {"dim": 2, "entities": len(surfs),
-                                            "elements": int(len(tm.facet_sets[name]))}
-    finally:
-        gmsh.finalize()
-    return _finish(tm, report, t_start)
+
+def _curve(gmsh, free_tags: np.ndarray, report: BuildReport) -> bool:
+    """Second order: nodes on the true geometry; True if a free element folded (min SICN too low).
+
+    Curving the edges onto the geometry can fold an element near the slots at some lengths
+    (seen: SICN 4e-4): such elements are pulled toward straight edges (revolve.straighten, after
+    the extraction). Gmsh's high-order optimiser repairs them too, but it is not deterministic
+    (it moved nodes by ~3e-8 m from one identical build to the next) and stalls on the pyramids
+    of swept builds.
+    """
+    t0 = time.perf_counter()
+    gmsh.model.mesh.setOrder(2)
+    sicn = np.asarray(gmsh.model.mesh.getElementQualities(free_tags.tolist(), "minSICN"))
+    folded = bool(len(sicn) and sicn.min() < MIN_SICN_DEFAULT)
+    if folded:
+        log.info("min SICN %.3g < %.3g after curving: folded elements straightened", sicn.min(),
+                 MIN_SICN_DEFAULT)
+    report.timings["order_2"] = time.perf_counter() - t0
+    return folded
+
+
+def _extract_straightened(gmsh, design, model: _Model, order, sectors, folded, report: BuildReport):
+    """``(TaggedMesh, swept-cell mask)`` from Gmsh; swept or folded second-order elements straightened.
+
+    The moved nodes are handed back to Gmsh, whose quality measures follow.
+    """
+    t0 = time.perf_counter()
+    tm, tags, swept = _extract(gmsh, design, model.region_vols, model.region_meta, model.facet_surfs, order,
+                               model.swept_vols)
+    if order == 2 and (swept.any() or folded):
+        # swept builds straighten whole edges (their measured error tables); a free build
+        # keeps what curvature it can
+        step = 1.0 if swept.any() else STRAIGHTEN_STEP
+        points, report.quality["straightened_elements"] = straighten(tm.points, tm.cells, ~swept, step=step)
+        if sectors:
+            points = keep_periodic(tm.points, points, sectors)
+        # the free elements' quality below is Gmsh's: hand it the nodes moved here
+        moved = np.unique(tm.cells[~swept])
+        moved = moved[np.any(points[moved] != tm.points[moved], axis=1)]
+        for k in moved:
+            gmsh.model.mesh.setNode(int(tags[k]), points[k].tolist(), [])
+        tm = tm.replace(points=points)
+    report.timings["extract"] = time.perf_counter() - t0
+    return tm, swept
+
+
+def _report_quality(gmsh, tm: TaggedMesh, swept: np.ndarray, model: _Model, report: BuildReport) -> None:
+    """The elements' quality and the physical groups' element counts, into ``report``."""
+    t0 = time.perf_counter()
+    unswept = [(3, v) for vs in model.region_vols.values() for v in vs if v not in model.swept_vols]
+    report.quality.update(_quality(gmsh, _element_tags(gmsh, unswept, tets_only=True),
+                                   _element_tags(gmsh, [(3, v) for v in sorted(model.layer_vols)])))
+    if swept.any():
+        report.quality.update(swept_quality(tm, swept))
+    report.timings["quality"] = time.perf_counter() - t0
+    for name, vols in model.region_vols.items():
+        report.physical_groups[name] = {"dim": 3, "entities": len(vols),
+                                        "elements": int(len(tm.cells_in(region=name)))}
+    for name, surfs in model.facet_surfs.items():
+        report.physical_groups[name] = {"dim": 2, "entities": len(surfs),
+                                        "elements": int(len(tm.facet_sets[name]))}
 
 
 def _finish(tm: TaggedMesh, report: BuildReport, t_start: float) -> tuple[TaggedMesh, BuildReport]:
