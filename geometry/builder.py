@@ -130,6 +130,21 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
     (:func:`rpud_common.cli.run_cli`) then ends the process by ``os._exit`` after its line.
     See :func:`_build` for the other parameters and the result.
     """
+    refine, mesher, sectors = _check_build(design, order, msh_path, refine, mesher, sectors, sector_meshing)
+    time_limit = _time_limit(time_limit)
+    _check_startable(design, grade)
+    _start_gmsh()
+    tm, report = _run_gmsh(lambda: _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
+                                          msh_path, refine, grade, mesher, sectors, sector_meshing),
+                           design, mesh_size, time_limit)
+    if isinstance(design, CadDesign) and design.drawn() is not design:
+        # declared lengths away from the drawing: the drawing's mesh, stretched band by band
+        tm = tm.replace(points=design.drawn().morph_points(tm.points, design))
+    return tm, report
+
+
+def _check_build(design, order, msh_path, refine, mesher, sectors, sector_meshing):
+    """``(refine, mesher, sectors)`` checked and resolved for ``design``, or a ParameterError."""
     refine = check_refine(refine)
     mesher = resolve_mesher(design, mesher)
     if sectors is not None:
@@ -149,13 +164,12 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
             check_range("layer_deg", sector_meshing.layer_deg, 0.5, 120.0, "degrees")
         if sector_meshing.notch_fraction is not None:
             check_range("notch_fraction", sector_meshing.notch_fraction, 0.01, 1.0)
-    if time_limit is None:
-        env = os.environ.get("RPUD_GMSH_TIMEOUT")
-        try:
-            time_limit = float(env) if env else GMSH_TIME_LIMIT
-        except ValueError:
-            raise ParameterError("RPUD_GMSH_TIMEOUT", env, "must be a number of seconds") from None
-    check_range("gmsh time limit", time_limit, *GMSH_TIME_RANGE, "s")
+    return refine, mesher, sectors
+
+
+def _check_startable(design, grade) -> None:
+    """A ParameterError if Gmsh cannot start on ``design``: an abandoned run still going, or a
+    drawing's rules or grading refused (checked before Gmsh meshes anything)."""
     if common.native_code_running():
         raise ParameterError("design", getattr(design, "name", design),
                              "an abandoned Gmsh run is still going in this process; start a new one")
@@ -164,14 +178,28 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
             raise ParameterError("--grade", True, "is not available for cad designs (the re-entrant edges of a "
                                  "drawing are not known); use --refine or [[sizes]] rules")
         design.resolve()        # the rules checked, in one line, before Gmsh meshes anything
-    box: dict[str, Any] = {}
-    # Set by the worker after its last native call (gmsh.finalize): the only reliable sign that
-    # Gmsh stopped, since Thread.is_alive() lies after a join interrupted by a signal.
-    done = threading.Event()
+
+
+def _time_limit(time_limit: float | None) -> float:
+    """The Gmsh wall-clock limit, s: ``time_limit``, else ``RPUD_GMSH_TIMEOUT``, else the default; checked."""
+    if time_limit is None:
+        env = os.environ.get("RPUD_GMSH_TIMEOUT")
+        try:
+            time_limit = float(env) if env else GMSH_TIME_LIMIT
+        except ValueError:
+            raise ParameterError("RPUD_GMSH_TIMEOUT", env, "must be a number of seconds") from None
+    check_range("gmsh time limit", time_limit, *GMSH_TIME_RANGE, "s")
+    return time_limit
+
+
+def _start_gmsh() -> None:
+    """Initialise Gmsh in the calling (main) thread and give the signals back to Python.
+
+    Gmsh's initialisation installs its own native signal handlers (SIGTERM would kill the
+    process outright): they are replaced by Python's again.
+    """
     import gmsh
 
-    # Gmsh's initialisation installs its own native signal handlers (SIGTERM would kill the
-    # process outright): initialise here, in the main thread, and re-install Python's
     gmsh.initialize(readConfigFiles=False, interruptible=False)
     try:
         if threading.current_thread() is threading.main_thread():
@@ -183,13 +211,24 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
         gmsh.finalize()  # interrupted before the worker took Gmsh over
         raise
 
+
+def _run_gmsh(job, design, mesh_size, time_limit: float):
+    """``job()`` run in a worker thread within ``time_limit`` s, its result or its error raised here.
+
+    A Gmsh failure becomes a ParameterError naming the mesh size; a run past the limit is
+    abandoned (:func:`rpud_common.cli.abandon_native_run`) and reported as a ParameterError.
+    """
+    box: dict[str, Any] = {}
+    # Set by the worker after its last native call (gmsh.finalize): the only reliable sign that
+    # Gmsh stopped, since Thread.is_alive() lies after a join interrupted by a signal.
+    done = threading.Event()
+
     def work():
         # signals go to the waiting main thread only: delivered inside Gmsh's native code they
         # corrupt its state
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
-            box["result"] = _build(design, mesh_size, order, elements_per_wavelength, algorithm, verbose,
-                                   msh_path, refine, grade, mesher, sectors, sector_meshing)
+            box["result"] = job()
         except ParameterError as exc:
             box["error"] = exc
         except Exception as exc:  # noqa: BLE001 - Gmsh raises bare Exceptions
@@ -217,11 +256,7 @@ def build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAU
                              "coarser --mesh-size or allow more time (--gmsh-timeout / RPUD_GMSH_TIMEOUT, s)")
     if "error" in box:
         raise box["error"]
-    tm, report = box["result"]
-    if isinstance(design, CadDesign) and design.drawn() is not design:
-        # declared lengths away from the drawing: the drawing's mesh, stretched band by band
-        tm = tm.replace(points=design.drawn().morph_points(tm.points, design))
-    return tm, report
+    return box["result"]
 
 
 def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFAULT_ORDER,
