@@ -47,7 +47,7 @@ from rpud_common.result import Result
 from .params import ImpactParams
 from .rock import RockLaw
 from .rod import ToolRod
-from .stats import Estimate, mean_ci, ratio_ci
+from .stats import Estimate, StatsSettings, ensemble_uniforms, mean_ci, ratio_ci
 
 __all__ = ["DrillParams", "DrillSettings", "DrillStats", "DrillSweep", "drilling_statistics", "drilling_sweep",
            "pack", "DRILL_QUANTITIES", "MODEL_STATUS", "STATUS_LINE"]
@@ -188,26 +188,22 @@ def pack(p: DrillParams, m_free: float | None = None, v0: float | None = None, *
 
 
 @dataclass(frozen=True)
-class DrillSettings:
-    """Ensemble rule of the drilling statistics.
+class DrillSettings(StatsSettings):
+    """Ensemble rule of the drilling statistics: :class:`impact.stats.StatsSettings` with the
+    drilling stage's defaults.
 
-    rel_tol: target 95 % CI half-width of the driving quantities (drilling rate, blow rate),
-    relative; n_start / n_max: members of the first round / cap (doubling in between); seed and
-    v0_spread: the members' launch speeds ``v0 (1 + spread (2 U_i - 1))`` as in
-    :mod:`impact.stats`."""
+    ``rel_tol`` applies to the driving quantities (drilling rate, blow rate). A drilling member
+    runs a whole drill-under-load window (seconds of drive, not milliseconds), so the first round
+    is smaller (16 members, at least 2 for a spread) and the cap lower (512) than the impact
+    statistics'; the members' launch speeds are perturbed as there."""
 
     rel_tol: float = 0.05
     n_start: int = 16
     n_max: int = 512
-    seed: int = 20260
-    v0_spread: float = 0.05
 
     def __post_init__(self):
-        check_range("rel_tol", self.rel_tol, 0.0, 1.0, lo_open=True)
+        super().__post_init__()
         check_integer("n_start", self.n_start, 2)
-        check_integer("n_max", self.n_max, self.n_start, 1_000_000)
-        check_integer("seed", self.seed, 0)
-        check_range("v0_spread", self.v0_spread, 0.0, 0.5)
 
 
 @dataclass(repr=False)
@@ -243,28 +239,28 @@ class DrillStats(Result):
                 **{k: v.to_dict() for k, v in self.estimates.items()}}
 
 
-def _estimates(raw, T):
+def _estimates(raw, T, level: float):
     from . import drill_kernel as K
 
     blows = raw[:, K.S_BLOWS]
     horn = raw[:, K.S_HORN_WORK]
     return {
-        "drilling_rate_m_s": mean_ci(raw[:, K.S_PEN] / T),
-        "blow_rate_hz": mean_ci(blows / T),
-        "penetration_per_blow_m": ratio_ci(raw[:, K.S_PEN], blows),
-        "efficiency": ratio_ci(raw[:, K.S_ROCK_WORK], horn) if np.all(horn > 0) else
-        Estimate(math.nan, math.nan, raw.shape[0], 0.95, "no horn work (no free mass)"),
-        "rock_power_w": mean_ci(raw[:, K.S_ROCK_WORK] / T),
-        "horn_power_w": mean_ci(horn / T),
-        "peak_force_per_blow_n": ratio_ci(raw[:, K.S_FPEAK_SUM], blows),
-        "mean_rock_force_n": mean_ci(raw[:, K.S_FDT] / raw[:, K.S_T]),
-        "contact_fraction": mean_ci(raw[:, K.S_T_CONTACT] / raw[:, K.S_T]),
+        "drilling_rate_m_s": mean_ci(raw[:, K.S_PEN] / T, level),
+        "blow_rate_hz": mean_ci(blows / T, level),
+        "penetration_per_blow_m": ratio_ci(raw[:, K.S_PEN], blows, level),
+        "efficiency": ratio_ci(raw[:, K.S_ROCK_WORK], horn, level) if np.all(horn > 0) else
+        Estimate(math.nan, math.nan, raw.shape[0], level, "no horn work (no free mass)"),
+        "rock_power_w": mean_ci(raw[:, K.S_ROCK_WORK] / T, level),
+        "horn_power_w": mean_ci(horn / T, level),
+        "peak_force_per_blow_n": ratio_ci(raw[:, K.S_FPEAK_SUM], blows, level),
+        "mean_rock_force_n": mean_ci(raw[:, K.S_FDT] / raw[:, K.S_T], level),
+        "contact_fraction": mean_ci(raw[:, K.S_T_CONTACT] / raw[:, K.S_T], level),
     }
 
 
 def _members(p: DrillParams, m_free: float, start: int, n: int, st: DrillSettings, A0: float | None):
     pp = p if A0 is None else p.with_(impact=p.impact.with_(A0=A0))
-    u = np.random.default_rng(st.seed).random(start + n)[start:]
+    u = ensemble_uniforms(st, start, n)
     return np.array([pack(pp, m_free, pp.impact.v0 * (1.0 + st.v0_spread * (2.0 * ui - 1.0))) for ui in u])
 
 
@@ -272,7 +268,7 @@ def _summary(p, m_free, A0, raw, st) -> DrillStats:
     from . import drill_kernel as K
 
     T = p.window_s
-    est = _estimates(raw, T)
+    est = _estimates(raw, T, st.level)
     rel = [est[q].rel_half_width for q in DRIVING]
     det = bool(np.all(raw[:, K.S_PEN] == raw[0, K.S_PEN]) and np.all(raw[:, K.S_BLOWS] == raw[0, K.S_BLOWS]))
     converged = det or all(math.isfinite(r) and r <= st.rel_tol for r in rel)

@@ -63,7 +63,7 @@ from rpud_common.result import Result
 
 from .params import ImpactParams
 
-__all__ = ["Estimate", "mean_ci", "ratio_ci", "Scenario", "SCENARIOS", "StatsSettings",
+__all__ = ["Estimate", "mean_ci", "ratio_ci", "Scenario", "SCENARIOS", "StatsSettings", "ensemble_uniforms",
            "EnsembleStats", "ensemble_statistics", "ensemble_members", "member_stats", "QUANTITIES"]
 
 log = logging.getLogger(__name__)
@@ -311,9 +311,15 @@ class StatsSettings:
         check_range("level", self.level, 0.5, 0.999)
 
 
+def ensemble_uniforms(settings: StatsSettings, start: int, n: int) -> np.ndarray:
+    """The uniform draws ``U_i`` of members ``start .. start + n - 1``: one seeded stream, so a
+    member's draw does not depend on how the rounds were cut."""
+    return np.random.default_rng(settings.seed).random(start + n)[start:]
+
+
 def ensemble_members(params: ImpactParams, n: int, settings: StatsSettings, start: int = 0) -> list[ImpactParams]:
     """Members ``start .. start + n - 1`` of the seeded ensemble around ``params``."""
-    u = np.random.default_rng(settings.seed).random(start + n)[start:]
+    u = ensemble_uniforms(settings, start, n)
     return [params.with_(v0=params.v0 * (1.0 + settings.v0_spread * (2.0 * ui - 1.0))) for ui in u]
 
 
