@@ -133,7 +133,7 @@ class _SuperLU(Factor):
 
 
 class _Pardiso(Factor):
-    def __init__(self, A, symmetric=True, matching=True, ordering=None):
+    def __init__(self, A, symmetric=True, matching=True):
         self.backend = "pardiso"
         self.n = A.shape[0]
         self.symmetric = symmetric
@@ -146,12 +146,6 @@ class _Pardiso(Factor):
         # of the swept default mesh then takes 3.5 s instead of 4.3 s (free mesh 1.56 / 1.63 s;
         # measured, not documented by MKL)
         ip[4] = 2
-        if ordering is not None and not matching and len(ordering) == self.n:
-            # the fill-reducing ordering of an earlier matrix with the same pattern: no METIS
-            # run (about half the analysis); the ordering depends on the pattern only, so the
-            # factors are the ones METIS would give, bit for bit
-            self.solver.perm[:] = ordering
-            ip[4] = 1
         ip[9] = 8      # pivot perturbation 1e-8
         ip[10] = 1     # scaling
         ip[12] = 1 if matching else 0   # weighted matching (symmetric indefinite, saddle point)
@@ -174,17 +168,10 @@ class _Pardiso(Factor):
             log.info("PARDISO without matching perturbed %d pivots: factorising with it", self.perturbed)
             self._release()
             self.solver = self._new_solver(ip)
-            self.solver.iparm[4] = 2                # the matching permutes: an ordering of its own
             self.solver.iparm[12] = 1
             self._call(12, np.zeros((self.n, 1)))
             self.perturbed = int(self.solver.iparm[13])
         self.seconds = time.perf_counter() - t
-
-    @property
-    def ordering(self) -> np.ndarray:
-        """The fill-reducing ordering PARDISO used (``perm``, 1-based), for :func:`factorize`'s
-        ``ordering`` of a matrix with the same pattern."""
-        return self.solver.perm.copy()
 
     def _new_solver(self, iparm=None):
         """A pypardiso solver of this matrix type (``iparm`` copied if given) with an n-sized
@@ -279,19 +266,14 @@ class _ComplexViaReal(Factor):
         return y[: self.n] - 1j * y[self.n:]
 
 
-def factorize(A, backend: str | None = None, symmetric: bool = True, matching: bool = True,
-              ordering: np.ndarray | None = None) -> Factor:
+def factorize(A, backend: str | None = None, symmetric: bool = True, matching: bool = True) -> Factor:
     """Factorise the square sparse matrix ``A`` (real, or complex symmetric); see the module
     docstring for backends. ``symmetric`` tells PARDISO it may use only the upper triangle.
     ``matching=False`` (real matrices, PARDISO): no weighted matching in the analysis, which
     saddle-point matrices with zero diagonal entries need but a matrix with a full non-zero
     diagonal (the shifted piezo pencil: stiffness minus mass, minus permittivity) does not
     (~20 % less factorisation work on the default design); if any pivot had to be perturbed the
-    matrix is factorised again with the matching. ``ordering``: the ``ordering`` of an earlier
-    PARDISO factor (``matching=False``) of a matrix with the same sparsity pattern (a morphed
-    mesh), reused instead of a new METIS ordering; ignored by SuperLU, with the matching, or
-    for another size. Any permutation factorises correctly: a pattern that differs only costs
-    fill."""
+    matrix is factorised again with the matching."""
     name = backend_name(backend)
     A = sp.csr_matrix(A)
     if A.shape[0] != A.shape[1]:
@@ -304,7 +286,7 @@ def factorize(A, backend: str | None = None, symmetric: bool = True, matching: b
             else:
                 f = _ComplexViaReal(A)
         else:
-            f = _Pardiso(A, symmetric=symmetric, matching=matching, ordering=ordering)
+            f = _Pardiso(A, symmetric=symmetric, matching=matching)
     else:
         f = _SuperLU(A)
     log.info("factorised n=%d nnz=%d with %s in %.2f s", A.shape[0], A.nnz, f.backend, f.seconds)

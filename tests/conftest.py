@@ -90,6 +90,7 @@ SLOW: tuple[str, ...] = (
     "tests/test_fem_eigen.py::test_clamped_factor_reuse_and_choices",
     "tests/test_fem_eigen.py::test_joint_open_circuit_runs_alone_and_equals_seeded",
     "tests/test_fem_eigen.py::test_matching_reuse_gives_identical_results",
+    "tests/test_fem_eigen.py::test_matching_warm_start_same_modes_fewer_solves",
     "tests/test_fem_harmonic.py::test_a_basis_that_cannot_represent_the_band_is_refused",
     "tests/test_fem_harmonic.py::test_admittance_peak_and_dip_at_resonance_and_antiresonance",
     "tests/test_fem_harmonic.py::test_anti_resonance_with_dielectric_loss_equals_direct",

@@ -256,29 +256,29 @@ def test_factorisation_without_matching_solves_saddle_points():
             assert F.perturbed == 0
 
 
-def test_factorisation_reuses_an_ordering_bit_for_bit():
-    """factorize(ordering=...): the fill-reducing ordering of a matrix with the same pattern (a
-    morphed mesh in the matching) gives the factors a fresh METIS run gives, bit for bit (the
-    ordering depends on the pattern only), and any other permutation still solves to round-off
-    (backward-stable LDL^T: residual ~ eps * cond, here cond < 1e4, so 1e-10 holds with margin)."""
-    from fem.solvers import pardiso_available
+def test_matching_warm_start_same_modes_fewer_solves(langevin, caplog):
+    """A matching trial started from the previous trial's modes (fem.matching's ``warm``) finds
+    the same modes as the smooth start: both meet block_eigs' tolerance 1e-12 on the eigenvalue,
+    so their frequencies agree within ~1e-12 (asserted 1e-10), in fewer block solves. The stiffer
+    copy (K x 1.004, +0.2 % in f) stands in for a morphed trial length."""
+    import dataclasses
+    import logging
+    import re
 
-    if not pardiso_available():
-        pytest.skip("PARDISO orderings only")
-    n = 30                                                    # 2-D Laplacian, shifted inside its spectrum
-    lap1 = sp.diags([-np.ones(n - 1), 2 * np.ones(n), -np.ones(n - 1)], [-1, 0, 1])
-    L = (sp.kron(lap1, sp.identity(n)) + sp.kron(sp.identity(n), lap1)).tocsr()
-    A1 = (L - 0.503 * sp.identity(n * n)).tocsr()
-    A2 = (1.01 * L - 0.497 * sp.identity(n * n)).tocsr()
-    b = np.random.default_rng(4).standard_normal((n * n, 2))
-    F1 = factorize(A1, matching=False)
-    fresh = factorize(A2, matching=False)(b)
-    reused = factorize(A2, matching=False, ordering=F1.ordering)(b)
-    assert np.array_equal(fresh, reused)
-    other = np.random.default_rng(5).permutation(n * n).astype(np.int32) + 1    # 1-based, as PARDISO's
-    F = factorize(A2, matching=False, ordering=other)
-    assert np.array_equal(F.ordering, other)                                    # taken, not recomputed
-    x = F(b)
-    assert np.linalg.norm(A2 @ x - b) < 1e-10 * np.linalg.norm(b)
-    x = factorize(A2, matching=False, ordering=F1.ordering[:-1])(b)             # another size: ignored
-    assert np.linalg.norm(A2 @ x - b) < 1e-10 * np.linalg.norm(b)
+    from fem.matching import _modes
+
+    s = langevin
+    t = dataclasses.replace(s, K=(1.004 * s.K).tocsr())
+    free = s.free_dofs("short")
+    _, prev = _modes(s, free, 25e3, 4)
+
+    def solves(**kw):
+        caplog.clear()
+        with caplog.at_level(logging.DEBUG, logger="fem.matching"):
+            f, _ = _modes(t, free, 25e3, 4, **kw)
+        return f, int(re.search(r"(\d+) block solves", caplog.text).group(1))
+
+    f_cold, n_cold = solves()
+    f_warm, n_warm = solves(warm=prev)
+    np.testing.assert_allclose(f_warm, f_cold, rtol=1e-10)
+    assert n_warm < n_cold
