@@ -18,14 +18,14 @@ gives for test functions :math:`v` (displacement) and :math:`\psi` (potential)
 
 one bilinear form per term:
 
-=================== ======================================================== =================
-form                 integrand                                                 block
-=================== ======================================================== =================
-:data:`stiffness`    :math:`S(v)^\mathsf{T} c^E S(u)`                            ``K_uu``
-:data:`coupling`     :math:`S(v)^\mathsf{T} e^\mathsf{T} \nabla\phi`            ``K_uphi``
-:data:`permittivity` :math:`\nabla\psi^\mathsf{T} \varepsilon^S \nabla\phi`      ``K_phiphi``
-:data:`mass`         :math:`\rho\, v \cdot u`                                    ``M_uu``
-=================== ======================================================== =================
+==================== ====================================================== ============
+form                 integrand                                              block
+==================== ====================================================== ============
+:data:`stiffness`    :math:`S(v)^\mathsf{T} c^E S(u)`                       ``K_uu``
+:data:`coupling`     :math:`S(v)^\mathsf{T} e^\mathsf{T} \nabla\phi`        ``K_uphi``
+:data:`permittivity` :math:`\nabla\psi^\mathsf{T} \varepsilon^S \nabla\phi` ``K_phiphi``
+:data:`mass`         :math:`\rho\, v \cdot u`                               ``M_uu``
+==================== ====================================================== ============
 
 The material enters as keyword arguments of :func:`skfem.asm` (``c`` 6x6 in Pa, ``e`` 3x6 in
 C/m^2, ``eps`` 3x3 in F/m, ``rho`` in kg/m^3), constant over the cells assembled, as
