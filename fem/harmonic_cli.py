@@ -11,7 +11,7 @@ from rpud_common import ParameterError, check_range, save_figure
 from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_inputs, mesh_text, quantity
 
 from .harmonic import basis_reach, harmonic_sweep, modal_basis, working_point
-from .losses import q_option_losses
+from .losses import add_loss_options, q_option_losses
 
 def build_parser():
     from rpud_common import CliParser
@@ -32,14 +32,7 @@ def build_parser():
     p.add_argument("--band", metavar="LO,HI", help="admittance band, Hz (default: f_r - 3 %% .. f_a + 3 %%)")
     p.add_argument("--points", type=int, default=None, metavar="N",
                    help=f"frequencies in the band (default {POINTS})")
-    p.add_argument("--q-mech", type=float, metavar="Q",
-                   help="mechanical quality factor of every part (default: the assumed assembled-transducer Q "
-                        "of fem.losses, 100; 0: each material's datasheet value)")
-    p.add_argument("--tan-delta", type=float, metavar="T", help="dielectric loss tangent (default: datasheet)")
-    p.add_argument("--admittance", metavar="CSV",
-                   help="measured impedance/admittance sweep of the drill (frequency and |Z|, phase or G, B; "
-                        "fem.bvd): its Butterworth-Van Dyke fit nearest the working mode sets the losses (Q_m, "
-                        "tan delta) instead of --q-mech/--tan-delta")
+    add_loss_options(p, tan_delta=True)
     p.add_argument("--convection", type=float, default=None, metavar="H",
                    help="convective coefficient of the lumped thermal model, W/m^2/K (default 10: natural "
                         "convection in air; 5-25 is bracketed in the output)")

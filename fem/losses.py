@@ -16,7 +16,7 @@ from dataclasses import dataclass
 from rpud_common import ParameterError, check_range
 
 __all__ = ["ASSEMBLED_Q_MECH", "ASSEMBLED_Q_SOURCE", "Q_BRACKET", "DriveLosses", "default_losses",
-           "q_option_losses"]
+           "q_option_losses", "add_loss_options"]
 
 ASSEMBLED_Q_MECH = 100.0
 """Assumed mechanical quality factor of the assembled transducer (every part)."""
@@ -111,3 +111,19 @@ def q_option_losses(q_mech: float | None, tan_delta: float | None = None) -> Dri
     if q_mech == 0:
         return DriveLosses(None, tan_delta, "datasheet", "datasheet values of every material (the unbolted parts)")
     return DriveLosses(float(q_mech), tan_delta, "given", "given on the command line (--q-mech)")
+
+
+def add_loss_options(parser, *, tan_delta: bool = False, number_type=float) -> None:
+    """The loss options every drive command shares: ``--q-mech``, ``--admittance`` and, where the
+    command takes it, ``--tan-delta`` (one wording, one default: :data:`ASSEMBLED_Q_MECH`)."""
+    parser.add_argument("--q-mech", type=number_type, default=None, metavar="Q",
+                        help=f"mechanical quality factor of the assembled transducer, applied to every part "
+                             f"(default: the assumed {ASSEMBLED_Q_MECH:g} of fem.losses, its source printed; "
+                             f"0: each material's datasheet value)")
+    if tan_delta:
+        parser.add_argument("--tan-delta", type=number_type, default=None, metavar="T",
+                            help="dielectric loss tangent of the ceramics (default: datasheet)")
+    parser.add_argument("--admittance", metavar="CSV",
+                        help="measured impedance/admittance sweep of the drill (frequency and |Z|, phase or G, B; "
+                             "fem.bvd): its Butterworth-Van Dyke fit nearest the working mode sets the losses "
+                             "(Q_m, tan delta) instead of --q-mech" + ("/--tan-delta" if tan_delta else ""))

@@ -41,12 +41,9 @@ def build_parser() -> CliParser:
                    help="auto (default): the k = 0 swept sector where the design can be swept (every response of "
                         "the stack on a sixth of the unknowns, working mode within ~0.03 %% on the default design), "
                         "else the whole drill, graded; sector / whole: that path (--mesher other than auto: whole)")
-    p.add_argument("--q-mech", type=float, default=None, metavar="Q",
-                   help="mechanical quality factor of the assembled transducer (default: the assumed 100 of "
-                        "fem.losses, its source in the report); 0 = datasheet values")
-    p.add_argument("--admittance", metavar="CSV",
-                   help="measured impedance/admittance sweep of the drill (frequency and |Z|, phase or G, B): its "
-                        "Butterworth-Van Dyke fit sets the losses (Q_m, tan delta) instead of --q-mech")
+    from fem.losses import add_loss_options
+
+    add_loss_options(p)
     p.add_argument("--no-match", action="store_true", help="analyse the design as it is, without resonance matching")
     p.add_argument("--no-couple", action="store_true", help="do not load the horn tip with the impacts (A0 unloaded)")
     p.add_argument("--rel-tol", type=float, default=0.03, metavar="R",

@@ -47,12 +47,9 @@ def _parser() -> CliParser:
                          "electrode voltage follows the charge, with the resistor's loss in the energy balance)")
     ap.add_argument("--freq", type=real_number, default=None, metavar="HZ",
                     help="drive frequency, Hz (default: the working mode's resonance)")
-    ap.add_argument("--q-mech", type=real_number, default=None, metavar="Q",
-                    help="assembled-transducer quality factor (default: the assumed 100 of fem.losses; 0 = "
-                         "datasheet losses)")
-    ap.add_argument("--admittance", metavar="CSV",
-                    help="measured impedance/admittance sweep of the drill: its Butterworth-Van Dyke fit sets the "
-                         "losses (Q_m, tan delta) instead of --q-mech (fem.bvd)")
+    from fem.losses import add_loss_options
+
+    add_loss_options(ap, number_type=real_number)
     ap.add_argument("--modes", type=int, default=None, metavar="N",
                     help="modes kept (default: working mode + modes with tip participation s^2 >= 1 %% of its)")
     ap.add_argument("--match", action="store_true", help="run the resonance matching first (~35 s)")
