@@ -190,12 +190,9 @@ def pack(p: DrillParams, m_free: float | None = None, v0: float | None = None, *
 @dataclass(frozen=True)
 class DrillSettings(StatsSettings):
     """Ensemble rule of the drilling statistics: :class:`impact.stats.StatsSettings` with the
-    drilling stage's defaults.
-
-    ``rel_tol`` applies to the driving quantities (drilling rate, blow rate). A drilling member
-    runs a whole drill-under-load window (seconds of drive, not milliseconds), so the first round
-    is smaller (16 members, at least 2 for a spread) and the cap lower (512) than the impact
-    statistics'; the members' launch speeds are perturbed as there."""
+    drilling stage's defaults (a 5 % target on the driving quantities, the drilling rate and the
+    blow rate; a first round of 16 members, at least 2 for a spread; a cap of 512). The members'
+    launch speeds are perturbed as in :mod:`impact.stats`."""
 
     rel_tol: float = 0.05
     n_start: int = 16
