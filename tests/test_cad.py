@@ -25,6 +25,14 @@ REFINE = 1.5
 ROUND_TRIP_TOL = 5e-4        # the issue's 0.05 % on f_r and f_a
 
 
+def _sharp_default():
+    """The default drill with sharp horn shoulders: the round trip's parametric layout (a
+    declared length is one axial band, and each part one z-extent). With its 2 mm fillets the
+    horn's length stretches the two sections around the step fillet, and the flange fillet's metal
+    is split between flange and horn along a slanted line, so neither maps onto that layout."""
+    return geometry.filleted(geometry.default_design(), 0.0)
+
+
 @pytest.fixture(scope="module")
 def exported(tmp_path_factory):
     # another STEP file written first: OpenCASCADE numbers the files a process writes, and the
@@ -37,13 +45,13 @@ def exported(tmp_path_factory):
         with native_stdout_quiet():
             gmsh.write(str(tmp_path_factory.mktemp("cad") / "first.step"))
     folder = tmp_path_factory.mktemp("cad") / "export"
-    step, toml = export_cad(geometry.default_design(), folder)
+    step, toml = export_cad(_sharp_default(), folder)
     return folder, step, toml
 
 
 @pytest.fixture(scope="module")
 def meshes(exported):
-    d0 = geometry.default_design()
+    d0 = _sharp_default()
     d1 = load_design(exported[2])
     return d0, d1, geometry.build_mesh(d0, refine=REFINE), geometry.build_mesh(d1, refine=REFINE)
 
@@ -123,7 +131,7 @@ def test_design_kinds_in_modules_of_their_own_with_the_old_import_paths():
 def test_export_reads_back_with_the_parametric_layout(exported):
     folder, step, toml = exported
     assert sorted(p.name for p in folder.iterdir()) == ["design.step", "design.toml"]
-    d0, d1 = geometry.default_design(), load_design(toml)
+    d0, d1 = _sharp_default(), load_design(toml)
     assert isinstance(d1, CadDesign) and d1.default_tuned == ("lengths.horn_length.value",
                                                               "lengths.coupler_length.value")
     # OpenCASCADE's volumes of the drawing = the closed forms (helical slots, tooth gaps included)
@@ -155,7 +163,7 @@ def test_round_trip_working_mode_at_the_default_mesh(exported):
     default refinement, has the same working mode within 0.05 % (measured: f_r -1.3e-4, f_a
     -1.6e-4; 12 925 vs 12 845 tetrahedra)."""
     out = []
-    for design in (geometry.default_design(), load_design(exported[2])):
+    for design in (_sharp_default(), load_design(exported[2])):
         res = fem.modal_analysis(fem.assemble(geometry.build_mesh(design)), near_hz=20000.0, n_modes=4)
         w = res.working
         assert res.labels[w] == "longitudinal"
