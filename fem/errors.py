@@ -54,6 +54,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from rpud_common import ParameterError, check_range
+from rpud_common.formatting import plus_minus
 
 from .convergence import QUANTITIES as CONVERGENCE_QUANTITIES
 from .convergence import ESTIMATOR_RATIO, Level, estimator_order, harmonic_quantities, two_level_error, wrapped_difference
@@ -238,33 +239,3 @@ def annotate(record: dict, est: ErrorEstimate | None, keys: dict[str, str]) -> d
         else:
             record[f"{key}_error"] = est.scaled(q, v)
     return record
-
-
-def plus_minus(value: float, error: float | None, unit: str = "", scale: float = 1.0, digits: int = 2) -> str:
-    """``'19 997 ± 90 Hz'``: ``value x scale`` to the last digit of the error's ``digits``
-    significant digits, thin thousands groups; no error (None/NaN): the value to 6 digits."""
-    v = value * scale
-    u = f" {unit}" if unit else ""
-    if error is None or not math.isfinite(error) or not math.isfinite(v):
-        return f"{_group(f'{v:.6g}')}{u}"
-    e = abs(error) * scale
-    if e == 0:
-        return f"{_group(f'{v:.6g}')} ± 0{u}"
-    dec = digits - 1 - math.floor(math.log10(e))
-    if dec >= 0:
-        v_txt, e_txt = f"{v:.{dec}f}", f"{e:.{dec}f}"
-    else:                                   # round both to tens, hundreds, ...
-        v_txt, e_txt = f"{round(v, dec):.0f}", f"{round(e, dec):.0f}"
-    return f"{_group(v_txt)} ± {_group(e_txt)}{u}"
-
-
-def _group(text: str) -> str:
-    """Thousands groups of the integer part with a space (SI style): 19996.8 -> 19 996.8."""
-    sign = "-" if text.startswith("-") else ""
-    body = text.lstrip("-")
-    if "e" in body or not body[:1].isdigit():
-        return text
-    whole, dot, frac = body.partition(".")
-    if len(whole) > 4:
-        whole = f"{int(whole):,}".replace(",", " ")
-    return f"{sign}{whole}{dot}{frac}"

@@ -30,10 +30,13 @@ __all__ = ["estimate_stage", "annotate_summary", "error_text"]
 TIP = "tip_per_volt_m"
 
 
-def estimate_stage(design, options, settings, system, modal, w: int, wp, surfaces, near_hz: float, say=None):
+def estimate_stage(design, options, settings, system, modal, w: int, wp, surfaces, near_hz: float, say=None,
+                   loss=None):
     """The two-level estimate of the working mode's outputs (:class:`fem.errors.ErrorEstimate`) on
     the path that ran (``options``: the resolved :class:`results.stage_fe.MeshOptions`), or None
-    when ``options.refine`` leaves no room for a coarser mesh."""
+    when ``options.refine`` leaves no room for a coarser mesh. The coarse harmonic response has
+    the losses ``loss`` (:class:`fem.harmonic.LossModel`), default those of ``settings``
+    (:class:`results.pipeline.PipelineSettings`)."""
     from fem.errors import ESTIMATOR_RATIO, estimate, harmonic_quantities, plus_minus
 
     if options.refine * ESTIMATOR_RATIO > 5.0:
@@ -42,7 +45,8 @@ def estimate_stage(design, options, settings, system, modal, w: int, wp, surface
     values = {"f_r_hz": float(modal.f_r_hz[w]), "f_a_hz": float(modal.f_a_hz[w]), "k_eff": float(modal.k_eff[w]),
               **harmonic_quantities(wp)}
     est = estimate(design, values, system.ndof, refine=options.refine, mesh_size=options.mesh_size,
-                   grade=options.grade, near_hz=near_hz, loss=settings.losses().loss_model(),
+                   grade=options.grade, near_hz=near_hz,
+                   loss=settings.losses().loss_model() if loss is None else loss,
                    surfaces=tuple(surfaces), n_modes=4, mesher=options.mesher, path=options.path)
     if say:
         v, e = est.values, est.error

@@ -18,7 +18,8 @@ numbers, so differences between points are not masked by member-to-member scatte
 amplitude handed to the impacts is rounded to 4 significant digits as in the pipeline.
 
 Outputs (:func:`explore`): ``table.parquet`` and ``table.csv`` (one row per point: inputs,
-outputs, impact outputs with their 95 % CI half-width ``<name>_ci95``, status, error),
+outputs, impact outputs with their 95 % CI half-width ``<name>_ci95``, rotor outputs with their
+error ``<name>_error`` from the teeth motion's discretisation error, status, error),
 ``study.json`` (the study, counts, timings) and ``points/`` (one JSON per point), written into
 the output folder as a whole.
 """
@@ -43,7 +44,7 @@ from .explore_cost import MAX_HOURS, CostEstimate, check_cost, estimate_cost
 from .explore_store import (MAX_RECORD_BYTES, check_store, make_row, point_id, read_store, reset_store, resume_store,
                             write_record)
 from .explore_tasks import (guard, record, rotor_values, split_point, task_harmonic, task_impact, task_key,
-                            task_match, task_mesh, task_rotor)
+                            task_match, task_mesh, task_rotor, task_teeth_error)
 from .study import OUTPUTS, Study
 
 log = logging.getLogger(__name__)
@@ -77,9 +78,11 @@ def _submit(client, study: Study, todo: list[tuple[int, dict]], store: str | Non
             ik = f"impact-{fp}-{task_key(point)}-{index}"
             futs.append(once(ik, lambda h, v=voltage, i=impact: task_impact(study, h, v, i), futs[2]))
         if "rotor" in stages:
+            ek = f"rotor-{fp}-teeth-{task_key({'d': design, 'q': q_mech})}"     # a failure is the rotor stage's
+            est = once(ek, lambda m, h: task_teeth_error(study, m, h), futs[1], futs[2])
             rk = f"rotor-{fp}-{task_key(point)}-{index}"
-            futs.append(once(rk, lambda h, d=design, v=voltage, r=rotor_values(point): task_rotor(study, h, d, v, r),
-                             futs[2]))
+            futs.append(once(rk, lambda h, e, d=design, v=voltage, r=rotor_values(point):
+                             task_rotor(study, h, d, v, r, e), futs[2], est))
         recs = [once(f"rec-{f.key}", record, f) for f in futs]
         rows.append(client.submit(make_row, study, index, point, recs, store, key=f"row-{fp}-{index}", pure=False))
     return rows
@@ -113,8 +116,10 @@ def run_sequential(study: Study, points: list[dict] | None = None, threads: int 
                              threads=threads))
         if "rotor" in study.stages:
             rotor = rotor_values(point)
-            out.append(guard("rotor", lambda h, d=design, v=voltage, r=rotor: task_rotor(study, h, d, v, r), out[2],
-                             threads=threads))
+            est = once(f"rotor-teeth-{task_key({'d': design, 'q': q_mech})}", lambda m, h: task_teeth_error(study, m, h),
+                       out[1], out[2])
+            out.append(guard("rotor", lambda h, e, d=design, v=voltage, r=rotor: task_rotor(study, h, d, v, r, e),
+                             out[2], est, threads=threads))
         rows.append(make_row(study, index, point, [record(x) for x in out]))
     return rows
 

@@ -44,8 +44,12 @@ from it."""
 FE_COST_EXPONENT = 1.3
 """FE stage time ~ estimated DOFs ** 1.3 (default design at mesh_size 2.5 and 2 mm: 2.7x and
 5.1x the DOFs took 2.6-3.1x and 7.0-8.6x the modal and harmonic time)."""
-ROTOR_SECONDS = 0.15
-"""The rotor stage of one point (torque-speed curve and hovering check), s (measured 0.12 s warm)."""
+ROTOR_SECONDS = 0.25
+"""The rotor stage of one point (torque-speed curve and hovering check at the teeth motion, the
+curve at the eight corners of its error box), s (measured 0.19-0.20 s CPU warm)."""
+TEETH_ERROR_SECONDS = 4.5
+"""The discretisation-error estimate of a harmonic task's teeth motion (one solve on a 1.4x
+coarser mesh), s (the pipeline's ``discretisation_error_s`` of the default design: 4.3 s)."""
 STARTUP_SECONDS = 5.0
 """Starting a local cluster and writing the results folder, s."""
 MAX_HOURS = 2.0
@@ -107,7 +111,7 @@ def estimate_cost(study: Study, points: list[dict], workers: int) -> CostEstimat
     if "impact" in study.stages:
         core += len(points) * (IMPACT_SECONDS + IMPACT_MEMBER_SECONDS * study.settings.max_members)
     if "rotor" in study.stages:
-        core += len(points) * ROTOR_SECONDS
+        core += len(points) * ROTOR_SECONDS + harmonics * TEETH_ERROR_SECONDS * scale
     workers = max(workers, 1)
     return CostEstimate(seconds=STARTUP_SECONDS + core / workers, core_seconds=core, points=len(points),
                         meshes=meshes, harmonics=harmonics, workers=workers, dofs=dofs)

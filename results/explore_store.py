@@ -24,7 +24,7 @@ from typing import Any
 from rpud_common import ParameterError, is_finite_number, write_json
 
 from .explore_tasks import Failed
-from .study import OUTPUTS, STAGES, Study
+from .study import OUTPUTS, ROTOR_ERRORS, STAGES, Study
 
 log = logging.getLogger(__name__)
 
@@ -69,8 +69,9 @@ MAX_RECORD_BYTES = 1_000_000
 """Largest resume record read, bytes (a real one is about 2 kB)."""
 
 _ID = re.compile(r"p(\d{5,9})-[0-9a-f]{10}\Z")
-_TEXT_FIELDS = {"error": 1000, "failed_stage": 20, "impact_note": 2000}
+_TEXT_FIELDS = {"error": 1000, "failed_stage": 20, "impact_note": 2000, "rotor_note": 1000}
 _NUMBER_FIELDS = (set(OUTPUTS) | {f"{o}_ci95" for o, v in OUTPUTS.items() if v[0] == "impact"}
+                  | {f"{o}_error" for o in ROTOR_ERRORS}
                   | {f"{stage}_s" for stage in STAGES} | {"members", "stats_converged", "power_per_v2_w"})
 
 

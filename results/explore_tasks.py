@@ -24,7 +24,7 @@ from .study import GROUPS, Study
 log = logging.getLogger(__name__)
 
 __all__ = ["Failed", "guard", "split_point", "task_key", "task_mesh", "task_match", "task_harmonic", "task_impact",
-           "task_rotor", "rotor_values", "record", "HANDOFF_DIGITS"]
+           "task_teeth_error", "task_rotor", "rotor_values", "record", "HANDOFF_DIGITS"]
 
 HANDOFF_DIGITS = 4
 """Significant digits of the amplitude handed to the impacts (the pipeline's default)."""
@@ -133,16 +133,29 @@ def rotor_values(point: dict) -> dict:
     return {k.split(".", 1)[1]: v for k, v in point.items() if k.startswith("rotor.")}
 
 
-def task_rotor(study: Study, harm, design_values: dict, voltage: float, values: dict) -> dict:
-    """The rotor's speed and torque of one point (:func:`results.rotor_stage.study_rotor`): the
-    per-volt teeth motion at the point's voltage, the load the pipeline's default weight on bit
-    gives."""
+def task_teeth_error(study: Study, matched, harm):
+    """The discretisation error of the teeth motion the rotor uses: the pipeline's estimate
+    (:func:`results.errors.estimate_stage`, one solve on a 1.4x coarser mesh) of the point's
+    working mode with the harmonic task's losses; None when the study's ``refine`` leaves no
+    coarser mesh. Shared, like the harmonic task, by the points of one design and ``q_mech``."""
+    from .errors import estimate_stage
+
+    m = matched
+    return estimate_stage(m.design, m.options, None, m.system, m.modal, m.w, harm.wp, harm.surfaces,
+                          float(m.design.target_frequency), loss=harm.loss)
+
+
+def task_rotor(study: Study, harm, design_values: dict, voltage: float, values: dict, est=None) -> dict:
+    """The rotor's speed and torque of one point, each with its error
+    (:func:`results.rotor_stage.study_rotor`): the per-volt teeth motion at the point's voltage,
+    its errors from ``est`` (:func:`task_teeth_error`), the load the pipeline's default weight on
+    bit gives."""
     from .pipeline import PipelineSettings
     from .rotor_stage import study_rotor
 
     t0 = time.perf_counter()
     design = study.base_design().replace(design_values) if design_values else study.base_design()
-    rec = study_rotor(design, harm.wp, harm.f_w, voltage, values, PipelineSettings().wob)
+    rec = study_rotor(design, harm.wp, harm.f_w, voltage, values, PipelineSettings().wob, est=est)
     rec["rotor_s"] = time.perf_counter() - t0
     return rec
 

@@ -24,10 +24,12 @@ from dataclasses import dataclass
 
 from impact.rotor import RotorParams, TeethMotion, bit_friction_torque, rotor_performance
 from rpud_common import ParameterError, check_nonnegative, check_range
+from rpud_common.formatting import plus_minus
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TeethReport", "rotor_params_from_design", "rotor_stage", "study_rotor", "OUTPUTS", "BIT"]
+__all__ = ["TeethReport", "rotor_params_from_design", "teeth_report", "rotor_stage", "study_rotor", "OUTPUTS", "BIT",
+           "ROUNDOFF"]
 
 _RPM = 30.0 / math.pi
 
@@ -44,6 +46,12 @@ OUTPUTS = (
 
 BIT = (3e-3, 0.4)
 """The load's bit: diameter (m) of a flat bit and its friction coefficient in rock (assumed)."""
+
+ROUNDOFF = 1e-9
+"""Relative departure of a corner's output from the nominal one below which the two are equal:
+the model's roots are found to 1e-13 and its integrals are exact to round-off, and its energy
+balance closes to 1e-9 (``tests/test_rotor.py``). The stall torque of a contact that slides one
+way over the window is ``mu F r`` whatever the teeth motion: its error is 0, not 5e-16."""
 
 
 @dataclass(frozen=True)
@@ -109,6 +117,43 @@ def _outputs(res) -> dict:
             "contact_efficiency": res.load_power / res.load_teeth_power if res.load_teeth_power > 0 else 0.0}
 
 
+def _box(teeth: TeethReport, params: RotorParams, load_torque: float, points: int):
+    """The nominal result, its outputs and each output's largest departure over the corners of
+    the error box (a departure within :data:`ROUNDOFF` of the values is 0)."""
+    nominal = rotor_performance(TeethMotion.from_ellipse(teeth.freq_hz, teeth.axial_m, teeth.ratio, teeth.phase_deg),
+                                params, load_torque, points=points)
+    values = _outputs(nominal)
+    spread = {k: 0.0 for k in values}
+    for tm in teeth.corners():
+        corner = _outputs(rotor_performance(tm, params, load_torque, points=points, check_hover=False))
+        for k, v in corner.items():
+            d = abs(v - values[k])
+            if d > ROUNDOFF * max(abs(v), abs(values[k])):
+                spread[k] = max(spread[k], d)
+    return nominal, values, spread
+
+
+def _efficiency(nominal, electric_power_w: float) -> dict:
+    """The efficiency against the electrical input: bounds 0 and the whole unloaded power as the
+    rotary side's own loss, the midpoint +- half the spread."""
+    hi = nominal.load_power / nominal.load_teeth_power if nominal.load_teeth_power > 0 else 0.0
+    den = nominal.load_teeth_power + electric_power_w
+    lo = nominal.load_power / den if den > 0 else 0.0
+    return {"electric_efficiency": 0.5 * (hi + lo), "electric_efficiency_error": 0.5 * (hi - lo),
+            "electric_efficiency_bounds": [lo, hi],
+            "electric_efficiency_note": ("mechanical power / (teeth power + the rotary side's own loss); that loss is "
+                                         "bounded by 0 and the unloaded electrical power "
+                                         f"{electric_power_w:.4g} W: midpoint +- half the spread (model form)")}
+
+
+def rotor_text(values: dict, errors: dict, load_torque: float, hovers: bool | None) -> str:
+    """One line: no-load speed, stall torque and the speed under the load, each +- its error."""
+    return (f"rotor: no-load {plus_minus(values['no_load_speed_rpm'], errors['no_load_speed_rpm'], 'rpm')}, "
+            f"stall {plus_minus(values['stall_torque_n_m'], errors['stall_torque_n_m'], 'mN m', 1e3)}, under "
+            f"{load_torque * 1e3:.3g} mN m {plus_minus(values['load_speed_rpm'], errors['load_speed_rpm'], 'rpm')}"
+            + ("" if hovers is None or hovers else "; the rotor does not hover (it bounces): not a prediction"))
+
+
 def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, electric_power_w: float, *,
                 points: int = 41, say=None) -> dict:
     """The rotor's results at the reported teeth motion, with errors from its error box.
@@ -136,26 +181,11 @@ def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, ele
         error, the inputs, the nominal result's record and its notes).
     """
     check_nonnegative("electric_power_w", electric_power_w, "W")
-    nominal = rotor_performance(TeethMotion.from_ellipse(teeth.freq_hz, teeth.axial_m, teeth.ratio, teeth.phase_deg),
-                                params, load_torque, points=points)
-    values = _outputs(nominal)
-    spread = {k: 0.0 for k in values}
-    for tm in teeth.corners():
-        corner = _outputs(rotor_performance(tm, params, load_torque, points=points, check_hover=False))
-        for k, v in corner.items():
-            spread[k] = max(spread[k], abs(v - values[k]))
+    nominal, values, spread = _box(teeth, params, load_torque, points)
     out = {}
     for key, _, _ in OUTPUTS:
         out[key], out[f"{key}_error"] = values[key], spread[key]
-    # efficiency against the electrical input: bounds 0 and the whole unloaded power as the idle loss
-    hi = nominal.load_power / nominal.load_teeth_power if nominal.load_teeth_power > 0 else 0.0
-    den = nominal.load_teeth_power + electric_power_w
-    lo = nominal.load_power / den if den > 0 else 0.0
-    out["electric_efficiency"], out["electric_efficiency_error"] = 0.5 * (hi + lo), 0.5 * (hi - lo)
-    out["electric_efficiency_bounds"] = [lo, hi]
-    out["electric_efficiency_note"] = ("mechanical power / (teeth power + the rotary side's own loss); that loss is "
-                                       "bounded by 0 and the unloaded electrical power "
-                                       f"{electric_power_w:.4g} W: midpoint +- half the spread (model form)")
+    out.update(_efficiency(nominal, electric_power_w))
     out["errors_from"] = "largest departure over the 8 corners of the teeth motion's error box"
     out["teeth"] = {"freq_hz": teeth.freq_hz, "axial_m": teeth.axial_m, "axial_m_error": teeth.axial_error_m,
                     "ellipse_ratio": teeth.ratio, "ellipse_ratio_error": teeth.ratio_error,
@@ -165,12 +195,30 @@ def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, ele
     out["hover"] = nominal.hover
     out["notes"] = list(nominal.notes)
     if say:
-        say(f"      rotor: no-load {values['no_load_speed_rpm']:.3g} ± {spread['no_load_speed_rpm']:.2g} rpm, stall "
-            f"{values['stall_torque_n_m'] * 1e3:.3g} ± {spread['stall_torque_n_m'] * 1e3:.2g} mN m, under "
-            f"{load_torque * 1e3:.3g} mN m {values['load_speed_rpm']:.3g} ± {spread['load_speed_rpm']:.2g} rpm"
-            + ("" if nominal.hover is None or nominal.hover["holds"] else
-               "; the rotor does not hover (it bounces): not a prediction"))
+        say("      " + rotor_text(values, spread, load_torque, None if nominal.hover is None else nominal.hover["holds"]))
     return {"result": nominal, "json": out}
+
+
+def teeth_report(wp, f_w: float, est, scale: float = 1.0) -> tuple[TeethReport, dict]:
+    """The teeth motion of the working point ``wp`` (at ``f_w`` Hz, amplitudes times ``scale``)
+    with its errors from the discretisation-error estimate ``est``
+    (:class:`fem.errors.ErrorEstimate`, or None), and a note for each error it cannot give
+    (``axial_error_note``, ``ratio_error_note``, ``phase_error_note``).
+
+    The axial amplitude carries the relative error of ``teeth_axial_per_volt_m``, the ellipse
+    ratio and the phase their own estimated errors (:mod:`fem.errors`).
+    """
+    def error_of(q):
+        return est.error(q) if est is not None and q in est.errors else None
+
+    axial = _teeth_axial(wp, scale)
+    rel = est.relative("teeth_axial_per_volt_m") if error_of("teeth_axial_per_volt_m") is not None else None
+    ratio_err, phase_err = error_of("teeth_ellipse_ratio"), error_of("teeth_phase_deg")
+    teeth = TeethReport(freq_hz=f_w, axial_m=axial, axial_error_m=axial * (rel or 0.0), ratio=wp.teeth_ellipse_ratio,
+                        ratio_error=ratio_err or 0.0, phase_deg=wp.teeth_phase_deg, phase_error_deg=phase_err or 0.0)
+    notes = {f"{name}_error_note": "not estimated (no discretisation-error estimate in this run): the errors exclude it"
+             for name, err in (("axial", rel), ("ratio", ratio_err), ("phase", phase_err)) if err is None}
+    return teeth, notes
 
 
 def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> dict | None:
@@ -178,27 +226,16 @@ def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> d
 
     ``wp``: the harmonic working point (``teeth_tops`` among its surfaces), ``f_w`` its frequency
     (Hz), ``est`` the discretisation-error estimate (:func:`results.errors.estimate_stage`, or
-    None), ``wob`` the weight on bit (N) whose bit friction is the load. The teeth's axial
-    amplitude carries the relative error of ``teeth_axial_per_volt_m``, the ellipse ratio and the
-    phase their own estimated errors (:mod:`fem.errors`).
+    None), ``wob`` the weight on bit (N) whose bit friction is the load. The teeth motion and its
+    errors: :func:`teeth_report`.
     """
     if "teeth_tops" not in getattr(wp, "surfaces", {}) or not getattr(design.coupler, "n_teeth", 0):
         return None
-
-    def error_of(q):
-        return est.error(q) if est is not None and q in est.errors else None
-
-    axial = _teeth_axial(wp, 1.0)
-    rel = est.relative("teeth_axial_per_volt_m") if error_of("teeth_axial_per_volt_m") is not None else None
-    ratio_err, phase_err = error_of("teeth_ellipse_ratio"), error_of("teeth_phase_deg")
-    teeth = TeethReport(freq_hz=f_w, axial_m=axial, axial_error_m=axial * (rel or 0.0), ratio=wp.teeth_ellipse_ratio,
-                        ratio_error=ratio_err or 0.0, phase_deg=wp.teeth_phase_deg, phase_error_deg=phase_err or 0.0)
+    teeth, notes = teeth_report(wp, f_w, est)
     out = rotor_stage(teeth, rotor_params_from_design(design), bit_friction_torque(wob, *BIT),
                       float(wp.power_w), say=say)
     j = out["json"]
-    for name, err in (("axial", rel), ("ratio", ratio_err), ("phase", phase_err)):
-        if err is None:
-            j[f"{name}_error_note"] = "not estimated (no discretisation-error estimate in this run): the errors exclude it"
+    j.update(notes)
     j["load_note"] = (f"the bit's friction in rock: flat {BIT[0] * 1e3:g} mm bit, weight on bit {wob:g} N, "
                       f"mu_rock {BIT[1]:g} (assumed)")
     return out
@@ -213,18 +250,31 @@ def _teeth_axial(wp, scale: float) -> float:
     return abs(wp.surfaces["teeth_tops"]["axial"]) * scale
 
 
-def study_rotor(design, wp, f_w: float, scale: float, rotor_values: dict, wob: float) -> dict:
-    """One design-study point's rotor outputs (``rotor_*`` of :data:`results.study.OUTPUTS`).
+STUDY_OUTPUTS = {"rotor_no_load_rpm": "no_load_speed_rpm", "rotor_stall_torque_n_m": "stall_torque_n_m",
+                 "rotor_load_rpm": "load_speed_rpm"}
+"""A study's rotor columns (:data:`results.study.OUTPUTS`) and the stage's outputs they are."""
+
+
+def study_rotor(design, wp, f_w: float, scale: float, rotor_values: dict, wob: float, est=None) -> dict:
+    """One design-study point's rotor outputs (``rotor_*`` of :data:`results.study.OUTPUTS`),
+    each with its error (``<column>_error``).
 
     The teeth motion of the working point ``wp`` at ``f_w`` (Hz) scaled by ``scale`` (the drive
-    voltage over the working point's: the point's voltage for a study's 1 V working point),
-    the rotor data of ``design``
-    (:func:`rotor_params_from_design`) with ``rotor_values`` (RotorParams fields) set, and the
-    bit's friction torque under ``wob`` (N) as the load: the nominal results of
-    :func:`rotor_stage`, without its error box (a study's harmonic task has no error estimate).
+    voltage over the working point's: the point's voltage for a study's 1 V working point) with
+    its errors from ``est`` (the point's discretisation-error estimate, :func:`teeth_report`),
+    the rotor data of ``design`` (:func:`rotor_params_from_design`) with ``rotor_values``
+    (RotorParams fields) set, and the bit's friction torque under ``wob`` (N) as the load: the
+    nominal results of :func:`rotor_stage` and their departures over the error box. Without an
+    estimate the errors exclude the FE's and ``rotor_note`` says so.
     """
     params = rotor_params_from_design(design).with_(**rotor_values)
-    teeth = TeethMotion.from_ellipse(f_w, _teeth_axial(wp, scale), wp.teeth_ellipse_ratio, wp.teeth_phase_deg)
-    res = rotor_performance(teeth, params, bit_friction_torque(wob, *BIT))
-    return {"rotor_no_load_rpm": float(res.no_load_speed * _RPM), "rotor_stall_torque_n_m": float(res.stall_torque),
-            "rotor_load_rpm": float(res.load_speed * _RPM), "rotor_hovers": float(bool(res.hover["holds"]))}
+    teeth, notes = teeth_report(wp, f_w, est, scale)
+    nominal, values, spread = _box(teeth, params, bit_friction_torque(wob, *BIT), 41)
+    rec = {}
+    for column, key in STUDY_OUTPUTS.items():
+        rec[column], rec[f"{column}_error"] = float(values[key]), float(spread[key])
+    rec["rotor_hovers"] = float(bool(nominal.hover["holds"]))
+    missing = [k.split("_")[0] for k in notes]
+    rec["rotor_note"] = (f"no discretisation-error estimate of the teeth's {', '.join(missing)}: the errors exclude it"
+                         if missing else "")
+    return rec

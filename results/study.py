@@ -70,6 +70,7 @@ SAMPLINGS = ("grid", "lhs", "list", "tolerance")
 MAX_POINTS = 100_000
 
 #: output -> (stage that produces it, unit, description); impact outputs carry a 95 % CI column
+#: (``<name>_ci95``), the rotor's speeds and torque an error column (``<name>_error``)
 OUTPUTS = {
     "tetrahedra": ("mesh", "-", "tetrahedra of the mesh"),
     "nodes": ("mesh", "-", "mesh nodes"),
@@ -92,6 +93,9 @@ OUTPUTS = {
     "rotor_load_rpm": ("rotor", "rpm", "rotor speed under the bit's friction torque"),
     "rotor_hovers": ("rotor", "-", "direct integration keeps the rotor on the teeth (1) or it bounces (0)"),
 }
+ROTOR_ERRORS = ("rotor_no_load_rpm", "rotor_stall_torque_n_m", "rotor_load_rpm")
+"""Rotor outputs with an ``<name>_error`` column: their largest departure over the corners of the
+teeth motion's error box (:func:`results.rotor_stage.study_rotor`)."""
 IMPACT_FIELDS = ("m_free", "e1", "e2", "m_tool", "k0", "c", "gap", "v0", "spring_force")
 DRIVE_FIELDS = ("voltage", "q_mech")
 ROTOR_FIELDS = ("preload", "spring_stiffness", "mu", "rotor_mass", "rotor_inertia", "k_normal", "k_tangential")

@@ -22,6 +22,7 @@ _WHERE = {
     "cli": ("CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running"),
     "signals": ("Terminated",),
     "provenance": ("__version__", "provenance_record"),
+    "formatting": ("plus_minus", "group_thousands"),
 }
 # loaded on first use: an entry point imports rpud_common.launch (standard library only) before
 # anything else, and that must not pull numpy in through this package

@@ -17,12 +17,17 @@ References and tolerances:
   (impact.rotor.marched_mean_force) on N and 2N steps; the event-driven mean force lies within
   twice |T_N - T_2N| of T_2N (the march converges at second order, so the error of T_2N is about
   a third of that difference; doubled for the uncertainty of the estimate itself);
+- the whole torque-speed curve in the rigid-contact limit against the closed form of the
+  rigid-rotor model of Hagedorn and Wallaschek (1992) / Wallaschek (1998) (linear normal springs,
+  Coulomb friction, an ellipse on its axes): T(v) = mu F r (2 A(theta_a) / A(theta_b) - 1), the
+  tolerance from the slider's stick phases at the two reversals (derived in the test, 2e-4 of
+  mu F r at k_t = 1e16 N/m);
 - the flat-punch stiffnesses against Johnson's closed forms for one rigid body (E2 -> inf), 1e-12;
 - bad input: one line, exit 2, nothing written.
 
-A published ultrasonic-motor case is not reproduced here: no case with its dimensions, preload,
-friction and vibration amplitudes and a result of stated accuracy was reachable (the sources
-searched and why each fails: docs/theory/rotor.md, "Verification").
+A published ultrasonic-motor case (a motor's own dimensions, preload, friction and amplitudes with
+a result of stated accuracy) is not reproduced here: none was reachable (the sources searched and
+why each fails: docs/theory/rotor.md, "Verification").
 """
 
 import json
@@ -285,3 +290,68 @@ def test_pipeline_adapter_reads_the_working_point():
     out = pipeline_rotor_stage(default_design(), wp, 20e3, est, 7.0)["json"]
     assert out["teeth"]["phase_deg_error"] == 0.0 and "phase_error_note" in out
     assert pipeline_rotor_stage(default_design().replace({"coupler.n_teeth": 0}), wp, 20e3, est, 7.0) is None
+
+
+def test_stage_errors_print_to_their_significant_digits():
+    # the default drill's teeth motion and error box (results/default: 9.88 um +- 0.11 %, ratio
+    # 0.173 +- 0.012, phase 171.2 +- 0.18 deg): the tooth slides one way over the whole window at rest,
+    # so the stall torque is mu F r at every corner of the box (exact, to the model's round-off): its
+    # error is 0, and the printed line gives each error to two significant digits
+    import re
+
+    from results.rotor_stage import ROUNDOFF, TeethReport, rotor_stage, rotor_text
+
+    p = RotorParams()
+    box = TeethReport(20e3, 9.8787e-6, 1.125e-8, 0.17257, 0.012, 171.238, 0.18)
+    lines = []
+    out = rotor_stage(box, p, 2.8e-3, 270.0, points=5, say=lines.append)["json"]
+    assert out["stall_torque_n_m"] == pytest.approx(p.mu * p.preload * p.radius, rel=ROUNDOFF)
+    assert out["stall_torque_n_m_error"] == 0.0
+    assert out["no_load_speed_rpm_error"] > 1e-3 * out["no_load_speed_rpm"]
+    text = lines[0]
+    assert "stall 45 ± 0 mN m" in text, text
+    no_load = re.search(r"no-load (\S+) ± (\S+) rpm", text).groups()
+    err = out["no_load_speed_rpm_error"]
+    assert float(no_load[1]) == pytest.approx(float(f"{err:.2g}"))       # two significant digits
+    assert len(no_load[0].split(".")[-1]) == len(no_load[1].split(".")[-1])   # the value to the error's last digit
+    assert rotor_text(out, {k: 0.0 for k in ("no_load_speed_rpm", "stall_torque_n_m", "load_speed_rpm")}, 2.8e-3,
+                      False).endswith("not a prediction")
+
+
+@pytest.mark.parametrize("phase", [-90.0, 90.0])
+def test_torque_speed_curve_rigid_contact_closed_form(phase):
+    # The rigid-rotor model of Hagedorn and Wallaschek (1992) and Wallaschek (1998): linear normal
+    # springs, Coulomb friction with no tangential compliance, an ellipse on its axes. The tooth's
+    # tangential speed U omega cos(theta) equals the rotor's surface speed v at theta_a (cos theta_a =
+    # v / (U omega)); inside |theta| < theta_a the tooth drives (+mu p), outside it brakes (-mu p). With
+    # p = k (W cos theta - z0), z0 = W cos theta_b and A(x) = sin x - x cos theta_b, the mean force
+    # balance is F = n k W A(theta_b) / pi and the torque T(v) = mu F r (2 A(theta_a) / A(theta_b) - 1),
+    # mu F r while the tooth is faster over the whole window (v <= U omega cos theta_b).
+    # Tolerance: the reference is exact for a rigid tangential contact; the model's slider of
+    # stiffness k_t sticks across each reversal at +-theta_a while its force swings by 2 mu p, over
+    # d_theta = sqrt(4 mu p_max / (k_t U sin theta_a)), which moves the mean force by at most
+    # (4/3) mu p_max d_theta / (2 pi) per reversal: at k_t = 1e16 N/m, 2e-4 of mu F r.
+    from scipy.optimize import brentq
+
+    W, U, f, kn, kt = 2e-6, 1e-6, 30e3, 1e7, 1e16
+    p = RotorParams(preload=3.0, n_teeth=1, k_normal=kn, k_tangential=kt, mu=0.25, radius=0.02)
+    tm = TeethMotion(freq=f, axial=W, tangential=U, phase_deg=phase)
+    tb = brentq(lambda x: kn * W * (math.sin(x) - x * math.cos(x)) / math.pi - p.preload, 1e-9, math.pi)
+
+    def area(x):
+        return math.sin(x) - x * math.cos(tb)
+
+    crest, full = U * tm.omega, p.mu * p.preload * p.radius
+    ta0 = brentq(lambda x: 2 * area(x) - area(tb), 0.0, tb)            # no load: 2 A(theta_a) = A(theta_b)
+    ta_min = math.acos(0.995)
+    p_max = kn * W * (1 - math.cos(tb))
+    tol = 2 * (4 / 3) * p.mu * p_max * math.sqrt(4 * p.mu * p_max / (kt * U * math.sin(ta_min))) / (2 * math.pi) \
+        * p.radius / full
+    assert tol < 3e-4
+    for v in (0.0, 0.2 * crest, crest * math.cos(tb), 0.6 * crest, crest * math.cos(ta0), 0.9 * crest, 0.995 * crest):
+        ref = full if v <= crest * math.cos(tb) else full * (2 * area(math.acos(v / crest)) / area(tb) - 1)
+        torque = p.n_teeth * p.radius * solve_cycle(tm, p, v).mean_force
+        assert abs(torque - ref) <= tol * full, (v / crest, torque, ref)
+    res = rotor_performance(tm, p, 0.0, points=3, check_hover=False)
+    assert res.stall_torque == pytest.approx(full, rel=tol)
+    assert res.no_load_speed * p.radius == pytest.approx(crest * math.cos(ta0), rel=tol)

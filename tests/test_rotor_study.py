@@ -1,10 +1,11 @@
 """The rotor in design studies (results.study, results.explore, results.rotor_stage.study_rotor).
 
 References and tolerances:
-- a study point's rotor outputs against the pipeline's rotor stage (results.rotor_stage) called
-  on the same working point, design and rotor data: the same model at the same inputs, so equal
-  to round-off (1e-12 relative: the per-volt teeth amplitude times the voltage is one rounding
-  away from the amplitude at the voltage);
+- a study point's rotor outputs and their errors against the pipeline's rotor stage
+  (results.rotor_stage) called on the same working point, design, rotor data and discretisation-
+  error estimate: the same model at the same inputs, so equal to round-off (1e-12 relative: the
+  per-volt teeth amplitude times the voltage is one rounding away from the amplitude at the
+  voltage; the errors, differences of such values, 1e-9);
 - the stall torque with the study's preload and friction against the Coulomb bound
   ``mu F r`` (exact), with the contact radius of the design;
 - bad study files: refused on loading, naming the table and key.
@@ -64,18 +65,23 @@ def rotor_rows():
     """The two-point rotor study, sequentially, with the shared harmonic task's result kept."""
     import results.explore as explore
 
-    kept = []
-    real = explore.task_harmonic
+    kept, ests = [], []
+    real, real_est = explore.task_harmonic, explore.task_teeth_error
 
     def keep(*args):
         kept.append(real(*args))
         return kept[-1]
 
+    def keep_est(*args):
+        ests.append(real_est(*args))
+        return ests[-1]
+
     with pytest.MonkeyPatch.context() as mp:
         mp.setattr(explore, "task_harmonic", keep)
+        mp.setattr(explore, "task_teeth_error", keep_est)
         study = study_from_mapping(ROTOR_STUDY)
         rows = explore.run_sequential(study)
-    return study, rows, kept
+    return study, rows, kept, ests
 
 
 def test_study_rotor_row_is_the_rotor_stage(rotor_rows):
@@ -84,27 +90,34 @@ def test_study_rotor_row_is_the_rotor_stage(rotor_rows):
     from results.pipeline import PipelineSettings
     from results.rotor_stage import BIT, TeethReport, pipeline_rotor_stage, rotor_params_from_design, rotor_stage
 
-    study, rows, kept = rotor_rows
-    assert len(kept) == 1 and all(r["status"] == "ok" for r in rows), rows
-    harm, volt, wob = kept[0], study.settings.voltage, PipelineSettings().wob
+    study, rows, kept, ests = rotor_rows
+    assert len(kept) == 1 and len(ests) == 1 and all(r["status"] == "ok" for r in rows), rows
+    harm, est, volt, wob = kept[0], ests[0], study.settings.voltage, PipelineSettings().wob
     design = geometry.default_design()
     wp = harm.wp
     axial = abs(wp.surfaces["teeth_tops"]["axial"]) * volt
-    teeth = TeethReport(freq_hz=harm.f_w, axial_m=axial, axial_error_m=0.0, ratio=wp.teeth_ellipse_ratio,
-                        ratio_error=0.0, phase_deg=wp.teeth_phase_deg, phase_error_deg=0.0)
+    # the error box of the study's own estimate (a solve 1.4x coarser than the study's mesh)
+    teeth = TeethReport(freq_hz=harm.f_w, axial_m=axial, axial_error_m=axial * est.relative("teeth_axial_per_volt_m"),
+                        ratio=wp.teeth_ellipse_ratio, ratio_error=est.error("teeth_ellipse_ratio"),
+                        phase_deg=wp.teeth_phase_deg, phase_error_deg=est.error("teeth_phase_deg"))
+    assert teeth.axial_error_m > 0 and teeth.ratio_error > 0 and teeth.phase_error_deg > 0
     # the first point: preload and friction set by the study
     params = rotor_params_from_design(design).with_(preload=25.0, mu=0.3)
     ref = rotor_stage(teeth, params, bit_friction_torque(wob, *BIT), 0.0)
     # the second point at the default rotor data: the pipeline's own stage on the working point at the voltage
     at_volt = SimpleNamespace(surfaces={"teeth_tops": {"axial": axial}}, teeth_ellipse_ratio=wp.teeth_ellipse_ratio,
                               teeth_phase_deg=wp.teeth_phase_deg, power_w=1.0)
-    pipe = pipeline_rotor_stage(design, at_volt, harm.f_w, None, wob)
+    pipe = pipeline_rotor_stage(design, at_volt, harm.f_w, est, wob)
     for row, out in zip(rows, (ref, pipe)):
         j = out["json"]
-        assert row["rotor_no_load_rpm"] == pytest.approx(j["no_load_speed_rpm"], rel=1e-12)
-        assert row["rotor_stall_torque_n_m"] == pytest.approx(j["stall_torque_n_m"], rel=1e-12)
-        assert row["rotor_load_rpm"] == pytest.approx(j["load_speed_rpm"], rel=1e-12)
+        for column, key in (("rotor_no_load_rpm", "no_load_speed_rpm"), ("rotor_stall_torque_n_m", "stall_torque_n_m"),
+                            ("rotor_load_rpm", "load_speed_rpm")):
+            assert row[column] == pytest.approx(j[key], rel=1e-12)
+            # an error is a difference of two such values (~10 % of them): 1e-12 / 0.1, with margin
+            assert row[f"{column}_error"] == pytest.approx(j[f"{key}_error"], rel=1e-9, abs=1e-12 * abs(j[key]))
         assert row["rotor_hovers"] == float(j["hover"]["holds"])
+        assert row["rotor_note"] == ""
+    assert rows[1]["rotor_no_load_rpm_error"] > 0
     # the study's preload and friction reached the contact: the Coulomb bound with them, and a different torque
     bound = 0.3 * 25.0 * params.radius
     assert 0 < rows[0]["rotor_stall_torque_n_m"] <= bound * (1 + 1e-12)
