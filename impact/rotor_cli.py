@@ -18,9 +18,10 @@ from .options import real_number
 from .rotor import RotorParams, TeethMotion, bit_friction_torque, rotor_performance
 
 _P = RotorParams()
-FREQ, RATIO, PHASE = 19994.6, 0.158, 171.2
+FREQ, RATIO, PHASE = 20000.0, 0.173, 171.2
 """Default drive frequency (Hz), teeth ellipse ratio and phase (deg): the default design's
-harmonic response (results/default/summary.json, "harmonic")."""
+matched working mode and harmonic response (results/default/summary.json, "working_mode" and
+"harmonic": 20 000 ± 10 Hz, 0.173 ± 0.012, 171.2 ± 0.18 deg)."""
 WOB, BIT_DIAMETER, MU_ROCK = 7.0, 3e-3, 0.4
 """Default load: the article's 7 N weight on bit, its 3 mm tool, and an assumed rock/steel
 friction coefficient (no measured value at hand)."""

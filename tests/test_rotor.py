@@ -355,3 +355,37 @@ def test_torque_speed_curve_rigid_contact_closed_form(phase):
     res = rotor_performance(tm, p, 0.0, points=3, check_hover=False)
     assert res.stall_torque == pytest.approx(full, rel=tol)
     assert res.no_load_speed * p.radius == pytest.approx(crest * math.cos(ta0), rel=tol)
+
+
+def test_study_point_without_an_estimate_says_what_its_errors_leave_out():
+    # a study whose refine leaves no coarser mesh: the rotor's errors are the box of the other
+    # inputs (none here: all 0) and rotor_note names what is missing; with the estimate, the box
+    from types import SimpleNamespace
+
+    from geometry import default_design
+    from results.rotor_stage import study_rotor
+
+    wp = SimpleNamespace(surfaces={"teeth_tops": {"axial": 4.4e-8 + 0j}}, teeth_ellipse_ratio=0.2,
+                         teeth_phase_deg=150.0)
+    bare = study_rotor(default_design(), wp, 20e3, 225.0, {"preload": 25.0}, 7.0)
+    assert all(bare[f"{c}_error"] == 0.0 for c in ("rotor_no_load_rpm", "rotor_stall_torque_n_m", "rotor_load_rpm"))
+    assert "axial, ratio, phase" in bare["rotor_note"]
+    errors = {"teeth_ellipse_ratio": 0.01, "teeth_phase_deg": 2.0, "teeth_axial_per_volt_m": 1e-10}
+    est = SimpleNamespace(errors=errors, relative=lambda q: 0.02, error=lambda q: errors[q])
+    boxed = study_rotor(default_design(), wp, 20e3, 225.0, {"preload": 25.0}, 7.0, est=est)
+    assert boxed["rotor_note"] == "" and boxed["rotor_no_load_rpm"] == bare["rotor_no_load_rpm"]
+    assert boxed["rotor_no_load_rpm_error"] > 0
+
+
+def test_cli_defaults_are_the_default_designs_teeth_motion():
+    # the command's default frequency, ellipse ratio and phase are the committed default run's
+    # (results/default/summary.json), each within that run's own stated error
+    from pathlib import Path
+
+    from impact.rotor_cli import FREQ, PHASE, RATIO
+
+    s = json.loads((Path(__file__).resolve().parents[1] / "results" / "default" / "summary.json").read_text())
+    h, wm = s["harmonic"], s["working_mode"]
+    assert abs(FREQ - wm["f_r_hz"]) <= wm["f_r_hz_error"]
+    assert abs(RATIO - h["teeth_ellipse_ratio"]) <= h["teeth_ellipse_ratio_error"]
+    assert abs(PHASE - h["teeth_phase_deg"]) <= h["teeth_phase_deg_error"]
