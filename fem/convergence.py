@@ -127,6 +127,7 @@ class Level:
     ndof: int
     values: dict[str, float]
     seconds: float = 0.0
+    extra: dict = field(default_factory=dict, compare=False)
 
 
 @dataclass(frozen=True)
@@ -306,7 +307,8 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
                        near_hz: float | None = None, n_modes: int = 8, harmonic: bool = True,
                        q_mech: float | None = ASSEMBLED_Q_MECH, grade: bool = False, loss=None,
                        surfaces: tuple[str, ...] | None = None, select: Callable | None = None,
-                       harmonic_method: str = "direct", mesher: str = "free", path: str = "whole") -> Level:
+                       harmonic_method: str = "direct", mesher: str = "free", path: str = "whole",
+                       extra: Callable | None = None) -> Level:
     """Mesh ``design`` at ``refine`` (graded with ``grade``, by ``mesher``: see
     :func:`geometry.builder.build`) and compute the working mode's
     quantities (one Level): ``f_r_hz``, ``f_a_hz``, ``k_eff``; with ``harmonic`` the direct
@@ -318,7 +320,9 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
     ``"modal"`` solves the harmonic response on these modes + residual (:func:`fem.harmonic.modal_basis`,
     as the pipeline and ``python -m fem.harmonic`` do; 1.7x cheaper, within 2e-6 of direct here).
     ``path``: ``"whole"`` (the whole drill by ``mesher``) or ``"sector"`` (the ``k = 0`` swept sector
-    of :func:`fem.sector_system.axial_sector` at ``refine``; ``mesher`` is not used)."""
+    of :func:`fem.sector_system.axial_sector` at ``refine``; ``mesher`` is not used). ``extra(system,
+    wp) -> dict``: more outputs of this mesh's working point (at 1 V), kept in :attr:`Level.extra`
+    (e.g. the coarse utilisation table of :mod:`fem.stress_converged`); called only with ``harmonic``."""
     import geometry
 
     from .assembly import assemble
@@ -340,6 +344,7 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
     values = {"f_r_hz": float(res.f_r_hz[w]), "f_a_hz": float(res.f_a_hz[w]), "k_eff": float(res.k_eff[w])}
     if surfaces is None:
         surfaces = tuple(s for s in ("horn_tip", "teeth_tops") if s in mesh.facet_sets)
+    more = {}
     if harmonic:
         from .harmonic import LossModel, working_point
 
@@ -352,8 +357,10 @@ def working_mode_level(design, refine: float, *, mesh_size: float | None = None,
                 basis = modal_basis(system, values["f_r_hz"], loss=loss, modes=res)
             wp = working_point(system, values["f_r_hz"], 1.0, surfaces=surfaces, loss=loss, basis=basis)
             values.update(harmonic_quantities(wp))
+            if extra is not None:
+                more = dict(extra(system, wp))
     elif "teeth_tops" in mesh.facet_sets:
         from .modeshape import surface_motion
 
         values["teeth_ellipse_ratio"] = float(surface_motion(system, res.shapes[w], "teeth_tops")["ellipse_ratio"])
-    return Level(float(refine), int(system.ndof), values, time.perf_counter() - t0)
+    return Level(float(refine), int(system.ndof), values, time.perf_counter() - t0, more)

@@ -48,6 +48,7 @@ h ratio, both meshes, the coarse values, the errors). Text: ``f_r 19 997 ± 90 H
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from dataclasses import dataclass, field
@@ -96,6 +97,8 @@ class ErrorEstimate:
     order : assumed order in h
     grade, corners : graded mesh; the design has major re-entrant edges
     seconds : time of the coarse solve, s
+    extra : more outputs of the coarse mesh (:attr:`fem.convergence.Level.extra`), e.g. its
+        utilisation table under ``"stress"``
     """
 
     errors: dict
@@ -110,6 +113,7 @@ class ErrorEstimate:
     grade: bool
     corners: bool
     seconds: float = field(default=0.0, compare=False)
+    extra: dict = field(default_factory=dict, compare=False)
 
     def error(self, q: str) -> float:
         """Estimated error of ``q`` (NaN if not estimated)."""
@@ -180,7 +184,8 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
 def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size: float | None = None,
              grade: bool = False, order: int = 2, near_hz: float | None = None, harmonic: bool = True,
              loss=None, q_mech: float | None = ASSEMBLED_Q_MECH, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
-             select: Callable | None = None, mesher: str = "free", path: str = "whole") -> ErrorEstimate:
+             select: Callable | None = None, mesher: str = "free", path: str = "whole",
+             extra: Callable | None = None) -> ErrorEstimate:
     """Estimate the discretisation error of ``values`` (computed on ``design`` meshed at ``refine``
     with ``ndof`` DOFs) from one solve at ``refine`` x :data:`ESTIMATOR_RATIO`.
 
@@ -200,6 +205,8 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
         (default :func:`fem.modal.working_mode`)
     path : ``"whole"`` or ``"sector"`` (:mod:`fem.sector_system`): the path the fine values ran on,
         the coarse solve runs on the same
+    extra : ``extra(system, wp) -> dict``, more outputs of the coarse mesh's working point (1 V),
+        kept in :attr:`ErrorEstimate.extra` (:func:`fem.convergence.working_mode_level`)
     """
     from .convergence import working_mode_level
 
@@ -208,7 +215,8 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
     coarse_refine = refine * ESTIMATOR_RATIO
     lev = working_mode_level(design, coarse_refine, mesh_size=mesh_size, order=order, near_hz=near_hz,
                              n_modes=n_modes, harmonic=harmonic, q_mech=q_mech, grade=grade, loss=loss,
-                             surfaces=surfaces, select=select, harmonic_method="modal", mesher=mesher, path=path)
+                             surfaces=surfaces, select=select, harmonic_method="modal", mesher=mesher, path=path,
+                             extra=extra)
     fine = Level(float(refine), int(ndof), {q: float(v) for q, v in values.items() if q in QUANTITIES})
     coarse = Level(lev.refine, lev.ndof, lev.values, time.perf_counter() - t0)
     from geometry.revolve import resolve_mesher
@@ -219,8 +227,9 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
         from .convergence import SECTOR_ORDER
 
         p = SECTOR_ORDER
-    return estimate_from_levels(fine, coarse, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine),
-                                order=p)
+    est = estimate_from_levels(fine, coarse, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine),
+                               order=p)
+    return dataclasses.replace(est, extra=lev.extra)
 
 
 def annotate(record: dict, est: ErrorEstimate | None, keys: dict[str, str]) -> dict:

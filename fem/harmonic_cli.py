@@ -321,16 +321,18 @@ def _run(args, design, system, surfaces, near: float, loss, band) -> int:
     print(f"mesh: {_mesh_label(args, design, args.fe_path)}, {system.ndof} DOFs", flush=True)
     # on the sector path the estimate is cheap (a coarser sector): every run states it
     auto = args.fe_path == "sector" and args.freq is None and args.mode is None and args.refine * 1.4 <= 5.0
-    est = _error(args, design, modal, w, wp, system, near, loss, surfaces) if args.error or auto else None
+    hook = None
+    if args.stress:
+        from .stress_cli import coarse_hook
+
+        hook = coarse_hook(args, design, wp)
+    est = (_error(args, design, modal, w, wp, system, near, loss, surfaces, extra=hook)
+           if args.error or auto or hook is not None else None)
     stress = None
     if args.stress:
         from .stress_cli import run_stress
 
-        from .preload import design_preload
-
-        if args.preload is None:
-            args.preload = design_preload(design)
-        stress = run_stress(args, system, basis, wp, band)
+        stress = run_stress(args, system, basis, wp, band, est=est)
     text = None
     if args.json:
         text = json_text({**_record(args, design, modal, w, f_w, wp, res, ring, system, est, stress),
@@ -359,8 +361,9 @@ def _print_response(args, modal, w, f_w, wp, res, band, ring, surfaces) -> None:
         print(f"ring-up: steady {ring.steady_amplitude(surfaces[0]) * 1e6:.3f} um after {ring.t[-1] * 1e3:.2f} ms")
 
 
-def _error(args, design, modal, w, wp, system, near, loss, surfaces):
-    """``--error``: the two-level estimate of the driven mode's values, printed."""
+def _error(args, design, modal, w, wp, system, near, loss, surfaces, extra=None):
+    """``--error``: the two-level estimate of the driven mode's values, printed (``extra``: the
+    stress table's hook, :func:`fem.stress_cli.coarse_hook`)."""
     from geometry.options import mesher_of
 
     from .errors import estimate, harmonic_quantities
@@ -370,7 +373,7 @@ def _error(args, design, modal, w, wp, system, near, loss, surfaces):
               **harmonic_quantities(wp)}
     est = estimate(design, values, system.ndof, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade,
                    near_hz=near, loss=loss, surfaces=surfaces, n_modes=args.modes, select=driven_mode,
-                   mesher=mesher_of(args, design), path=args.fe_path)
+                   mesher=mesher_of(args, design), path=args.fe_path, extra=extra)
     print("\n".join(error_lines(est, tip_surface=surfaces[0], voltage=args.voltage)))
     return est
 

@@ -11,7 +11,7 @@ import numpy as np
 
 from rpud_common import ParameterError, check_integer, check_range
 
-__all__ = ["add_stress_options", "check_stress_options", "run_stress"]
+__all__ = ["add_stress_options", "check_stress_options", "coarse_hook", "run_stress"]
 
 MAX_PRELOAD = 1e6
 """Largest bolt preload accepted, N (a 100 t press: far beyond any transducer bolt)."""
@@ -53,12 +53,31 @@ def check_stress_options(args) -> None:
     args.stress_points = STRESS_POINTS if args.stress_points is None else args.stress_points
 
 
-def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
-    """Compute, print and write the stress results; returns their JSON record."""
+def coarse_hook(args, design, wp):
+    """Sets ``args.preload`` (None: the design's bolt) and returns the hook that gives the
+    utilisation table its two-mesh estimate (:class:`fem.stress_converged.CoarseTable`, run by
+    the discretisation-error estimate on its coarser mesh), or None where that estimate does not
+    apply: a drive frequency or mode of the user's (the coarse mesh is compared at its own f_r)
+    or ``--refine`` above 3.5 (no coarser mesh in range)."""
+    from .preload import design_preload
+    from .stress_converged import CoarseTable
+
+    if args.preload is None:
+        args.preload = design_preload(design)
+    if args.freq is not None or args.mode is not None or args.refine * 1.4 > 5.0:
+        return None
+    return CoarseTable(float(wp.voltage), float(args.preload))
+
+
+def run_stress(args, system, basis, wp, band, near_label: str = "", est=None) -> dict:
+    """Compute, print and write the stress results; returns their JSON record. ``est``: the
+    discretisation-error estimate run with :func:`coarse_hook` (its coarse table gives every
+    row a two-mesh estimate; None: the single-mesh one, said in the note)."""
     from rpud_common import atomic_write_text, json_text, save_figure, subplots
 
     from .preload import preload_solve
     from .stress import StressRecovery
+    from .stress_converged import with_error
     from .stress_output import node_fields, peak_title, render_stress, write_stress_vtu
     from .stress_table import QUANTITIES, stress_sweep, stress_table
 
@@ -72,12 +91,13 @@ def run_stress(args, system, basis, wp, band, near_label: str = "") -> dict:
 
     win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, args.preload, recovery=rec, unit_state=pre)
     dyn = rec.field(wp.x)
-    table = stress_table(dyn, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=args.preload)
+    table = with_error(stress_table(dyn, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=args.preload), est)
     state = f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz" + (f" + bolt preload {args.preload:g} N on "
                                                            f"{pre.faces[0]}/{pre.faces[1]}" if pre else "")
-    print(f"stress, peaks over one cycle ({state}); ± est: recovered - raw element values near the peak "
-          "(rows marked * peak on a singular edge: their utilisation is the off-edge peak's)")
+    print(f"stress, peaks over one cycle ({state}) (rows marked * peak on a singular edge: their utilisation is "
+          "the off-edge peak's)")
     print(table.text())
+    print(table.note)
     print(f"preload window per ring at {wp.voltage:.4g} V amplitude (least preload keeping the ring's mean stress "
           "compressive over the cycle .. most within the rated compressive stress):")
     print("\n".join(window_lines(win)))

@@ -31,12 +31,13 @@ TIP = "tip_per_volt_m"
 
 
 def estimate_stage(design, options, settings, system, modal, w: int, wp, surfaces, near_hz: float, say=None,
-                   loss=None):
+                   loss=None, extra=None):
     """The two-level estimate of the working mode's outputs (:class:`fem.errors.ErrorEstimate`) on
     the path that ran (``options``: the resolved :class:`results.stage_fe.MeshOptions`), or None
     when ``options.refine`` leaves no room for a coarser mesh. The coarse harmonic response has
     the losses ``loss`` (:class:`fem.harmonic.LossModel`), default those of ``settings``
-    (:class:`results.pipeline.PipelineSettings`)."""
+    (:class:`results.pipeline.PipelineSettings`). ``extra``: more outputs of the coarse working
+    point (:func:`fem.errors.estimate`; the stress stage's :func:`results.stress_stage.coarse_hook`)."""
     from fem.errors import ESTIMATOR_RATIO, estimate, harmonic_quantities, plus_minus
 
     if options.refine * ESTIMATOR_RATIO > 5.0:
@@ -47,7 +48,7 @@ def estimate_stage(design, options, settings, system, modal, w: int, wp, surface
     est = estimate(design, values, system.ndof, refine=options.refine, mesh_size=options.mesh_size,
                    grade=options.grade, near_hz=near_hz,
                    loss=settings.losses().loss_model() if loss is None else loss,
-                   surfaces=tuple(surfaces), n_modes=4, mesher=options.mesher, path=options.path)
+                   surfaces=tuple(surfaces), n_modes=4, mesher=options.mesher, path=options.path, extra=extra)
     if say:
         v, e = est.values, est.error
         say(f"      discretisation error ({est.coarse_ndof} DOFs at refine {est.coarse_refine:g}, order {est.order:g}): "

@@ -332,7 +332,7 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
     from .errors import estimate_stage
     from .stage_fe import match_stage
     from .stage_harmonic import harmonic_stage, response_stage
-    from .stress_stage import stress_stage
+    from .stress_stage import coarse_hook, stress_stage
 
     st = run.settings
     t0 = clock.stage("resonance matching" if st.match else "modal analysis")
@@ -353,16 +353,16 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
     from .operating_point import preload_stage
 
     run.bolt, run.preload = preload_stage(m.design, m.system, h.wp, say=say)   # the design's bolt, the window
-    run.stress = stress_stage(*_field_system(m.system, h.wp), run.out, render=st.render, say=say,
-                              preload=_field_state(m.system, run.bolt))    # own timing
     clock.took("harmonic_s", t0)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
         f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
     t0 = time.perf_counter()          # one solve on a 1.4x coarser mesh: the error of every FE output
     run.est = estimate_stage(m.design, m.options, st, m.system, m.modal, m.w, h.wp, h.surfaces,
-                             float(m.design.target_frequency), say)
+                             float(m.design.target_frequency), say, extra=coarse_hook(h.wp.voltage, run.bolt))
     clock.took("discretisation_error_s", t0)
+    run.stress = stress_stage(*_field_system(m.system, h.wp), run.out, render=st.render, say=say, coarse=run.est,
+                              preload=_field_state(m.system, run.bolt))    # own timing
     t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
     from .rotor_stage import pipeline_rotor_stage
 

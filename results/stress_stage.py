@@ -15,7 +15,7 @@ from pathlib import Path
 
 log = logging.getLogger(__name__)
 
-__all__ = ["stress_stage", "report_lines", "FIXES"]
+__all__ = ["stress_stage", "coarse_hook", "report_lines", "FIXES"]
 
 
 FIXES = {"principal_min": "a local peak of the bolt's static compression plus the dynamic one: a lower "
@@ -30,29 +30,23 @@ FIXES = {"principal_min": "a local peak of the bolt's static compression plus th
 def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None, preload=None) -> dict:
     """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its full
     solution ``wp.x``) of ``system``; writes ``renders/stress_von_mises.png`` and ``stress.vtu``
-    into ``out`` when ``render``. ``coarse``: ``(system, working point, size ratio)`` of the same
-    state on a coarser mesh, for the two-mesh error estimates of
-    :func:`fem.stress_table.converged_table`. ``preload``: the bolt's static state
-    (:class:`fem.preload.PreloadState`), added to the dynamic one before the peaks are taken (on
-    the coarse mesh too: the same force). Returns the JSON record (``summary.json["stress"]``)."""
-    from fem.preload import preload_solve
+    into ``out`` when ``render``. ``coarse``: the discretisation-error estimate
+    (:class:`fem.errors.ErrorEstimate`) run with the hook :func:`coarse_hook` of this state: its
+    coarse mesh's table gives every row its two-mesh estimate (:func:`fem.stress_converged.with_error`;
+    None: the single-mesh estimate, said in the table's note). ``preload``: the bolt's static state
+    (:class:`fem.preload.PreloadState`), added to the dynamic one before the peaks are taken.
+    Returns the JSON record (``summary.json["stress"]``)."""
     from fem.stress import StressRecovery
+    from fem.stress_converged import with_error
     from fem.stress_output import node_fields, peak_title, render_stress, write_stress_vtu
-    from fem.stress_table import converged_table, stress_table
+    from fem.stress_table import stress_table
 
     t0 = time.perf_counter()
     rec = StressRecovery(system)
     fld = rec.field(wp.x)
     static = rec.field(preload.x) if preload is not None and preload.force_n > 0 else None
     preload_n = preload.force_n if static is not None else 0.0
-    table = stress_table(fld, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=preload_n)
-    if coarse is not None:
-        c_system, c_wp, ratio = coarse
-        c_rec = StressRecovery(c_system)
-        c_static = c_rec.field(preload_solve(c_system, preload_n).x) if static is not None else None
-        c_table = stress_table(c_rec.field(c_wp.x), c_static, freq_hz=c_wp.freq_hz, voltage=c_wp.voltage,
-                               preload_n=preload_n)
-        table = converged_table(c_table, table, ratio)
+    table = with_error(stress_table(fld, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=preload_n), coarse)
     files = {"png": None, "vtu": None}
     if render:
         fields = node_fields(fld, static)
@@ -73,6 +67,16 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse
             "seconds": time.perf_counter() - t0}
 
 
+def coarse_hook(voltage: float, preload=None):
+    """The ``extra`` hook of the discretisation-error stage that gives :func:`stress_stage` its
+    coarse table: the working point at ``voltage`` (V) with the bolt's ``preload``
+    (:class:`fem.preload.PreloadState` or None) on the coarse mesh (:class:`fem.stress_converged.CoarseTable`)."""
+    from fem.stress_converged import CoarseTable
+
+    force = preload.force_n if preload is not None else 0.0
+    return CoarseTable(float(voltage), float(force))
+
+
 def report_lines(stress: dict | None) -> list[str]:
     """The report's section on stress and limits (empty without a stress record)."""
     if not stress:
@@ -83,14 +87,17 @@ def report_lines(stress: dict | None) -> list[str]:
              "von Mises per metal region against its fatigue strength, the largest tensile and compressive "
              "principal stress and |E| per ceramic ring against the material's ratings (`geometry/materials.toml`, "
              "sources there; n/a: the record gives no limit). Peaks are taken on the recovered field (element "
-             "values averaged per region at each node); '± est.' is their difference to the raw element values "
-             "around the peak, or the two-mesh (Richardson) estimate when a coarser mesh ran too. Peaks on "
+             "values averaged per region at each node); '± est.' is the two-mesh (Richardson) estimate from the "
+             "discretisation-error stage's coarser mesh (without it: the difference to the raw element values around "
+             "the peak, a single-mesh indicator; the table's note says which). Peaks on "
              "singular edges (bonded bimaterial edges: the ring bores and rims at the electrode planes and on the "
              "flange; sharp corners: an unfilleted flange/horn edge) grow with mesh refinement: such a row is "
              "marked singular and its utilisation is that of the peak off the edge. Sharp re-entrant corners "
              "inside one part (an unfilleted horn step) are singular too: give the design fillet radii "
              "(horn.flange_fillet, horn.step_fillet) for converged peaks there.", "",
              stress["markdown"], ""]
+    if u.get("note"):
+        lines += [f"Errors: {u['note']}.", ""]
     if stress["files"].get("png"):
         lines += [f"![stress]({stress['files']['png']})", ""]
     if stress["files"].get("vtu"):

@@ -155,6 +155,8 @@ SLOW: tuple[str, ...] = (
     "tests/test_signals.py::test_geometry_cli_while_gmsh_meshes",
     "tests/test_signals.py::test_later_pipeline_stages_end_cleanly",
     "tests/test_signals.py::test_pipeline_stages_end_cleanly",
+    "tests/test_stress.py::test_cli_stress_table_states_a_two_mesh_error",
+    "tests/test_stress.py::test_coarse_table_is_the_working_point_at_the_drive_voltage",
     "tests/test_stress.py::test_free_free_bar_first_longitudinal_mode_against_1d_closed_form",
     "tests/test_stress.py::test_preload_in_a_langevin_stack_carries_p_through_the_ceramic",
     "tests/test_stress.py::test_static_preload_gives_p_over_a_in_the_ceramic",

@@ -220,6 +220,61 @@ def test_fillet_stress_converges_and_the_sector_agrees(reference_peaks, vv):
         assert sector[name] == pytest.approx(limits[name], rel=0.02), (name, sector[name], limits[name])
 
 
+def _pipeline_path_horn_table(design, refine):
+    """The horn's row of the utilisation table of the working mode (per unit axial displacement of
+    the tip's centre) on the pipeline's path (the k = 0 sector of :func:`fem.sector_system.axial_sector`),
+    and the sector's DOFs."""
+    from fem.modal import modal_analysis, working_mode
+    from fem.sector_system import axial_sector
+    from fem.stress import StressRecovery
+    from fem.stress_converged import field_state
+    from fem.stress_table import stress_table
+
+    system = axial_sector(design, refine=refine)
+    res = modal_analysis(system, 20000.0, 4)
+    w = working_mode(system, res.f_r_hz, res.vectors, 20000.0)
+    fs, x = field_state(system, np.real(res.vectors[:, w]))
+    p = fs.nodes
+    top = np.flatnonzero((np.hypot(p[:, 0], p[:, 1]) < 1e-9) & (np.abs(p[:, 2] - p[:, 2].max()) < 1e-12))
+    assert len(top)
+    x = x / fs.displacement(x)[top[0], 2]
+    return stress_table(StressRecovery(fs).field(x), regions=["horn"]), system.ndof
+
+
+@pytest.mark.slow
+def test_pipeline_stress_error_covers_the_fillet_peak(reference_peaks, vv):
+    """The utilisation table's two-mesh estimate on the pipeline's path (the discretisation-error
+    stage's coarse mesh at refine 1.4 against refine 1, :func:`fem.stress_converged.with_error`,
+    order 2 in the h ratio of the DOFs) covers the true error of the horn's peak, which lies on the
+    flange fillet, against the (r, z) model's Richardson limit (its own error below 0.2 %,
+    asserted in the test above), and is not more than 5x it (as the other two-level estimates of
+    tests/test_discretisation_error.py); the peak itself within the brief's 2 %. Measured: peak
+    -0.46 %, estimate 0.94 %."""
+    from types import SimpleNamespace
+
+    from fem.stress_converged import with_error
+
+    d = plain()
+    (fine, n1), (coarse, n2) = (_pipeline_path_horn_table(d, r) for r in (1.0, 1.4))
+    est = SimpleNamespace(extra={"stress": coarse}, ratio=(n1 / n2) ** (1 / 3), ndof=n1, coarse_ndof=n2, refine=1.0,
+                          coarse_refine=1.4)
+    row = with_error(fine, est).rows[0]
+    a = d.fillets()["flange"]
+    loc = np.array(row.location)
+    assert np.hypot(np.hypot(loc[0], loc[1]) - a.centre[0], loc[2] - a.centre[1]) == pytest.approx(a.radius, rel=1e-3)
+    limit = ar.richardson([lv["horn.2"] for lv in reference_peaks], 2.0)[1]
+    true = abs(row.headline - limit)
+    vv.record("VV-SC-05", title="Stated stress error on the pipeline's path covers the true error",
+              quantity="peak von Mises of the horn (on the flange fillet) per unit axial tip displacement",
+              description="The default drill without slots and teeth with 2 mm fillets on the pipeline's k = 0 "
+              "sector at refine 1, its two-mesh estimate from refine 1.4, against the (r, z) model's Richardson "
+              "limit.", reference="tests/axisym_reference.py: curved P2 triangles, nested refinement, Richardson "
+              "limit (its own error below 0.2 %).", assumptions="Linear piezo-elasticity, no losses; k = 0.",
+              target=limit, computed=row.headline, tolerance=0.02, unit="Pa/m")
+    assert row.headline == pytest.approx(limit, rel=0.02)
+    assert true <= row.error_estimate <= 5 * max(true, 0.002 * limit), (row.headline, limit, row.error_estimate)
+
+
 @pytest.mark.slow
 def test_utilisation_table_marks_singular_edges_only():
     """On the filleted sector the horn's peak is at the flange fillet, not singular, headlined as
@@ -412,10 +467,17 @@ def test_filleted_flat_bar_in_tension_against_peterson(vv):
     t = r / 4.4 thin is in plane stress to well within that. Measured: 1.973-1.981 on the four arc
     edges (-0.6 % to -1.0 %).
 
-    A round stepped bar (Chart 3.4's fit, D / d = 2.18, r / d = 0.18: 1.685) is not used: this
-    FE on the horn's step (1.81-1.83, whole swept drill in tension) and the (r, z) model (1.821,
-    nested levels) agree with each other within 0.6 % and lie 8 % above that fit (8-15 % over
-    D / d 1.5-2.2, r / d 0.1-0.2), while the (r, z) model meets Goodier's cavity to 0.13 %."""
+    The stepped round bar in tension (Chart 3.4, its fit K_t = C1 + C2 (2t/D) + C3 (2t/D)^2 +
+    C4 (2t/D)^3, nominal stress 4 P / (pi d^2) on the smaller section, 0.1 <= t/r <= 20) is not
+    a reference to 3 %: its curves are not measurements but Peterson's estimate from other
+    geometries (the flat bar's fillet scaled by the ratio of round-bar to flat-bar groove factors),
+    which finite-element studies (Tipton, Sorem and Rolovic, J. Mech. Des. 118 (1996) 321; the
+    source the 3rd edition cites) found to underpredict by up to about 24 %. The (r, z) model
+    (tests/axisym_reference.py: long sections on both sides, nested levels, converged to 0.2 %)
+    gives 2.227 at D/d = 2, r/d = 0.1 (fit 1.964), 2.111 at 1.5 / 0.1 (fit 1.860), 2.310 at
+    1.2 / 0.05 (fit 2.018), 2.693 at 1.5 / 0.05 (fit 2.261), 1.819 at 2.18 / 0.18 (the horn's
+    step; fit 1.689): 8-19 % above the fit, inside that range, with the ratios, t/r and the nominal stress within the fit's definition; the
+    same model meets Goodier's cavity to 0.13 %."""
     from fem.assembly import assemble
     from fem.preload import face_area, static_solve, traction_load
     from fem.stress import StressRecovery, principal_values

@@ -288,3 +288,81 @@ def test_cli_bad_stress_options_exit_2_before_meshing(tmp_path, capsys, argv, na
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and name in err[0]
     assert not (tmp_path / "OUT").exists()
+
+
+# --------------------------------------------------------------------------- two-mesh error estimates
+
+
+def test_coarse_table_is_the_working_point_at_the_drive_voltage(langevin):
+    """The estimator's hook (fem.stress_converged.CoarseTable) gets the working point at 1 V: its
+    table is the one of the state at the drive voltage (a linear state: peaks equal to 1e-9), with
+    the preload's static stress added as the direct call adds it."""
+    from fem.harmonic import LossModel, modal_basis, working_point
+    from fem.modal import modal_analysis
+    from fem.preload import preload_solve
+    from fem.stress import StressRecovery
+    from fem.stress_converged import CoarseTable
+    from fem.stress_table import stress_table
+
+    system = langevin
+    modes = modal_analysis(system, near_hz=25000, n_modes=6)
+    w = int(np.argmax(np.nan_to_num(modes.k_eff)))
+    f = float(modes.f_r_hz[w])
+    basis = modal_basis(system, f, loss=LossModel(q_mech=100), modes=modes)
+    wp1 = working_point(system, f, 1.0, loss=LossModel(q_mech=100), basis=basis, surfaces=("top",))
+    wp = working_point(system, f, 40.0, loss=LossModel(q_mech=100), basis=basis, surfaces=("top",))
+    rec = StressRecovery(system)
+    direct = stress_table(rec.field(wp.x), rec.field(preload_solve(system, 2000.0).x), freq_hz=f, voltage=40.0,
+                          preload_n=2000.0)
+    hooked = CoarseTable(40.0, 2000.0)(system, wp1)["stress"]
+    assert hooked.voltage == 40.0 and hooked.preload_n == 2000.0 and hooked.freq_hz == pytest.approx(f)
+    assert len(hooked.rows) == len(direct.rows)
+    for a, b in zip(direct.rows, hooked.rows):
+        assert (a.region, a.quantity) == (b.region, b.quantity)
+        assert b.value == pytest.approx(a.value, rel=1e-9) and b.singular == a.singular
+
+
+def test_with_error_uses_the_coarse_table_or_says_it_has_none():
+    """fem.stress_converged.with_error: the coarse table of the estimate gives each row
+    |fine - coarse| / (r^2 - 1) with r the estimate's h ratio; without one the rows keep their
+    single-mesh estimate and the note says so."""
+    from types import SimpleNamespace
+
+    from fem.stress_converged import ZZ_NOTE, with_error
+    from fem.stress_table import StressRow, StressTable
+
+    def table(v):
+        return StressTable((StressRow("horn", "horn", "ti6al4v", "von_mises", v, (0.0, 0.0, 0.0), 510e6, 1e6),),
+                           20e3, 100.0, 0.0)
+
+    est = SimpleNamespace(extra={"stress": table(90e6)}, ratio=1.3, ndof=1000, coarse_ndof=455, refine=1.0,
+                          coarse_refine=1.4)
+    out = with_error(table(100e6), est)
+    assert out.rows[0].error_estimate == pytest.approx(10e6 / (1.3 ** 2 - 1))
+    assert "two meshes" in out.note and "455 DOFs" in out.note
+    for none in (None, SimpleNamespace(extra={})):
+        kept = with_error(table(100e6), none)
+        assert kept.rows[0].error_estimate == 1e6 and kept.note == ZZ_NOTE
+
+
+def test_cli_stress_table_states_a_two_mesh_error(tmp_path, capsys):
+    """``fem.harmonic --stress`` at the mode's own f_r runs the discretisation-error estimate with
+    the stress hook: the JSON table's note names the two meshes, every row has a finite error; at
+    a drive frequency of the user's (no two-mesh comparison there) the note says single-mesh."""
+    from fem.harmonic_cli import main
+
+    design = tmp_path / "langevin.toml"
+    examples.langevin_sandwich().save(design)
+    base = ["--design", str(design), "--surface", "top", "--voltage", "50", "--q-mech", "100", "--points", "5",
+            "--stress-points", "0", "-q"]
+    assert main(base + ["--stress", str(tmp_path / "a"), "--json", str(tmp_path / "a.json")]) == 0
+    rec = json.loads((tmp_path / "a.json").read_text())
+    table = rec["stress"]["working_point"]
+    assert "two meshes" in table["note"] and rec["discretisation_error"]["coarse_ndof"] > 0
+    assert all(math.isfinite(r["error_estimate"]) and r["error_estimate"] >= 0 for r in table["rows"])
+    assert "two meshes" in capsys.readouterr().out
+    f = rec["working_mode"]["f_r_hz"] if "working_mode" in rec else None
+    drive = ["--freq", f"{(f or 25000.0) * 1.001:.1f}"]
+    assert main(base + drive + ["--stress", str(tmp_path / "b"), "--json", str(tmp_path / "b.json")]) == 0
+    assert json.loads((tmp_path / "b.json").read_text())["stress"]["working_point"]["note"].startswith(
+        "error estimates: recovered minus raw")
