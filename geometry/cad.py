@@ -130,14 +130,24 @@ def native_stdout_quiet():
 
 
 def _snap_z(gmsh, dim: int, tags, z_lo: float, z_hi: float) -> tuple[float, float]:
-    """OCC pads bounding boxes by its tolerance: snap the z range to the entities' vertices."""
-    pts = gmsh.model.getBoundary([(dim, t) for t in tags], combined=False, oriented=False, recursive=True)
-    zs = np.array([gmsh.model.getValue(0, abs(t), [])[2] for d, t in pts if d == 0]) if pts else np.zeros(0)
-    out = []
-    for z in (z_lo, z_hi):
-        near = zs[np.abs(zs - z) < 1e-6] if len(zs) else zs
-        out.append(float(near[np.argmin(np.abs(near - z))]) if len(near) else float(z))
-    return out[0], out[1]
+    """The z range of entities. OCC pads bounding boxes by its tolerance and bounds a curved
+    face by its control polygon (a fillet arc's box reaches its centre's height), so the range
+    is taken over points along the entities' curves (their end vertices and 31 points between):
+    exact where the extremes lie at vertices (a drawn body of revolution: its arcs are monotone
+    in z between their vertices), else within a curve's sagitta between samples. ``z_lo``,
+    ``z_hi`` (the box) are kept for entities without curves."""
+    ents = [(dim, t) for t in tags]
+    while ents and ents[0][0] > 1:
+        ents = list(dict.fromkeys(gmsh.model.getBoundary(ents, combined=False, oriented=False)))
+        ents = [(d, abs(t)) for d, t in ents]
+    zs = []
+    for _d, c in ents:
+        lo, hi = gmsh.model.getParametrizationBounds(1, c)
+        zs.append(np.asarray(gmsh.model.getValue(1, c, np.linspace(lo[0], hi[0], 33))).reshape(-1, 3)[:, 2])
+    if not zs:
+        return float(z_lo), float(z_hi)
+    zs = np.concatenate(zs)
+    return float(zs.min()), float(zs.max())
 
 
 # ============================================================================ import

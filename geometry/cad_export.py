@@ -50,17 +50,26 @@ def _roles(design: DesignBase) -> dict[str, str]:
 
 
 def _length_rules(design: DesignBase) -> tuple[list[LengthRule], tuple[str, ...]]:
-    """The design's default tuned lengths as declared bands: the one axial zone each changes."""
+    """The design's default tuned lengths as declared bands: the axial zones each changes, and
+    the fixed zones of the same part between them (a stepped horn's length stretches the sections
+    on both sides of its step fillet: one band spans the three). A band that spans a fillet
+    stretches its arc with the band when the length changes (an ellipse's quarter, by the band's
+    stretch: about 1 % in matching), where the parametric design keeps the radius; at the drawn
+    length the two are the same solid. A length whose zones belong to other parts too is not
+    declared."""
     zones = design._zones()
     rules, tuned = [], []
     for path in design.default_tuned:
         v = float(design.get(path))
         new = design.replace({path: v * 1.01})
-        changed = [z for z, n in zip(zones, new._zones()) if abs((n[3] - n[2]) - (z[3] - z[2])) > 1e-12]
-        if len(changed) != 1:
-            log.info("%s changes %d axial zones: not declared as a length", path, len(changed))
+        changed = [i for i, (z, n) in enumerate(zip(zones, new._zones()))
+                   if abs((n[3] - n[2]) - (z[3] - z[2])) > 1e-12]
+        span = zones[changed[0]:changed[-1] + 1] if changed else []
+        if not span or len({z[1] for z in span}) != 1:
+            log.info("%s changes %d axial zones of %d parts: not declared as a length", path, len(changed),
+                     len({z[1] for z in span}))
             continue
-        label, part, z0, z1 = changed[0]
+        part, z0, z1 = span[0][1], span[0][2], span[-1][3]
         name = re.sub(r"[^A-Za-z0-9_]", "_", path.removeprefix("segments."))
         rules.append(LengthRule(name=name, z0=z0, z1=z1, part=part or design.length_part(path)))
         tuned.append(f"lengths.{name}.value")

@@ -9,6 +9,7 @@ structural checks use coarse meshes (``refine`` 1.5, ~25k DOFs) to keep the file
 
 from __future__ import annotations
 
+import math
 import numpy as np
 import pytest
 
@@ -25,12 +26,12 @@ REFINE = 1.5
 ROUND_TRIP_TOL = 5e-4        # the issue's 0.05 % on f_r and f_a
 
 
-def _sharp_default():
-    """The default drill with sharp horn shoulders: the round trip's parametric layout (a
-    declared length is one axial band, and each part one z-extent). With its 2 mm fillets the
-    horn's length stretches the two sections around the step fillet, and the flange fillet's metal
-    is split between flange and horn along a slanted line, so neither maps onto that layout."""
-    return geometry.filleted(geometry.default_design(), 0.0)
+def _default():
+    """The default drill, with its 2 mm fillets: the horn's length stretches the two sections
+    around the step fillet (one declared band spans both and the fillet between), and the flange
+    fillet's metal is split between flange and horn along a slanted line (the flange part reaches
+    above the flange's face, to the arc's mid point)."""
+    return geometry.default_design()
 
 
 @pytest.fixture(scope="module")
@@ -45,13 +46,13 @@ def exported(tmp_path_factory):
         with native_stdout_quiet():
             gmsh.write(str(tmp_path_factory.mktemp("cad") / "first.step"))
     folder = tmp_path_factory.mktemp("cad") / "export"
-    step, toml = export_cad(_sharp_default(), folder)
+    step, toml = export_cad(_default(), folder)
     return folder, step, toml
 
 
 @pytest.fixture(scope="module")
 def meshes(exported):
-    d0 = _sharp_default()
+    d0 = _default()
     d1 = load_design(exported[2])
     return d0, d1, geometry.build_mesh(d0, refine=REFINE), geometry.build_mesh(d1, refine=REFINE)
 
@@ -131,14 +132,17 @@ def test_design_kinds_in_modules_of_their_own_with_the_old_import_paths():
 def test_export_reads_back_with_the_parametric_layout(exported):
     folder, step, toml = exported
     assert sorted(p.name for p in folder.iterdir()) == ["design.step", "design.toml"]
-    d0, d1 = _sharp_default(), load_design(toml)
+    d0, d1 = _default(), load_design(toml)
     assert isinstance(d1, CadDesign) and d1.default_tuned == ("lengths.horn_length.value",
                                                               "lengths.coupler_length.value")
     # OpenCASCADE's volumes of the drawing = the closed forms (helical slots, tooth gaps included)
     v0 = {r: v for r, _p, _m, v in d0.region_table()}
     for region, part, material, vol in d1.region_table():
         assert vol == pytest.approx(v0[region], rel=1e-6), region
+    # a drawing's part spans its solids (the flange's up to the fillet arc's mid point)
+    a = d0.fillets()["flange"]
     for part, (z0, z1) in d0.part_extents().items():
+        z1 = a.mid[1] if part == "flange" else z1
         assert d1.part_extents()[part] == pytest.approx((z0, z1), abs=1e-9), part
     p0, p1 = d0.electrode_planes(), d1.electrode_planes()
     assert set(p0) == set(p1)
@@ -160,10 +164,10 @@ def test_round_trip_mesh_structure(meshes):
 
 def test_round_trip_working_mode_at_the_default_mesh(exported):
     """The issue's check: the default design re-imported from its STEP export, both meshed at the
-    default refinement, has the same working mode within 0.05 % (measured: f_r -1.3e-4, f_a
-    -1.6e-4; 12 925 vs 12 845 tetrahedra)."""
+    default refinement, has the same working mode within 0.05 % (measured on the filleted default:
+    f_r +2.9e-4, f_a +4.4e-4; 15 565 vs 15 279 tetrahedra: two free meshes of the same solids)."""
     out = []
-    for design in (_sharp_default(), load_design(exported[2])):
+    for design in (_default(), load_design(exported[2])):
         res = fem.modal_analysis(fem.assemble(geometry.build_mesh(design)), near_hz=20000.0, n_modes=4)
         w = res.working
         assert res.labels[w] == "longitudinal"
@@ -173,19 +177,34 @@ def test_round_trip_working_mode_at_the_default_mesh(exported):
 
 
 def test_declared_lengths_morph_like_the_parametric_lengths(meshes):
-    """A declared length stretches its band (nodes above shift): the same map as the parametric
-    design's length change, up to a rigid shift; volumes follow the stretch exactly."""
+    """A declared length stretches its band (nodes above shift). The coupler's band is its one
+    zone: the same map as the parametric length change, up to a rigid shift, and the same
+    volumes. The horn's band spans its back section, the step fillet and the tip section: the
+    tip moves as the parametric one, and inside the band the uniform stretch differs from the
+    parametric map (sections stretched, fillet zones kept) by at most dL c / B (c the fillet
+    zones' length, B the band's), and the horn's volume by at most pi (R0^2 - Rt^2) dL c / B."""
     d0, d1, m0, m1 = meshes
     pts = m1.points
     for path0, path1, factor in (("horn.length", "lengths.horn_length.value", 1.03),
                                  ("coupler.length", "lengths.coupler_length.value", 1.05)):
         p0 = d0.replace({path0: d0.get(path0) * factor})
-        p1 = d1.replace({path1: d1.get(path1) + (p0.get(path0) - d0.get(path0))})
+        dl = p0.get(path0) - d0.get(path0)
+        p1 = d1.replace({path1: d1.get(path1) + dl})
         dz = d1.morph_points(pts, p1)[:, 2] - d0.morph_points(pts, p0)[:, 2]
-        assert np.ptp(dz) < 1e-12, path1
         v0 = {r: v for r, _p, _m, v in p0.region_table()}
-        for region, _part, _mat, vol in p1.region_table():
-            assert vol == pytest.approx(v0[region], rel=1e-6), (path1, region)
+        if path0 == "coupler.length":
+            assert np.ptp(dz) < 1e-12, path1
+            for region, _part, _mat, vol in p1.region_table():
+                assert vol == pytest.approx(v0[region], rel=1e-6), (path1, region)
+            continue
+        h, band = d0.horn, d1.lengths[0]
+        c = h.flange_fillet + h.step_fillet
+        top = pts[:, 2] > band.z1 - 1e-9
+        assert np.abs(dz[top]).max() < 1e-12
+        assert np.abs(dz).max() <= dl * c / band.drawn
+        dv = math.pi * ((h.back_diameter / 2) ** 2 - (h.tip_diameter / 2) ** 2) * dl * c / band.drawn
+        v1 = {r: v for r, _p, _m, v in p1.region_table()}
+        assert abs(v1["horn"] - v0["horn"]) <= dv and v1["flange_disc"] == pytest.approx(v0["flange_disc"], rel=1e-6)
     # a built design with a declared length away from the drawing is the drawing's mesh, stretched
     longer = d1.replace({"lengths.horn_length.value": 0.070})
     m2 = geometry.build_mesh(longer, refine=REFINE)
@@ -193,8 +212,12 @@ def test_declared_lengths_morph_like_the_parametric_lengths(meshes):
     assert np.abs(m2.points - d1.morph_points(m1.points, longer)).max() < 1e-15
     assert m2.points[:, 2].max() == pytest.approx(longer.part_extents()["horn"][1], abs=1e-9)
     vols = mesh_part_volumes(m2)[0]
+    # the band's and the fixed zones' mesh volumes carry their own discretisation errors (up to
+    # 1.5e-4 of the closed form on curved faces, tests/test_fillets.py): the stretched ratio
+    # (V_o + s V_b) / (V_o + V_b) of the mesh differs from the exact one by <= (s - 1) 3e-4 / 4
+    s = longer.lengths[0].value / longer.lengths[0].drawn
     assert vols["horn"] / mesh_part_volumes(m1)[0]["horn"] == pytest.approx(
-        longer.part_volumes()["horn"] / d1.part_volumes()["horn"], rel=1e-9)
+        longer.part_volumes()["horn"] / d1.part_volumes()["horn"], abs=(s - 1) * 3e-4 / 4)
     assert longer.electrode_planes() == d1.electrode_planes()      # the stack lies below the band
 
 
