@@ -16,6 +16,7 @@ from rpud_common.cli import check_given, echo_inputs, quantity
 
 from .options import real_number
 from .rotor import RotorParams, TeethMotion, bit_friction_torque, rotor_performance
+from .rotor_box import OUTPUTS, TeethReport, error_box, rotor_text
 
 _P = RotorParams()
 FREQ, RATIO, PHASE = 20000.0, 0.173, 171.2
@@ -61,6 +62,13 @@ def build_parser() -> CliParser:
                    help=f"number of driving teeth [{_P.n_teeth}]")
     g.add_argument("--config", metavar="TOML", help="rotor data: top-level keys or a [rotor] table (RotorParams "
                                                     "fields, moduli included); options override it")
+    e = ap.add_argument_group("the teeth motion's errors (each output then carries its largest departure over "
+                              "the corners of the error box)")
+    e.add_argument("--axial-error", type=real_number, default=0.0, metavar="M",
+                   help="error of the axial amplitude, m (the pipeline's teeth_axial_per_volt_m relative error "
+                        "times the amplitude) [0]")
+    e.add_argument("--ratio-error", type=real_number, default=0.0, metavar="X", help="error of the ellipse ratio [0]")
+    e.add_argument("--phase-error-deg", type=real_number, default=0.0, metavar="DEG", help="error of the phase, deg [0]")
     ld = ap.add_argument_group("load")
     ld.add_argument("--load-torque", type=real_number, default=None, metavar="NM",
                     help="resisting torque on the rotor, N m (default: the bit's friction in rock, below)")
@@ -77,6 +85,20 @@ def build_parser() -> CliParser:
     o.add_argument("--plots", metavar="DIR", help="write torque_speed.png and contact_phases.png here")
     o.add_argument("-q", "--quiet", action="store_true", help="no inputs line")
     return ap
+
+
+def teeth_errors(ns, teeth: TeethMotion) -> TeethReport | None:
+    """The teeth motion with the errors of the options, or None when none is given."""
+    for opt, v in (("--axial-error", ns.axial_error), ("--ratio-error", ns.ratio_error),
+                   ("--phase-error-deg", ns.phase_error_deg)):
+        if v < 0:
+            raise ParameterError(opt, v, "must be >= 0")
+    if ns.axial_error >= 0.99 * teeth.axial:
+        raise ParameterError("--axial-error", ns.axial_error, f"must be below 0.99 x --axial ({0.99 * teeth.axial:g} m)")
+    if not (ns.axial_error or ns.ratio_error or ns.phase_error_deg):
+        return None
+    return TeethReport(teeth.freq, teeth.axial, ns.axial_error, teeth.tangential / teeth.axial, ns.ratio_error,
+                       teeth.phase_deg, ns.phase_error_deg)
 
 
 def params_from(ns) -> tuple[TeethMotion, RotorParams, float]:
@@ -109,7 +131,9 @@ def _inputs(teeth: TeethMotion, p: RotorParams, load: float, ns) -> dict:
             "rotor": f"{quantity(p.rotor_mass, 'kg')}, {p.rotor_inertia:.3g} kg m^2",
             "moduli": f"tooth {p.e_tooth / 1e9:.4g} GPa/{p.nu_tooth:g}, rotor {p.e_rotor / 1e9:.4g} GPa/{p.nu_rotor:g}",
             "load": f"{load * 1e3:.4g} mN m" + ("" if ns.load_torque is not None else " (bit friction in rock)"),
-            "idle loss": quantity(ns.electric_idle, "W"), "points": ns.points}
+            "idle loss": quantity(ns.electric_idle, "W"), "points": ns.points,
+            "errors": (f"axial {quantity(ns.axial_error, 'm')}, ratio {ns.ratio_error:g}, phase {ns.phase_error_deg:g} deg"
+                       if ns.axial_error or ns.ratio_error or ns.phase_error_deg else "none")}
 
 
 def print_result(res) -> None:
@@ -144,12 +168,19 @@ def main(argv) -> int:
         raise ParameterError("--points", ns.points, "must be in [3, 2001]")
     if ns.electric_idle < 0:
         raise ParameterError("--electric-idle", ns.electric_idle, "must be >= 0 W")
+    report = teeth_errors(ns, teeth)
     check_output_paths(inputs={"--config": ns.config}, folders=("plots",), json=ns.json, plots=ns.plots)
     echo_inputs(_inputs(teeth, rotor, load, ns), ns.quiet)
     res = rotor_performance(teeth, rotor, load, points=ns.points, electric_idle_w=ns.electric_idle)
     print_result(res)
+    record = res.to_dict()
+    if report is not None:
+        _, values, errors = error_box(report, rotor, load, ns.points, nominal=res)
+        print("with the teeth motion's errors (largest departure over the corners of the error box): "
+              + rotor_text(values, errors, load, res.hover["holds"]))
+        record["errors"] = {f"{k}_error": errors[k] for k, _, _ in OUTPUTS}
     if ns.json:
-        write_json(ns.json, res.to_dict())
+        write_json(ns.json, record)
     if ns.plots:
         from .rotor_plots import plot_contact_phases, plot_torque_speed
 

@@ -3,11 +3,11 @@ error, turned into the rotor's speed, torque, power and efficiency, each with it
 
 :func:`rotor_params_from_design` takes the contact geometry (teeth, their top area, the contact
 radius) and the coupler's moduli from the design, so a study that varies the coupler's
-dimensions moves the rotor's results with them. :func:`rotor_stage` runs
-:func:`impact.rotor.rotor_performance` at the reported teeth motion and at the eight corners of
-its error box (axial amplitude, ellipse ratio, phase, each at value +- error); the error of every
-output is its largest departure over the corners (the outputs are monotone in each input over
-such boxes in the cases tried; a bound then, not a statistical interval).
+dimensions moves the rotor's results with them. :func:`rotor_stage` runs the model at the
+reported teeth motion and at the eight corners of its error box (axial amplitude, ellipse ratio,
+phase, each at value +- error; :func:`impact.rotor_box.error_box`): the error of every output is
+its largest departure over the corners. :func:`teeth_report` reads the motion and its errors
+off a working point and its discretisation-error estimate.
 
 The efficiency's electrical input is the teeth's power into the contact plus the rotary side's
 own loss without the rotor, which the pipeline does not separate from the percussive side's:
@@ -17,79 +17,19 @@ midpoint of the two bounds with half their spread as its model-form error.
 
 from __future__ import annotations
 
-import itertools
 import logging
-import math
-from dataclasses import dataclass
 
-from impact.rotor import RotorParams, TeethMotion, bit_friction_torque, rotor_performance
-from rpud_common import ParameterError, check_nonnegative, check_range
-from rpud_common.formatting import plus_minus
+from impact.rotor import RotorParams, bit_friction_torque
+from impact.rotor_box import OUTPUTS, ROUNDOFF, TeethReport, error_box, rotor_text
+from rpud_common import ParameterError, check_nonnegative
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TeethReport", "rotor_params_from_design", "teeth_report", "rotor_stage", "study_rotor", "OUTPUTS", "BIT",
-           "ROUNDOFF"]
-
-_RPM = 30.0 / math.pi
-
-OUTPUTS = (
-    ("no_load_speed_rpm", "rpm", "rotor speed without load"),
-    ("stall_torque_n_m", "N m", "mean driving torque at rest"),
-    ("load_speed_rpm", "rpm", "rotor speed under the load torque"),
-    ("load_power_w", "W", "mechanical power under the load torque"),
-    ("max_power_w", "W", "largest mechanical power on the torque-speed curve"),
-    ("teeth_power_w", "W", "power the teeth put into the contact under the load torque"),
-    ("contact_efficiency", "-", "mechanical power / teeth power under the load torque"),
-)
-"""(key, unit, meaning) of the stage's outputs, each reported with ``<key>_error``."""
+__all__ = ["TeethReport", "rotor_params_from_design", "teeth_report", "rotor_stage", "rotor_text", "study_rotor",
+           "OUTPUTS", "BIT", "ROUNDOFF", "STUDY_OUTPUTS"]
 
 BIT = (3e-3, 0.4)
 """The load's bit: diameter (m) of a flat bit and its friction coefficient in rock (assumed)."""
-
-ROUNDOFF = 1e-9
-"""Relative departure of a corner's output from the nominal one below which the two are equal:
-the model's roots are found to 1e-13 and its integrals are exact to round-off, and its energy
-balance closes to 1e-9 (``tests/test_rotor.py``). The stall torque of a contact that slides one
-way over the window is ``mu F r`` whatever the teeth motion: its error is 0, not 5e-16."""
-
-
-@dataclass(frozen=True)
-class TeethReport:
-    """The teeth motion as the harmonic response reports it, with its errors (SI; degrees).
-
-    Parameters
-    ----------
-    freq_hz : float
-        Drive frequency, Hz.
-    axial_m, axial_error_m : float
-        Axial amplitude of the teeth tops and its error, m.
-    ratio, ratio_error : float
-        Ellipse ratio (tangential / axial amplitude) and its error.
-    phase_deg, phase_error_deg : float
-        Phase of the tangential relative to the axial motion and its error, degrees.
-    """
-
-    freq_hz: float
-    axial_m: float
-    axial_error_m: float
-    ratio: float
-    ratio_error: float
-    phase_deg: float
-    phase_error_deg: float
-
-    def __post_init__(self):
-        for name in ("axial_error_m", "ratio_error", "phase_error_deg"):
-            check_nonnegative(name, getattr(self, name))
-        check_range("axial_error_m", self.axial_error_m, 0.0, 0.99 * self.axial_m, "m")
-        TeethMotion.from_ellipse(self.freq_hz, self.axial_m, self.ratio, self.phase_deg)
-
-    def corners(self):
-        """The teeth motions at the corners of the error box (ratio kept >= 0)."""
-        for sa, sr, sp in itertools.product((-1, 1), repeat=3):
-            yield TeethMotion.from_ellipse(self.freq_hz, self.axial_m + sa * self.axial_error_m,
-                                           max(0.0, self.ratio + sr * self.ratio_error),
-                                           self.phase_deg + sp * self.phase_error_deg)
 
 
 def rotor_params_from_design(design, base: RotorParams = RotorParams(), library=None) -> RotorParams:
@@ -109,30 +49,6 @@ def rotor_params_from_design(design, base: RotorParams = RotorParams(), library=
                       e_tooth=float(mat.youngs_modulus), nu_tooth=float(mat.poisson_ratio))
 
 
-def _outputs(res) -> dict:
-    pmax, _ = res.max_power
-    return {"no_load_speed_rpm": res.no_load_speed * _RPM, "stall_torque_n_m": res.stall_torque,
-            "load_speed_rpm": res.load_speed * _RPM, "load_power_w": res.load_power, "max_power_w": pmax,
-            "teeth_power_w": res.load_teeth_power,
-            "contact_efficiency": res.load_power / res.load_teeth_power if res.load_teeth_power > 0 else 0.0}
-
-
-def _box(teeth: TeethReport, params: RotorParams, load_torque: float, points: int):
-    """The nominal result, its outputs and each output's largest departure over the corners of
-    the error box (a departure within :data:`ROUNDOFF` of the values is 0)."""
-    nominal = rotor_performance(TeethMotion.from_ellipse(teeth.freq_hz, teeth.axial_m, teeth.ratio, teeth.phase_deg),
-                                params, load_torque, points=points)
-    values = _outputs(nominal)
-    spread = {k: 0.0 for k in values}
-    for tm in teeth.corners():
-        corner = _outputs(rotor_performance(tm, params, load_torque, points=points, check_hover=False))
-        for k, v in corner.items():
-            d = abs(v - values[k])
-            if d > ROUNDOFF * max(abs(v), abs(values[k])):
-                spread[k] = max(spread[k], d)
-    return nominal, values, spread
-
-
 def _efficiency(nominal, electric_power_w: float) -> dict:
     """The efficiency against the electrical input: bounds 0 and the whole unloaded power as the
     rotary side's own loss, the midpoint +- half the spread."""
@@ -144,14 +60,6 @@ def _efficiency(nominal, electric_power_w: float) -> dict:
             "electric_efficiency_note": ("mechanical power / (teeth power + the rotary side's own loss); that loss is "
                                          "bounded by 0 and the unloaded electrical power "
                                          f"{electric_power_w:.4g} W: midpoint +- half the spread (model form)")}
-
-
-def rotor_text(values: dict, errors: dict, load_torque: float, hovers: bool | None) -> str:
-    """One line: no-load speed, stall torque and the speed under the load, each +- its error."""
-    return (f"rotor: no-load {plus_minus(values['no_load_speed_rpm'], errors['no_load_speed_rpm'], 'rpm')}, "
-            f"stall {plus_minus(values['stall_torque_n_m'], errors['stall_torque_n_m'], 'mN m', 1e3)}, under "
-            f"{load_torque * 1e3:.3g} mN m {plus_minus(values['load_speed_rpm'], errors['load_speed_rpm'], 'rpm')}"
-            + ("" if hovers is None or hovers else "; the rotor does not hover (it bounces): not a prediction"))
 
 
 def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, electric_power_w: float, *,
@@ -181,7 +89,7 @@ def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, ele
         error, the inputs, the nominal result's record and its notes).
     """
     check_nonnegative("electric_power_w", electric_power_w, "W")
-    nominal, values, spread = _box(teeth, params, load_torque, points)
+    nominal, values, spread = error_box(teeth, params, load_torque, points)
     out = {}
     for key, _, _ in OUTPUTS:
         out[key], out[f"{key}_error"] = values[key], spread[key]
@@ -269,7 +177,7 @@ def study_rotor(design, wp, f_w: float, scale: float, rotor_values: dict, wob: f
     """
     params = rotor_params_from_design(design).with_(**rotor_values)
     teeth, notes = teeth_report(wp, f_w, est, scale)
-    nominal, values, spread = _box(teeth, params, bit_friction_torque(wob, *BIT), 41)
+    nominal, values, spread = error_box(teeth, params, bit_friction_torque(wob, *BIT), 41)
     rec = {}
     for column, key in STUDY_OUTPUTS.items():
         rec[column], rec[f"{column}_error"] = float(values[key]), float(spread[key])

@@ -207,13 +207,40 @@ def test_cli_runs_and_writes(tmp_path):
 
 @pytest.mark.parametrize("args,word", [(["--axial", "3e-6", "--mu", "-1"], "mu"),
                                        (["--axial", "3e-6", "--load-torque", "0.01", "--wob", "5"], "--wob"),
-                                       (["--axial", "abc"], "--axial")])
+                                       (["--axial", "abc"], "--axial"),
+                                       (["--axial", "3e-6", "--phase-error-deg", "-1"], "--phase-error-deg"),
+                                       (["--axial", "3e-6", "--axial-error", "3e-6"], "--axial-error")])
 def test_cli_bad_input_is_one_line_exit_2(tmp_path, args, word):
     out = tmp_path / "r.json"
     r = _cli(*args, "--json", str(out))
     assert r.returncode == 2
     assert len(r.stderr.strip().splitlines()) == 1 and word in r.stderr
     assert not out.exists()
+
+
+def test_cli_carries_the_teeth_errors(tmp_path):
+    import re
+
+    # the command's error box is the pipeline stage's (the same function on the same inputs: equal
+    # to round-off) and prints each error to two significant digits
+    from results.rotor_stage import OUTPUTS, TeethReport, rotor_stage
+
+    out = tmp_path / "r.json"
+    r = _cli("--axial", "5e-6", "--ratio", "0.2", "--phase-deg", "150", "--freq", "20000", "--axial-error", "5e-8",
+             "--ratio-error", "0.01", "--phase-error-deg", "1", "--load-torque", "0.002", "--points", "5",
+             "--json", str(out))
+    assert r.returncode == 0, r.stderr
+    errors = json.loads(out.read_text())["errors"]
+    ref = rotor_stage(TeethReport(20000.0, 5e-6, 5e-8, 0.2, 0.01, 150.0, 1.0), RotorParams(), 0.002, 0.0,
+                      points=5)["json"]
+    for key, _, _ in OUTPUTS:
+        assert errors[f"{key}_error"] == pytest.approx(ref[f"{key}_error"], rel=1e-9, abs=1e-15)
+    assert errors["no_load_speed_rpm_error"] > 0
+    assert "errors axial 50 nm, ratio 0.01, phase 1 deg" in r.stdout
+    line = next(x for x in r.stdout.splitlines() if x.startswith("with the teeth motion's errors"))
+    err = ref["no_load_speed_rpm_error"]
+    shown = re.search(r"no-load \S+ ± (\S+) rpm", line).group(1)
+    assert float(shown) == pytest.approx(float(f"{err:.2g}"))          # two significant digits
 
 
 # --------------------------------------------------------------------------- the pipeline stage
