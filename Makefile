@@ -13,7 +13,7 @@ UV     := uv==0.13.9
 
 # the compiled engines' sources (impact/kernel_cache.py COMPILED_SOURCES): a change recompiles them
 KERNELS := $(addprefix impact/,event_rules.py columns.py horn.py kernel_blocks.py kernel.py kernel_energy.py \
-             kernel_contact.py kernel_modal.py rock.py drill_kernel.py kernel_cache.py)
+             kernel_contact.py kernel_modal.py rock.py drill_kernel.py compliant.py kernel_compliant.py kernel_cache.py)
 
 $(STAMP): pyproject.toml $(LOCK) $(KERNELS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)

@@ -25,8 +25,10 @@ is integrated with the contacts and taken in closed form over the flights
 (:func:`impact.horn.segment_integrals`), and closed against the bodies' energies and the contacts'
 absorbed energy (:meth:`HertzLaw.stored` plus the loss of a contact that has unloaded).
 
-A Python engine: about 1 s per 10 ms of an 8 g run with 16 modes to 70 kHz (bench_contact). It
-has no sticking rule: a free mass resting on a body is a long contact phase.
+Engines: :mod:`impact.kernel_compliant` (compiled, the default; :mod:`impact.compliant_engine`)
+and this module's Python reference (about 1 s per 20 ms of an 8 g run with 16 modes to 70 kHz,
+bench_compliant). Neither has a sticking rule: a free mass resting on a body is a long contact
+phase, integrated as such.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ import numpy as np
 
 from rpud_common import ParameterError, check_choice, check_nonnegative
 
+from .compliant_result import CompliantRun, Contact
 from .hertz import HertzLaw
 from .horn import ModalHorn
 from .params import ImpactParams
@@ -75,54 +78,9 @@ class _Contact:
         if self.state == _OPEN:
             return 0.0
         F, d = self.force_of(total)
-        lost = self.law.dissipated(self.d_max) if self.state == _UNLOADING else 0.0
-        return self.law.stored(d, self.d_max) + lost + 0.5 * self.residual * F * F
-
-
-@dataclass(frozen=True)
-class Contact:
-    """One finished contact: ``body`` ("horn" or "tool"), start and end (s), approach and separation
-    speeds (relative, m/s, both > 0), largest Hertz approach (m), peak force (N), energy lost (J),
-    free-mass and tool velocities at separation (m/s)."""
-
-    body: str
-    t_start: float
-    t_end: float
-    v_in: float
-    v_out: float
-    d_max: float
-    peak_force: float
-    loss: float
-    free_mass_after: float
-    tool_after: float
-
-
-@dataclass
-class CompliantRun:
-    """One run of :func:`simulate_compliant`.
-
-    Attributes
-    ----------
-    contacts : list of Contact
-        The finished contacts in order of their start.
-    t_end : float
-        End of the run, s.
-    state : ndarray
-        ``[w, w', x, x', q..., q'...]`` at ``t_end``.
-    ledger : dict
-        Energies over the run, J: ``drive_j`` (modes + residual through the contact),
-        ``gravity_j`` (the constant force on the free mass), ``modal_damping_j``,
-        ``tool_damping_j``, ``contact_loss_j`` (finished contacts), ``stored_change_j`` (bodies +
-        open contacts' absorbed energy), ``residual_j`` (the balance; 0 up to the integration error).
-    """
-
-    contacts: list
-    t_end: float
-    state: np.ndarray
-    ledger: dict
-
-    def tool_contacts(self) -> list:
-        return [c for c in self.contacts if c.body == "tool"]
+        if self.state == _LOADING:          # Hertz's work, its loss not yet split off
+            return 0.4 * self.law.stiffness * d ** 2.5 + 0.5 * self.residual * F * F
+        return self.law.stored(d, self.d_max) + self.law.dissipated(self.d_max) + 0.5 * self.residual * F * F
 
 
 class _System:
@@ -328,8 +286,8 @@ def _switch(sys_: _System, con: _Contact, kind: str, t: float, y, k: int) -> Non
 
 
 def simulate_compliant(params: ImpactParams, horn: ModalHorn, *, horn_law: HertzLaw, tool_law: HertzLaw,
-                       horn_residual: float = 0.0, rtol: float = 1e-11, max_phases: int = 100_000,
-                       flights: str = "closed-form") -> CompliantRun:
+                       horn_residual: float = 0.0, rtol: float | None = None, max_phases: int = 100_000,
+                       flights: str = "closed-form", engine: str = "kernel") -> CompliantRun:
     """Run the compliant model (module docstring) from t = 0 to ``params.t_end``.
 
     Parameters
@@ -344,14 +302,19 @@ def simulate_compliant(params: ImpactParams, horn: ModalHorn, *, horn_law: Hertz
         Contact laws at the horn tip and at the tool face.
     horn_residual : float
         Static compliance of the horn's modes left out, at the tip, m/N.
-    rtol : float
-        Relative tolerance of the integration.
+    rtol : float, optional
+        Relative tolerance of the contacts' integration (default 1e-10 in the kernel, 1e-11 in the
+        Python engine).
     max_phases : int
         Safety cap on the number of phases.
     flights : {"closed-form", "integrated"}
         Between contacts: the closed-form motion, the touch found on a grid of 1/12 of the
         shortest period and refined by Brent's method (fast), or the same integration as the
-        contacts with its event detection (the reference).
+        contacts with its event detection (the reference). Python engine only.
+    engine : {"kernel", "python"}
+        The compiled engine (:func:`impact.compliant_engine.run_compliant`: closed-form flights
+        with the guaranteed touch search, Dormand-Prince 5(4) contacts) or this module's Python
+        reference (DOP853 contacts).
 
     Returns
     -------
@@ -359,6 +322,15 @@ def simulate_compliant(params: ImpactParams, horn: ModalHorn, *, horn_law: Hertz
     """
     from scipy.integrate import solve_ivp
 
+    check_choice("engine", engine, ("kernel", "python"))
+    if engine == "kernel":
+        from .compliant_engine import run_compliant
+
+        if flights != "closed-form":
+            raise ParameterError("flights", flights, "must be 'closed-form' with engine='kernel'")
+        return run_compliant(params, horn, horn_law=horn_law, tool_law=tool_law, horn_residual=horn_residual,
+                             rtol=1e-10 if rtol is None else rtol)
+    rtol = 1e-11 if rtol is None else rtol
     if not isinstance(horn, ModalHorn):
         raise ParameterError("horn", type(horn).__name__, "must be an impact.horn.ModalHorn")
     check_nonnegative("horn_residual", horn_residual, "m/N")

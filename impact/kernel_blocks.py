@@ -7,7 +7,10 @@ the modal horn) reads as the model's steps, and every step is one function here:
 step                          functions
 ============================  ===========================================================
 motion between events         :func:`osc_make`, :func:`osc_eval`, :func:`osc_pv` (damped
-                              oscillator in closed form), :func:`tip` (modal horn tip)
+                              oscillator in closed form), :func:`tip` (modal horn tip),
+                              :func:`horn_records`, :func:`modal_at` (the modes' records)
+integrated motion             :func:`dp_stage`, :func:`dp_combine` (a Dormand-Prince 5(4)
+                              step, tableau ``DP_*``, for contact phases)
 plan the contacts             :func:`plan_flight`, :func:`plan_pinch`, :func:`plan_on_tool`,
                               :func:`plan_add` (contact functions with their ``|f''|`` bound,
                               grid step and search interval)
@@ -44,7 +47,7 @@ from .columns import (BODY_HORN, BODY_TOOL, FREE, KIND_TOOL, ON_HORN, ON_TOOL, S
                       S_N_EVENTS, S_N_HORN, S_N_TOOL, S_STATUS, S_T_ON_HORN, S_T_ON_TOOL, STATUS_MAX_EVENTS,
                       STATUS_OK, STATUS_PINCHED)
 from .event_rules import CONTACT_TOL, H_MIN
-from .horn import H_JQ, H_JV, H_MASS, H_TIP
+from .horn import H_A, H_B, H_JQ, H_JV, H_MASS, H_OMEGA, H_TIP, H_ZETA
 
 # the rules of impact.event_rules, compiled
 sticks = njit(cache=True)(event_rules.sticks)
@@ -196,6 +199,78 @@ def tip(tt, cp, tab, ho, n, order):
         u += tab[i, H_TIP] * y
         ud += tab[i, H_TIP] * yd
     return u, ud
+
+
+@njit(cache=True)
+def horn_records(ho, tab, n, W, t0, q, qd):
+    """Free-oscillation records of every mode at t0; returns the bounds of the modes' part of the
+    tip's |u|, |u''| and |u''''| (the steady part excluded)."""
+    c = math.cos(W * t0)
+    s = math.sin(W * t0)
+    b0 = 0.0
+    b2 = 0.0
+    b4 = 0.0
+    for i in range(n):
+        a_, b_ = tab[i, H_A], tab[i, H_B]
+        p = a_ * c + b_ * s
+        pd = W * (-a_ * s + b_ * c)
+        m = tab[i, H_MASS]
+        om = tab[i, H_OMEGA]
+        osc_make(ho[i], m, m * om * om, 2.0 * tab[i, H_ZETA] * om * m, 0.0, q[i] - p, qd[i] - pd)
+        b0 += abs(tab[i, H_TIP]) * ho[i, O_B0]
+        b2 += abs(tab[i, H_TIP]) * ho[i, O_B2]
+        b4 += abs(tab[i, H_TIP]) * ho[i, O_B4]
+    return b0, b2, b4
+
+
+@njit(cache=True)
+def modal_at(ho, tab, n, W, t0, tt, q, qd):
+    """Modal coordinates and velocities at tt (s) from the segment's records (in place)."""
+    c = math.cos(W * tt)
+    s = math.sin(W * tt)
+    for i in range(n):
+        y, yd = osc_eval(ho[i], tt - t0, 0)
+        q[i] = tab[i, H_A] * c + tab[i, H_B] * s + y
+        qd[i] = W * (-tab[i, H_A] * s + tab[i, H_B] * c) + yd
+
+
+
+#: Dormand-Prince 5(4) tableau (nodes, stages, fifth- and fourth-order weights) of the adaptive steps
+DP_C = np.array([0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0])
+DP_A = np.array([
+    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+    [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
+    [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
+    [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0],
+    [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0],
+    [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0]])
+DP_B5 = np.array([35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0])
+DP_B4 = np.array([5179.0 / 57600.0, 0.0, 7571.0 / 16695.0, 393.0 / 640.0, -92097.0 / 339200.0, 187.0 / 2100.0,
+                   1.0 / 40.0])
+
+
+@njit(cache=True)
+def dp_stage(k, y, h, K, out):
+    """Argument of Dormand-Prince stage k (1..6): ``y + h sum_{r<k} A[k, r] K[r]`` into ``out``."""
+    for j in range(y.size):
+        acc = y[j]
+        for r in range(k):
+            acc += h * DP_A[k, r] * K[r, j]
+        out[j] = acc
+
+
+@njit(cache=True)
+def dp_combine(y, h, K, y5, y4):
+    """The step's fifth-order (``y5``) and embedded fourth-order (``y4``) results from the stages K."""
+    for j in range(y.size):
+        s5 = 0.0
+        s4 = 0.0
+        for r in range(7):
+            s5 += DP_B5[r] * K[r, j]
+            s4 += DP_B4[r] * K[r, j]
+        y5[j] = y[j] + h * s5
+        y4[j] = y[j] + h * s4
 
 
 # ----------------------------------------------------------------------------- contact functions

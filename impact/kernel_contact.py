@@ -17,22 +17,10 @@ from numba import njit
 
 from .columns import C_DAMP, C_DRIVE, C_ELEC, C_FUND_IM, C_FUND_RE
 from .horn import H_FC, H_FS, H_GIM, H_GRE, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_QBI, X_QBR, X_RC, X_RS, X_V0, X_W
+from .kernel_blocks import DP_C, dp_combine, dp_stage
 
 __all__ = ["hc_contact"]
 
-# Dormand-Prince 5(4) tableau
-_DP_C = np.array([0.0, 1.0 / 5.0, 3.0 / 10.0, 4.0 / 5.0, 8.0 / 9.0, 1.0, 1.0])
-_DP_A = np.array([
-    [0.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
-    [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
-    [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0],
-    [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0],
-    [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0]])
-_DP_B5 = np.array([35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0, 0.0])
-_DP_B4 = np.array([5179.0 / 57600.0, 0.0, 7571.0 / 16695.0, 393.0 / 640.0, -92097.0 / 339200.0, 187.0 / 2100.0,
-                   1.0 / 40.0])
 _HC_RTOL = 1e-10
 
 
@@ -99,24 +87,12 @@ def _hc_rhs(t, y, tab, xs, n, k, chi, v_in, m_free, a, out):
 @njit(cache=True)
 def _dp_step(t, y, h, tab, xs, n, k, chi, v_in, m_free, a, K, y5, y4):
     """One Dormand-Prince step of size h from (t, y): fifth-order y5, fourth-order y4."""
-    m = y.size
-    tmp = np.empty(m)
+    tmp = np.empty(y.size)
     _hc_rhs(t, y, tab, xs, n, k, chi, v_in, m_free, a, K[0])
     for st in range(1, 7):
-        for j in range(m):
-            acc = y[j]
-            for r in range(st):
-                acc += h * _DP_A[st, r] * K[r, j]
-            tmp[j] = acc
-        _hc_rhs(t + _DP_C[st] * h, tmp, tab, xs, n, k, chi, v_in, m_free, a, K[st])
-    for j in range(m):
-        s5 = 0.0
-        s4 = 0.0
-        for r in range(7):
-            s5 += _DP_B5[r] * K[r, j]
-            s4 += _DP_B4[r] * K[r, j]
-        y5[j] = y[j] + h * s5
-        y4[j] = y[j] + h * s4
+        dp_stage(st, y, h, K, tmp)
+        _hc_rhs(t + DP_C[st] * h, tmp, tab, xs, n, k, chi, v_in, m_free, a, K[st])
+    dp_combine(y, h, K, y5, y4)
 
 
 @njit(cache=True)

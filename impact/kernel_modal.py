@@ -33,14 +33,14 @@ from numba import njit, prange
 
 from .columns import (BODY_HORN, BODY_TOOL, C_DAMP, C_DRIVE, C_ELEC, C_FUND_IM, C_FUND_RE, C_SOURCE_LOSS,
                       FREE, KIND_HORN, KIND_TOOL, N_CSTATS, ON_HORN, ON_TOOL, STATUS_CONTACT, STATUS_OK, STATUS_PINCHED)
-from .horn import H_A, H_B, H_JV, H_MASS, H_OMEGA, H_TIP, H_ZETA, X_RC, X_RS, X_SERIES, X_STEADY, X_UC, X_US, X_W, ModalHorn
+from .horn import H_A, H_B, H_JV, H_MASS, H_TIP, X_RC, X_RS, X_SERIES, X_STEADY, X_UC, X_US, X_W, ModalHorn
 from .kernel import (N_PARAMS, P_C, P_E1, P_E2, P_G, P_GAP, P_K0, P_M_FREE, P_M_TOOL, P_SPRING_FORCE, P_V0,
                      P_V_STICK, pack)
-from .kernel_blocks import (event_status, free_mass_at, C_A, C_L0, C_N, C_T0, C_UC, C_US, C_W, C_W0, C_WD0, E_N, FN_HORN, FN_HREL,
-                            FN_RELEASE, O_B0, O_B2, O_B4, O_N, PL_ROWS, count_impact,
-                            close_run, close_stick, earliest, grid_step, horn_impact_modal, mech_energy, osc_eval,
-                            osc_make, osc_pv, plan_add, plan_flight, plan_on_tool, plan_pinch, record_event,
-                            record_segment, sticks, tip, tool_event, tool_osc)
+from .kernel_blocks import (event_status, free_mass_at, horn_records, modal_at, C_A, C_L0, C_N, C_T0, C_UC, C_US, C_W,
+                            C_W0, C_WD0, E_N, FN_HORN, FN_HREL, FN_RELEASE, O_B0, O_B2, O_N, PL_ROWS, count_impact,
+                            close_run, close_stick, earliest, grid_step, horn_impact_modal, mech_energy, osc_pv,
+                            plan_add, plan_flight, plan_on_tool, plan_pinch, record_event, record_segment, sticks, tip,
+                            tool_event, tool_osc)
 from .kernel_contact import hc_contact
 from .kernel_energy import window_integrals
 from .params import ImpactParams
@@ -50,39 +50,6 @@ __all__ = ["run_events", "ensemble_coupled", "warmup", "N_CSTATS", "STATUS_CONTA
 
 
 # ----------------------------------------------------------------------------- the modal horn
-
-
-@njit(cache=True)
-def _make_horn(ho, tab, n, W, t0, q, qd):
-    """Free-oscillation records of every mode at t0; returns the bounds of the modes' part of the
-    tip's |u|, |u''| and |u''''| (the steady part excluded)."""
-    c = math.cos(W * t0)
-    s = math.sin(W * t0)
-    b0 = 0.0
-    b2 = 0.0
-    b4 = 0.0
-    for i in range(n):
-        a_, b_ = tab[i, H_A], tab[i, H_B]
-        p = a_ * c + b_ * s
-        pd = W * (-a_ * s + b_ * c)
-        m = tab[i, H_MASS]
-        om = tab[i, H_OMEGA]
-        osc_make(ho[i], m, m * om * om, 2.0 * tab[i, H_ZETA] * om * m, 0.0, q[i] - p, qd[i] - pd)
-        b0 += abs(tab[i, H_TIP]) * ho[i, O_B0]
-        b2 += abs(tab[i, H_TIP]) * ho[i, O_B2]
-        b4 += abs(tab[i, H_TIP]) * ho[i, O_B4]
-    return b0, b2, b4
-
-
-@njit(cache=True)
-def _modal_at(ho, tab, n, W, t0, tt, q, qd):
-    """Modal coordinates and velocities at tt (s) from the segment's records (in place)."""
-    c = math.cos(W * tt)
-    s = math.sin(W * tt)
-    for i in range(n):
-        y, yd = osc_eval(ho[i], tt - t0, 0)
-        q[i] = tab[i, H_A] * c + tab[i, H_B] * s + y
-        qd[i] = W * (-tab[i, H_A] * s + tab[i, H_B] * c) + yd
 
 
 @njit(cache=True)
@@ -189,7 +156,7 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
     stats[:] = 0.0
     w_from = w_last = 0.0
     _initial_modes(tab, xs, n, q, qd)
-    _make_horn(ho, tab, n, W, 0.0, q, qd)
+    horn_records(ho, tab, n, W, 0.0, q, qd)
     u0, ud0 = tip(0.0, cp, tab, ho, n, 0)
     t, mode, w, wd, v, vd = 0.0, FREE, u0, ud0 + pv[P_V0], 0.0, 0.0
     skip_rel = 2.0 * pv[P_V0]     # skip_h = t0 + skip_rel / Bh of the next segment
@@ -201,7 +168,7 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
     while t < t_end:
         # plan the contacts of this segment
         tool_osc(o, mode == ON_TOOL, m_tool, m_free, k0, c, a, v, vd)
-        hb0, hb2, hb4 = _make_horn(ho, tab, n, W, t, q, qd)
+        hb0, hb2, hb4 = horn_records(ho, tab, n, W, t, q, qd)
         B0, B2 = Ua + hb0, Ua * W * W + hb2
         Bh = abs(a) + B2
         if skip_rel > 0.0:
@@ -230,7 +197,7 @@ def _core(pv, tab, xs, hc, t_end, max_events, record, t_from, stats, lam, G1, G2
         window_integrals(tab, xs, n, t0, te, q, qd, t_from, t_end, stats, lam, G1, G2, cw)
         s = te - t0
         v, vd = osc_pv(o, s)
-        _modal_at(ho, tab, n, W, t0, te, q, qd)
+        modal_at(ho, tab, n, W, t0, te, q, qd)
         uh, uhd = tip(te, cp, tab, ho, n, 0)
         w, wd = free_mass_at(mode, s, w0, wd0, a, L0, uh, uhd, v, vd)
         t = te

@@ -38,15 +38,16 @@ def _laws(k, p):
     return dict(horn_law=HertzLaw(k, p.e2), tool_law=HertzLaw(k, p.e1))
 
 
-@pytest.mark.parametrize("flights", ["closed-form", "integrated"])
-def test_energy_ledger_closes(flights):
+@pytest.mark.parametrize("engine, flights", [("kernel", "closed-form"), ("python", "closed-form"),
+                                             ("python", "integrated")])
+def test_energy_ledger_closes(engine, flights):
     """Drive work + the constant force's work = change of the bodies' and contacts' energy + modal
     damping + tool damping + contact losses. Every term is integrated with the motion (rtol 1e-11)
     or closed form; the balance must close to 1e-9 of the drive work (the integration's
     accumulated error over ~60 drive periods is ~rtol x steps ~ 1e-11 x 1e3 ~ 1e-8 at worst, with
     cancellation between steps well below)."""
     p = ImpactParams(m_free=0.008, t_end=0.003)
-    r = simulate_compliant(p, _horn(), **_laws(1e10, p), horn_residual=2e-9, flights=flights)
+    r = simulate_compliant(p, _horn(), **_laws(1e10, p), horn_residual=2e-9, flights=flights, engine=engine)
     led = r.ledger
     assert len(r.contacts) >= 4 and led["contact_loss_j"] > 0
     assert abs(led["residual_j"]) <= 1e-9 * abs(led["drive_j"])
@@ -58,8 +59,8 @@ def test_closed_form_flights_equal_the_integrated_reference():
     speeds after them within 1e-6 m/s (both integrate the contacts at rtol 1e-11; the reference's
     flight integration error over ~1 ms, ~1e-11 of mm positions, shifts a touch by ~1e-13 s)."""
     p = ImpactParams(m_free=0.008, t_end=0.003)
-    a = simulate_compliant(p, _horn(), **_laws(1e10, p), horn_residual=2e-9, flights="integrated")
-    b = simulate_compliant(p, _horn(), **_laws(1e10, p), horn_residual=2e-9)
+    a = simulate_compliant(p, _horn(), **_laws(1e10, p), horn_residual=2e-9, flights="integrated", engine="python")
+    b = simulate_compliant(p, _horn(), **_laws(1e10, p), horn_residual=2e-9, engine="python")
     assert [c.body for c in a.contacts] == [c.body for c in b.contacts] and len(a.contacts) >= 4
     for ca, cb in zip(a.contacts, b.contacts):
         assert cb.t_start == pytest.approx(ca.t_start, abs=1e-9)
@@ -74,7 +75,7 @@ def test_a_pressed_free_mass_chatters_on_the_horn():
     later ones may differ: a grazing touch shorter than an integration step escapes the reference's
     event detection)."""
     p = ImpactParams(m_free=0.008, t_end=0.002, spring_force=50.0, v0=0.05)
-    runs = [simulate_compliant(p, _horn(A=5e-6), **_laws(1e10, p), horn_residual=2e-9, flights=fl)
+    runs = [simulate_compliant(p, _horn(A=5e-6), **_laws(1e10, p), horn_residual=2e-9, flights=fl, engine="python")
             for fl in ("closed-form", "integrated")]
     for r in runs:
         assert len(r.contacts) >= 10
@@ -135,4 +136,6 @@ def test_bad_inputs_are_refused():
     with pytest.raises(ParameterError, match="horn"):
         simulate_compliant(p, "horn", **_laws(1e10, p))
     with pytest.raises(ParameterError, match="flights"):
-        simulate_compliant(p, _horn(), **_laws(1e10, p), flights="euler")
+        simulate_compliant(p, _horn(), **_laws(1e10, p), flights="euler", engine="python")
+    with pytest.raises(ParameterError, match="engine"):
+        simulate_compliant(p, _horn(), **_laws(1e10, p), engine="fortran")
