@@ -1,9 +1,11 @@
 """Figures of a design study: main effects, a Pareto front, and a tolerance study.
 
 Error bars: impact outputs carry their 95 % confidence interval (ensemble statistics); a main
-effect's bar for them is the 95 % CI of the level mean (half-widths combined in quadrature). FE
-outputs are deterministic; their bars on a main-effect plot show the range over the other
-parameters at that level (the spread the other parameters cause), not an uncertainty.
+effect's bar for them is the 95 % CI of the level mean (half-widths combined in quadrature). The
+rotor's speeds and torque carry an error bound (``<name>_error``: the largest departure over the
+teeth motion's error box); a level mean's bound is the mean of its points' bounds (bounds add
+linearly). FE outputs are deterministic; their bars on a main-effect plot show the range over
+the other parameters at that level (the spread the other parameters cause), not an uncertainty.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ from .study import OUTPUTS
 __all__ = ["main_effects", "pareto_front", "tolerance_spread", "study_figures", "pareto_mask", "tolerance_table",
            "axis_label", "param_scale"]
 
-_SCALE = {"m": (1e6, "um"), "m/V": (1e9, "nm/V"), "J": (1e3, "mJ"), "Hz": (1e-3, "kHz")}
+_SCALE = {"m": (1e6, "um"), "m/V": (1e9, "nm/V"), "J": (1e3, "mJ"), "Hz": (1e-3, "kHz"), "N m": (1e3, "mN m")}
 
 #: study output -> the words on a figure axis; the unit comes from :data:`results.study.OUTPUTS`
 #: through :func:`_scale`, so a label and the numbers plotted against it use the same unit
@@ -33,6 +35,8 @@ _OUTPUT_NAMES = {
     "A0_m": "tip amplitude A0, impact-loaded", "tool_ke_j": "tool kinetic energy after impact",
     "ke_gain_j": "tool kinetic energy gain per impact", "tool_power_w": "power delivered to the tool",
     "tool_rate_hz": "tool impact rate", "horn_power_w": "work of the horn on the free mass per second",
+    "rotor_no_load_rpm": "rotor speed without load", "rotor_stall_torque_n_m": "rotor stall torque",
+    "rotor_load_rpm": "rotor speed under the bit's friction", "rotor_hovers": "rotor hovers on the teeth, 1 = yes",
 }
 
 #: varied parameter (``drive.*``, ``impact.*``) -> (factor from SI to the plotted unit, words, unit);
@@ -93,6 +97,16 @@ def _ok(rows):
     return [r for r in rows if r.get("status") == "ok"]
 
 
+def _error_bars(rows, name):
+    """Each row's error bar of output ``name`` and whether the bars are 95 % CIs (``<name>_ci95``,
+    independent: a mean's combines them in quadrature) or error bounds (``<name>_error``: a
+    mean's is their mean)."""
+    ci = _values(rows, f"{name}_ci95")
+    if np.isfinite(ci).any():
+        return ci, True
+    return _values(rows, f"{name}_error"), False
+
+
 def _values(rows, name):
     return np.array([r.get(name, math.nan) if r.get(name) is not None else math.nan for r in rows], dtype=float)
 
@@ -109,16 +123,18 @@ def main_effects(result, outputs=None, axes=None):
         px, _ = param_scale(par)
         x = _values(rows, f"in.{par}") * px
         y = _values(rows, out)
-        hw = _values(rows, f"{out}_ci95")
+        hw, is_ci = _error_bars(rows, out)
         s, _ = _scale(out)
         levels = np.unique(x[np.isfinite(x)])
         if 0 < len(levels) <= 12:
             sel = [(x == lv) & np.isfinite(y) for lv in levels]
             means = np.array([y[m].mean() if m.any() else math.nan for m in sel])
             if any(np.isfinite(hw[m]).any() for m in sel):
-                # 95 % CI of a level mean: the members' half-widths combined in quadrature
-                half = np.array([math.sqrt(np.nansum(hw[m] ** 2)) / max(m.sum(), 1) for m in sel])
-                ax.errorbar(levels, means * s, yerr=half * s, marker="o", capsize=3, label="mean, 95 % CI")
+                # a level mean's 95 % CI: the members' half-widths in quadrature; its bound: their mean
+                half = np.array([(math.sqrt(np.nansum(hw[m] ** 2)) if is_ci else np.nansum(hw[m])) / max(m.sum(), 1)
+                                 for m in sel])
+                ax.errorbar(levels, means * s, yerr=half * s, marker="o", capsize=3,
+                            label="mean, 95 % CI" if is_ci else "mean, error bound")
             else:
                 lo = np.array([y[m].min() if m.any() else math.nan for m in sel])
                 hi = np.array([y[m].max() if m.any() else math.nan for m in sel])
@@ -149,10 +165,10 @@ def pareto_front(result, first: str, second: str, ax=None):
     ax = axes_or_new(ax, 1)
     rows = _ok(result.rows)
     a, b = _values(rows, first), _values(rows, second)
-    ea, eb = _values(rows, f"{first}_ci95"), _values(rows, f"{second}_ci95")
+    (ea, _), (eb, _) = _error_bars(rows, first), _error_bars(rows, second)
     (sa, _), (sb, _) = _scale(first), _scale(second)
     ax.errorbar(a * sa, b * sb, xerr=np.nan_to_num(ea) * sa, yerr=np.nan_to_num(eb) * sb, fmt="o", ms=4,
-                color="0.6", capsize=2, label="points (95 % CI where statistical)")
+                color="0.6", capsize=2, label="points (95 % CI where statistical, error bound where estimated)")
     m = pareto_mask(a, b)
     order = np.argsort(a[m])
     ax.plot(a[m][order] * sa, b[m][order] * sb, "o-", color="C3", label="Pareto front (both maximised)")

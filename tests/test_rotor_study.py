@@ -123,3 +123,20 @@ def test_study_rotor_row_is_the_rotor_stage(rotor_rows):
     assert 0 < rows[0]["rotor_stall_torque_n_m"] <= bound * (1 + 1e-12)
     assert rows[1]["rotor_stall_torque_n_m"] <= 0.2 * 18.0 * params.radius * (1 + 1e-12)
     assert not math.isclose(rows[0]["rotor_stall_torque_n_m"], rows[1]["rotor_stall_torque_n_m"], rel_tol=1e-3)
+
+
+def test_main_effect_bars_of_rotor_outputs_are_mean_error_bounds():
+    # two points per preload level: a level mean's bound is the mean of the points' bounds (bounds add
+    # linearly), drawn in the plotted unit (mN m); an impact output's CI combines in quadrature
+    from results.explore_figures import axis_label, main_effects
+
+    rows = [{"status": "ok", "in.rotor.preload": f, "rotor_stall_torque_n_m": t, "rotor_stall_torque_n_m_error": e}
+            for f, t, e in ((18.0, 0.045, 0.0), (18.0, 0.047, 0.002), (25.0, 0.06, 0.004), (25.0, 0.064, 0.002))]
+    study = SimpleNamespace(parameters=[SimpleNamespace(name="rotor.preload")], outputs=["rotor_stall_torque_n_m"],
+                            stages=("mesh", "match", "harmonic", "rotor"))
+    (ax,) = main_effects(SimpleNamespace(rows=rows, study=study))
+    bars = ax.containers[0]
+    assert bars.get_label() == "mean, error bound"
+    half = [abs(seg[1][1] - seg[0][1]) / 2 for seg in bars.lines[2][0].get_segments()]
+    assert half == pytest.approx([1.0, 3.0])                        # mN m: (0 + 2) / 2, (4 + 2) / 2
+    assert ax.get_ylabel() == axis_label("rotor_stall_torque_n_m") == "rotor stall torque (mN m)"
