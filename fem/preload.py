@@ -2,13 +2,24 @@
 
 Bolt preload (:func:`preload_solve`)
 ------------------------------------
-A Langevin transducer's bolt squeezes the ceramic stack with a force ``P``. It is modelled as a
-force pair on the stack's two end faces: the lower face is pushed along ``+axis`` and the upper
-face along ``-axis`` by uniform tractions ``P / A`` (``A`` the face's area on the mesh), so that
-every cross-section of the stack carries exactly ``-P`` (compression) and the parts beyond the
-faces carry no net force (an idealised bolt whose heads bear on the stack; the bolt's own
-stiffness in parallel with the stack is left out). By default the end faces are the outermost
-electrode planes along the axis (the stack's end electrodes); any two facet sets may be named.
+A Langevin transducer's bolt squeezes the ceramic stack with a force ``P``. Without a bolt part
+in the mesh it is modelled as a force pair on the stack's two end faces: the lower face is
+pushed along ``+axis`` and the upper face along ``-axis`` by uniform tractions ``P / A`` (``A``
+the face's area on the mesh), so that every cross-section of the stack carries exactly ``-P``
+(compression) and the parts beyond the faces carry no net force (an idealised bolt whose heads
+bear on the stack). By default the end faces are the outermost electrode planes along the axis
+(the stack's end electrodes); any two facet sets may be named.
+
+With a bolt part (region :data:`BOLT_REGION`, bonded to the metal at both ends) a force pair
+on the stack's faces would squeeze the bolt as well, in parallel with the stack. The bolt's
+tension is then an eigenstrain instead: the bolt is given a uniform axial shrink strain
+``eps0`` (as if it were cut shorter than the gap it bridges), whose load is
+``f = int B^T C eps0 dV`` over the bolt; the solution puts the bolt in tension and the stack in
+compression, the two forces equal (nothing else loads the free body). It is scaled so that the
+stack carries ``P``: its mean axial stress over each ring, ``-P / A`` (``A`` the stack's end face
+area), is the section force over the area. The bolt's own stress is ``C (eps(x) - eps0)``
+(:meth:`PreloadState.field`).
+
 Electrodes are short-circuited (``V_hot = 0``, as when the bolt is torqued with the electrodes
 shorted): the interior potential is free and the field it sets up is part of the solution.
 
@@ -37,13 +48,16 @@ from rpud_common import ParameterError, check_finite, check_nonnegative
 from .assembly import PiezoSystem, submatrix
 from .solvers import factorize
 
-__all__ = ["traction_load", "static_solve", "stack_end_faces", "preload_solve", "PreloadState", "face_area",
+__all__ = ["BOLT_REGION", "traction_load", "eigenstrain_load", "static_solve", "stack_end_faces", "preload_solve", "PreloadState", "face_area",
            "ring_means", "RingWindow", "PreloadWindows", "preload_windows", "design_preload", "window_lines"]
 
 log = logging.getLogger(__name__)
 
 _SHIFT_HZ = 1.0
 _NORMAL_TOL = 1e-6
+
+BOLT_REGION = "bolt"
+"""Name of the mesh region that is the stack's bolt (:attr:`geometry.design_rpud.StackRings.bolt_diameter`)."""
 
 
 def _facet_basis(system: PiezoSystem, name: str, vector: bool):
@@ -92,9 +106,34 @@ def traction_load(system: PiezoSystem, name: str, traction) -> np.ndarray:
     return f
 
 
-def _rigid_modes(system: PiezoSystem) -> np.ndarray:
-    """(ndof, 6): three translations and three rotations about the centroid (zero potential)."""
-    x = system.nodes - system.nodes.mean(axis=0)
+def eigenstrain_load(system: PiezoSystem, region: str, strain) -> np.ndarray:
+    """Consistent nodal forces (full-length vector, N) of a uniform eigenstrain ``strain`` (Voigt
+    6-vector, engineering shear) in region ``region``: ``int B^T C strain dV`` over its cells."""
+    from skfem import Basis, ElementVector, LinearForm, asm
+
+    names = [r.name for r in system.regions]
+    if region not in names:
+        raise ParameterError("eigenstrain region", region, "unknown region; known: " + ", ".join(names))
+    rd = system.regions[names.index(region)]
+    sig = rd.c @ np.asarray(strain, float).reshape(6)
+    cells = np.flatnonzero(np.asarray(system.mesh.cell_region) == names.index(region))
+    basis = Basis(system.skmesh, ElementVector(system.basis.elem), elements=cells, intorder=system.intorder[0])
+
+    @LinearForm
+    def load(v, w):
+        g = v.grad
+        return (sig[0] * g[0, 0] + sig[1] * g[1, 1] + sig[2] * g[2, 2] + sig[3] * (g[1, 2] + g[2, 1])
+                + sig[4] * (g[0, 2] + g[2, 0]) + sig[5] * (g[0, 1] + g[1, 0]))
+
+    f = np.zeros(system.ndof)
+    f[: system.n_u] = asm(load, basis)
+    return f
+
+
+def _rigid_modes(system: PiezoSystem, about=None) -> np.ndarray:
+    """(ndof, 6): three translations and three rotations about the point ``about`` (default the
+    centroid; zero potential)."""
+    x = system.nodes - (system.nodes.mean(axis=0) if about is None else np.asarray(about, float))
     R = np.zeros((system.ndof, 6))
     for c in range(3):
         R[c: system.n_u: 3, c] = 1.0
@@ -118,11 +157,12 @@ def static_solve(system: PiezoSystem, load: np.ndarray, *, clamp: Iterable[str] 
     free = system.free_dofs("short", clamp)
     K = submatrix(system.K, free)
     if not clamp:
-        R = _rigid_modes(system)
         kept = getattr(system, "kept", None)
+        R = _rigid_modes(system, None if kept is None else (0.0, 0.0, 0.0))
         if kept is not None:
             # a k = 0 sector system (fem.sector_system) holds the axial translation and the
-            # rotation about the axis only; its vectors live on the kept indices
+            # rotation about the axis (not about the sector's centroid) only; its vectors live
+            # on the kept indices
             mask = np.zeros(system.ndof)
             mask[kept] = 1.0
             R = R[:, [2, 5]] * mask[:, None]
@@ -156,13 +196,33 @@ def stack_end_faces(system: PiezoSystem, axis=(0.0, 0.0, 1.0)) -> tuple[str, str
 @dataclass(eq=False)
 class PreloadState:
     """A static preload: ``x`` the solution, ``force_n`` the bolt force, ``faces`` (lower, upper),
-    ``areas_m2`` their mesh areas, ``axis``."""
+    ``areas_m2`` their mesh areas, ``axis``; ``eigenstrain``: ``(region, Voigt strain)`` of a
+    bolt part's shrink (None: the force pair on the faces)."""
 
     x: np.ndarray
     force_n: float
     faces: tuple[str, str]
     areas_m2: tuple[float, float]
     axis: tuple
+    eigenstrain: tuple | None = None
+
+    def scaled(self, factor: float) -> "PreloadState":
+        """The same preload times ``factor`` (force, field and eigenstrain)."""
+        eig = None if self.eigenstrain is None else (self.eigenstrain[0], self.eigenstrain[1] * factor)
+        return PreloadState(self.x * factor, self.force_n * factor, self.faces, self.areas_m2, self.axis, eig)
+
+    def field(self, recovery):
+        """The state's :class:`fem.stress.StressField` from ``recovery`` (a
+        :class:`fem.stress.StressRecovery` of the system solved), a bolt part's stress less its
+        eigenstress ``C eps0``."""
+        fld = recovery.field(self.x)
+        if self.eigenstrain is not None:
+            region, strain = self.eigenstrain
+            r = [reg.name for reg in recovery.system.regions].index(region)
+            sel = fld.region == r
+            fld.stress[sel] -= recovery.system.regions[r].c @ strain
+            fld.strain[sel] -= strain
+        return fld
 
 
 def preload_solve(system: PiezoSystem, force_n: float, *, faces: Sequence[str] | None = None,
@@ -193,14 +253,32 @@ def preload_solve(system: PiezoSystem, force_n: float, *, faces: Sequence[str] |
         raise ParameterError("faces", (lo, hi), "must be given lower first along the axis")
     a_lo, a_hi = face_area(system, lo), face_area(system, hi)
     n = int(getattr(system, "sectors", 1) or 1)
-    # a sector carries 1/n of the force on 1/n of the area: the same traction
-    f = traction_load(system, lo, d * force_n / (n * a_lo)) + traction_load(system, hi, -d * force_n / (n * a_hi))
+    bolted = BOLT_REGION in [r.name for r in system.regions]
+    if bolted:
+        if abs(d[2]) != 1.0:
+            raise ParameterError("axis", tuple(d), "must be the z axis with a bolt part (the rings' means are zz)")
+        strain = np.array([0.0, 0.0, -1.0, 0.0, 0.0, 0.0])     # a unit axial shrink
+        f = eigenstrain_load(system, BOLT_REGION, strain)
+    else:
+        # a sector carries 1/n of the force on 1/n of the area: the same traction
+        f = traction_load(system, lo, d * force_n / (n * a_lo)) + traction_load(system, hi, -d * force_n / (n * a_hi))
     if n > 1:
         f = n * np.asarray(system.tie.T @ f).ravel()         # the whole drill's load on the k = 0 unknowns
         a_lo, a_hi = n * a_lo, n * a_hi
     x = static_solve(system, f, backend=backend)
     log.info("preload %.4g N on %s (%.4g mm^2) and %s (%.4g mm^2)", force_n, lo, a_lo * 1e6, hi, a_hi * 1e6)
-    return PreloadState(x, float(force_n), (lo, hi), (a_lo, a_hi), tuple(d))
+    state = PreloadState(x, float(force_n), (lo, hi), (a_lo, a_hi), tuple(d))
+    if not bolted:
+        return state
+    # the stack's force of the unit shrink: its rings' mean axial stress times the face area
+    from .stress import StressRecovery
+
+    means = ring_means(system, StressRecovery(system).field(x))
+    stack_force = -float(np.mean([m[0].real for m in means.values()])) * 0.5 * (a_lo + a_hi)
+    if not stack_force > 0:     # pragma: no cover - a bonded bolt's shrink compresses the stack
+        raise ParameterError("preload", force_n, "the bolt's tension does not compress the stack")
+    scale = force_n / stack_force
+    return PreloadState(x * scale, float(force_n), (lo, hi), (a_lo, a_hi), tuple(d), (BOLT_REGION, strain * scale))
 
 
 # --------------------------------------------------------------------------- the preload window

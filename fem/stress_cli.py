@@ -86,7 +86,7 @@ def run_stress(args, system, basis, wp, band, near_label: str = "", est=None) ->
     static, pre = None, None
     if args.preload > 0:
         pre = preload_solve(system, args.preload)
-        static = rec.field(pre.x)
+        static = pre.field(rec)
     from .preload import preload_windows, window_lines
 
     win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, args.preload, recovery=rec, unit_state=pre)

@@ -59,7 +59,8 @@ class CoarseTable:
         if self.preload_n > 0:
             from .preload import preload_solve
 
-            static = rec.field(field_state(system, preload_solve(system, self.preload_n).x)[1])
+            pre = preload_solve(system, self.preload_n)
+            static = dataclasses.replace(pre, x=field_state(system, pre.x)[1]).field(rec)
         table = stress_table(rec.field(x), static, freq_hz=float(wp.freq_hz), voltage=self.voltage,
                              preload_n=self.preload_n)
         return {"stress": table}

@@ -186,6 +186,15 @@ class StackRings:
         area), Pa. Default 45 MPa: the prestress a transducer maker recommends for PZT-8 power
         stacks (ATCP PiezoClamping manual: 45 MPa for PZT-8, 25-60 MPa for power transducers); it
         stays below the rated static compressive stress (82.7 MPa, materials.toml [MEC]). 0: no bolt.
+    bolt_diameter : float
+        Diameter of the stack bolt as an elastic part of the model, m (0: the bolt is only its
+        prestress, no part). The bolt is a rod in the rings' bore, free along the rings (a radial
+        gap), its back end threaded into the coupler and its front end into the flange; both
+        threads are modelled as bonded faces: its front face bonded to the flange's back face,
+        its back face to the coupler's top face, whose bore is closed over the thread's length
+        :attr:`bolt_engagement` (the threaded hole, titanium in the model).
+    bolt_material : str
+        Material of the bolt (default the library's steel).
     """
 
     _prefix: ClassVar[str] = "stack"
@@ -198,10 +207,14 @@ class StackRings:
     shim_thickness: float = 0.0003
     shim_material: str = "copper"
     bolt_prestress: float = 45e6
+    bolt_diameter: float = 0.0
+    bolt_material: str = "steel_45"
 
     def __post_init__(self):
         p = self._prefix
         check_range(f"{p}.bolt_prestress", self.bolt_prestress, 0.0, 200e6, "Pa")
+        check_bore(f"{p}.bolt_diameter", self.bolt_diameter)
+        _material(f"{p}.bolt_material", self.bolt_material)
         _material(f"{p}.material", self.material)
         check_count(f"{p}.n_rings", self.n_rings, 2, even=True)
         check_length(f"{p}.outer_diameter", self.outer_diameter)
@@ -212,6 +225,17 @@ class StackRings:
         check_length(f"{p}.ring_thickness", self.ring_thickness)
         check_length(f"{p}.shim_thickness", self.shim_thickness)
         _material(f"{p}.shim_material", self.shim_material)
+        if self.bolt_diameter > self.inner_diameter - 2 * _MIN_WALL:
+            raise ParameterError(f"{p}.bolt_diameter", self.bolt_diameter,
+                                 f"must be <= inner_diameter - {2 * _MIN_WALL:g} m = "
+                                 f"{self.inner_diameter - 2 * _MIN_WALL:g} m (a radial gap to the rings)")
+
+    @property
+    def bolt_engagement(self) -> float:
+        """Length of the bolt's thread in the coupler, m: 1.5 bolt diameters, the engagement a
+        steel bolt needs in a softer metal (titanium) to carry its proof load (Machinery's
+        Handbook, length of engagement); 0 without a bolt part."""
+        return 1.5 * self.bolt_diameter
 
     @property
     def length(self) -> float:
@@ -457,7 +481,32 @@ class RPUDDesign(DesignBase):
             raise ParameterError("horn.flange_fillet", h.flange_fillet,
                                  f"must be < the flange's face beyond the horn minus {_MIN_WALL:g} m = "
                                  f"{(f.outer_diameter - h.back_diameter) / 2 - _MIN_WALL:g} m")
+        self._check_bolt()
         self._check_materials()
+
+    def _check_bolt(self) -> None:
+        """The bolt part needs a solid flange to thread into and room for its thread in the
+        coupler's plain base (clear of the slots)."""
+        s, c = self.stack, self.coupler
+        if not s.bolt_diameter:
+            return
+        if self.bore_diameter > 0:
+            raise ParameterError("stack.bolt_diameter", s.bolt_diameter,
+                                 "a bolt part needs a solid flange to thread into: bore_diameter must be 0")
+        used = (c.tooth_height if c.n_teeth else 0.0) + (c.slot_offset + c.slot_length if c.n_slots else 0.0)
+        room = c.length - used - _MIN_WALL
+        if self.coupler_bore > 0 and s.bolt_engagement > room:
+            raise ParameterError("stack.bolt_diameter", s.bolt_diameter,
+                                 f"its thread (1.5 diameters = {s.bolt_engagement:g} m) must fit in the coupler's "
+                                 f"plain base ({room:g} m): must be <= {room / 1.5:g} m")
+
+    @property
+    def bolt_thread(self) -> tuple[float, float] | None:
+        """``(z0, z1)`` of the coupler's closed bore around the bolt's thread, m (None when the
+        design has no bolt part or the coupler no bore)."""
+        if not self.stack.bolt_diameter or self.coupler_bore <= 0:
+            return None
+        return -self.stack.bolt_engagement, 0.0
 
     def material_uses(self) -> list[tuple[str, str, Any]]:
         s = self.stack
@@ -465,6 +514,8 @@ class RPUDDesign(DesignBase):
                 ("flange.material", self.flange.material, None), ("coupler.material", self.coupler.material, None)]
         if s.electrode_shims:
             uses.append(("stack.shim_material", s.shim_material, None))
+        if s.bolt_diameter:
+            uses.append(("stack.bolt_material", s.bolt_material, None))
         return uses
 
     # ------------------------------------------------------------------ layout
@@ -531,7 +582,12 @@ class RPUDDesign(DesignBase):
                 z += c.slot_offset
             zones.append(("coupler.slots", "coupler", z, z + c.slot_length))
             z += c.slot_length
-        zones.append(("coupler.base", "coupler", z, 0.0))
+        thread = self.bolt_thread
+        if thread is not None:
+            zones.append(("coupler.base", "coupler", z, thread[0]))
+            zones.append(("coupler.thread", "coupler", *thread))
+        else:
+            zones.append(("coupler.base", "coupler", z, 0.0))
         part = {"ring": "stack", "shim": "electrodes"}
         for region, kind, z0, z1 in self.stack_layers():
             zones.append((region, part[kind], z0, z1))
@@ -572,13 +628,17 @@ class RPUDDesign(DesignBase):
 
     def region_table(self) -> list[tuple[str, str, str, float]]:
         s = self.stack
-        rows = [("coupler", "coupler", self.coupler.material, self.coupler.volume(self.bore_diameter))]
+        thread = self.bolt_thread
+        closed = _annulus(self.coupler_bore, 0.0) * (thread[1] - thread[0]) if thread else 0.0
+        rows = [("coupler", "coupler", self.coupler.material, self.coupler.volume(self.bore_diameter) + closed)]
         for region, kind, z0, z1 in self.stack_layers():
             if kind == "ring":
                 rows.append((region, "stack", s.material, s.ring_volume()))
             else:
                 rows.append((region, "electrodes", s.shim_material,
                              _annulus(s.outer_diameter, s.inner_diameter) * s.shim_thickness))
+        if s.bolt_diameter:
+            rows.append(("bolt", "bolt", s.bolt_material, _annulus(s.bolt_diameter, 0.0) * s.length))
         fv = self.fillet_volumes()
         rows.append(("flange_disc", "flange", self.flange.material,
                      _annulus(self.flange.outer_diameter, self.bore_diameter) * self.flange.thickness + fv["flange_disc"]))
@@ -589,7 +649,9 @@ class RPUDDesign(DesignBase):
         """The composition as uniform 1-D slices ``(length m, area m^2, material)`` from -z to +z.
 
         Slots reduce the area by their cross-section; the teeth count with their area
-        fraction; tapered horns are cut into ``n_taper`` slices (midpoint diameters).
+        fraction; tapered horns are cut into ``n_taper`` slices (midpoint diameters). A bolt part
+        is a member in parallel with the rings, which a chain of slices cannot hold: it is left
+        out (the coupler's bore closed around its thread is in).
         """
         c, s = self.coupler, self.stack
         out = []
@@ -604,6 +666,8 @@ class RPUDDesign(DesignBase):
             out.append((c.slot_length, full - c.n_slots * c.slot_area(), c.material))
         base = [z for z in self._zones() if z[0] == "coupler.base"][0]
         out.append((base[3] - base[2], full, c.material))
+        if self.bolt_thread is not None:
+            out.append((self.stack.bolt_engagement, _annulus(c.outer_diameter, 0.0), c.material))
         for region, kind, z0, z1 in self.stack_layers():
             mat = s.material if kind == "ring" else s.shim_material
             out.append((z1 - z0, _annulus(s.outer_diameter, s.inner_diameter), mat))

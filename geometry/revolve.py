@@ -123,6 +123,9 @@ def section_outlines(d: RPUDDesign) -> list[tuple[str, str, str, object, tuple]]
     s, f, h = d.stack, d.flange, d.horn
     ri, ro = s.inner_diameter / 2, s.outer_diameter / 2
     out = [(*meta, ((ri, z0), (ro, z0), (ro, z1), (ri, z1))) for *meta, z0, z1 in stack_regions(d)]
+    if s.bolt_diameter:
+        rb = s.bolt_diameter / 2
+        out.append(("bolt", "bolt", s.bolt_material, None, ((0.0, 0.0), (rb, 0.0), (rb, s.length), (0.0, s.length))))
     flange, horn = flange_horn_outlines(d)
     out.append(("flange_disc", "flange", f.material, None, flange))
     out.append(("horn", "horn", h.material, None, horn))

@@ -66,7 +66,7 @@ def sector_model(gmsh, d: RPUDDesign, sectors: int):
     coupler = make_coupler(occ, d, sectors)
     outlines = section_outlines(d)
     faces = [(2, section_face(occ, o[4])) for o in outlines]
-    _out, omap = occ.fragment(coupler + faces, [])
+    _out, omap = occ.fragment(coupler + faces + _far_imprints(occ, d, sectors, outlines), [])
     occ.synchronize()
     vols = sorted({t for m in omap[:len(coupler)] for dim, t in m if dim == 3})
     section = {o[0]: sorted(t for dim, t in m if dim == 2) for o, m in zip(outlines, omap[len(coupler):])}
@@ -76,6 +76,17 @@ def sector_model(gmsh, d: RPUDDesign, sectors: int):
     return vols, section, top[0], {o[0]: o[1:4] for o in outlines}
 
 
+def _far_imprints(occ, d: RPUDDesign, sectors: int, outlines) -> list:
+    """Points on the far cut's top edge where the section's vertices split the near cut's: with
+    a bolt the section's faces meet the coupler's closed top inside its edge, and the two cut
+    faces must keep the same vertices to be meshed as periodic copies."""
+    if d.bolt_thread is None:
+        return []
+    radii = sorted({r for o in outlines for r, z in o[4] if abs(z) < 1e-12 and r > 0})
+    c, s = math.cos(2 * math.pi / sectors), math.sin(2 * math.pi / sectors)
+    return [(0, occ.addPoint(r * c, r * s, 0.0)) for r in radii]
+
+
 def _curve_nodes(gmsh, curve: int):
     """(tags, coords) of a meshed curve's nodes, its end points included, in parametric order."""
     tags, coords, par = gmsh.model.mesh.getNodes(1, curve, includeBoundary=True, returnParametricCoord=True)
@@ -83,27 +94,38 @@ def _curve_nodes(gmsh, curve: int):
     return np.asarray(tags, dtype=np.int64)[order], np.asarray(coords).reshape(-1, 3)[order]
 
 
+def _cut_edge_nodes(gmsh, curves, theta: float):
+    """(tags, coords) of the nodes on a face's straight edges at angle ``theta`` (one edge, or
+    several where the section's vertices split it), ordered from the axis out."""
+    tags, xyz = [], []
+    for c in curves:
+        if gmsh.model.getType(1, c) != "Line":
+            continue
+        t, x = _curve_nodes(gmsh, c)
+        mid = x.mean(axis=0)
+        if abs(math.atan2(mid[1], mid[0]) - theta) < 1e-6:
+            tags.append(t)
+            xyz.append(x)
+    if not tags:                # pragma: no cover - the face is a sector of an annulus or disc
+        raise RuntimeError("the coupler's top face is not a sector")
+    t, first = np.unique(np.concatenate(tags), return_index=True)
+    x = np.concatenate(xyz)[first]
+    order = np.argsort(np.hypot(x[:, 0], x[:, 1]))
+    return t[order], x[order]
+
+
 def premesh_interface(gmsh, face: int, sectors: int, layers: int, new_tag: int):
     """Mesh the coupler's top face as the swept grid (see the module docstring).
 
     Must run after ``generate(1)`` with the face's two arcs transfinite (``layers`` + 1 nodes).
-    Returns ``(grid, next_tag)``: ``grid[i, j]`` the Gmsh node tag at the i-th node of the
-    section's bottom edge (from the axis side out) and layer j.
+    Returns ``(grid, radii, next_tag)``: ``grid[i, j]`` the Gmsh node tag at the i-th node of
+    the face's edge on the cut theta = 0 (from the axis side out) and layer j, ``radii[i]`` that
+    node's radius (m).
     """
     alpha = 2 * math.pi / sectors
     curves = [abs(t) for _d, t in gmsh.model.getBoundary([(2, face)], oriented=False)]
-    lines = {}
-    for c in curves:
-        tags, xyz = _curve_nodes(gmsh, c)
-        if gmsh.model.getType(1, c) == "Line":
-            theta = math.atan2(xyz[:, 1].mean(), xyz[:, 0].mean())
-            lines[0 if abs(theta) < 1e-6 else 1] = (tags, xyz)
-    if set(lines) != {0, 1}:    # pragma: no cover - the face is an annular sector
-        raise RuntimeError("the coupler's top face is not an annular sector")
-    (t0, x0), (t1, x1) = lines[0], lines[1]
-    order0 = np.argsort(np.hypot(x0[:, 0], x0[:, 1]))
-    order1 = np.argsort(np.hypot(x1[:, 0], x1[:, 1]))
-    t0, x0, t1 = t0[order0], x0[order0], t1[order1]
+    t0, x0 = _cut_edge_nodes(gmsh, curves, 0.0)
+    t1, _x1 = _cut_edge_nodes(gmsh, curves, alpha)
     n = len(t0)
     if len(t1) != n:            # pragma: no cover - the far face is a periodic copy
         raise RuntimeError("the cut faces' top edges differ")
@@ -117,10 +139,11 @@ def premesh_interface(gmsh, face: int, sectors: int, layers: int, new_tag: int):
             r = float(np.hypot(xyz[0, 0], xyz[0, 1]))
             th = np.arctan2(xyz[:, 1], xyz[:, 0])
             arc_nodes[r] = tags[np.argsort(th)]
-    r_in, r_out = min(arc_nodes), max(arc_nodes)
-    if len(arc_nodes[r_in]) != layers + 1 or len(arc_nodes[r_out]) != layers + 1:   # pragma: no cover
+    if any(len(a) != layers + 1 for a in arc_nodes.values()):   # pragma: no cover
         raise RuntimeError("the coupler's top arcs are not transfinite")
-    grid[0], grid[-1] = arc_nodes[r_in], arc_nodes[r_out]
+    grid[-1] = arc_nodes[max(arc_nodes)]
+    # a bored top's inner arc, or the axis node of a closed one
+    grid[0] = arc_nodes[min(arc_nodes)] if len(arc_nodes) == 2 else t0[0]
     # interior nodes: the bottom edge's nodes rotated to each inner layer
     coords = []
     for j in range(1, layers):
@@ -132,8 +155,10 @@ def premesh_interface(gmsh, face: int, sectors: int, layers: int, new_tag: int):
         gmsh.model.mesh.addNodes(2, face, grid[1:-1, 1:layers].T.ravel().tolist(), np.concatenate(coords).ravel().tolist())
     quads = np.stack([grid[:-1, :-1], grid[1:, :-1], grid[1:, 1:], grid[:-1, 1:]], axis=-1).reshape(-1, 4)
     tri = np.take_along_axis(quads[:, None, :], quad_triangles(quads), axis=2).reshape(-1, 3)
+    s = np.sort(tri, axis=1)
+    tri = tri[np.all(s[:, 1:] != s[:, :-1], axis=1)]     # the axis' collapsed quads: their one triangle
     gmsh.model.mesh.addElementsByType(face, 2, [], tri.ravel().tolist())
-    return grid, new_tag
+    return grid, np.hypot(x0[:, 0], x0[:, 1]), new_tag
 
 
 def _interface_grid(gmsh, face: int, points_rz: dict, sectors: int, layers: int) -> dict:
@@ -254,16 +279,18 @@ def add_midnodes(points: np.ndarray, cells4: np.ndarray, known: dict) -> tuple[n
 
 
 def _check_interface(design: RPUDDesign, points: np.ndarray, cells: np.ndarray) -> None:
-    """Raise if the coupler and the first ring do not meet face to face (a boundary triangle
-    inside their common annulus at z = 0)."""
+    """Raise if the coupler and the first ring (or the bolt) do not meet face to face (a boundary
+    triangle inside their common annulus, or the bolt's disc, at z = 0)."""
     local = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
     faces, counts = np.unique(np.sort(cells[:, :4][:, local].reshape(-1, 3), axis=1), axis=0, return_counts=True)
     p = points[faces[counts == 1]]
     r = np.hypot(p[:, :, 0], p[:, :, 1])
-    inside = np.all((np.abs(p[:, :, 2]) < 1e-12) & (r > design.coupler_bore / 2 + 1e-9)
-                    & (r < design.coupler.outer_diameter / 2 - 1e-9), axis=1)
+    bonded = ((r > design.coupler_bore / 2 + 1e-9) & (r < design.coupler.outer_diameter / 2 - 1e-9)
+              | (r < design.stack.bolt_diameter / 2 - 1e-9))
+    inside = np.all((np.abs(p[:, :, 2]) < 1e-12) & bonded, axis=1)
     if inside.any():    # pragma: no cover - the cuts follow one order on both sides
-        raise RuntimeError(f"{int(inside.sum())} faces of the coupler's top do not match the first ring's")
+        raise RuntimeError(f"{int(inside.sum())} faces of the coupler's top do not match the first ring's "
+                           "or the bolt's")
 
 
 def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.ndarray, swept: dict,
@@ -363,7 +390,7 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
             gmsh.model.mesh.setTransfiniteCurve(abs(c), layers + 1)
     gmsh.model.mesh.generate(1)
     next_tag = int(gmsh.model.mesh.getMaxNodeTag()) + 1
-    grid, _ = premesh_interface(gmsh, top, sectors, layers, next_tag)
+    grid, radii, _ = premesh_interface(gmsh, top, sectors, layers, next_tag)
     gmsh.option.setNumber("Mesh.MeshOnlyEmpty", 1)
     gmsh.model.mesh.generate(2)
     gmsh.model.mesh.generate(3)
@@ -387,11 +414,13 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
     points_rz = {int(t): xyz[where[int(t)]] for t in corner_tags}
     fixed = _interface_grid(gmsh, top, points_rz, sectors, layers)
     # the top face was cut by its tags before setOrder renumbered them: the prisms below it are
-    # cut in that order too (rows of the grid: the bottom edge's nodes outward)
-    by_radius = sorted(fixed, key=lambda t: float(np.hypot(*points_rz[t][:2])))
-    if len(by_radius) != len(grid):      # pragma: no cover - the same edge
-        raise RuntimeError("the coupler's top face lost nodes")
-    rank = {int(fixed[t][j]): int(grid[i, j]) for i, t in enumerate(by_radius) for j in range(layers + 1)}
+    # cut in that order too (rows of the grid: the top face's edge nodes outward, found by radius)
+    rank = {}
+    for t, copies in fixed.items():
+        i = int(np.argmin(np.abs(radii - float(np.hypot(*points_rz[t][:2])))))
+        if abs(radii[i] - float(np.hypot(*points_rz[t][:2]))) > 1e-9 * radii[-1]:   # pragma: no cover
+            raise RuntimeError("the coupler's top face lost nodes")
+        rank.update({int(copies[j]): int(grid[i, j]) for j in range(layers + 1)})
     all_tri = np.concatenate([t for _r, t in tri])
     owner = np.concatenate([np.full(len(t), k) for k, (_r, t) in enumerate(tri)])
     new_tags, new_xyz, tets, source = sweep_section(points_rz, all_tri, sectors, layers, next_tag, fixed, rank)

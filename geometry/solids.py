@@ -133,6 +133,10 @@ def make_coupler(occ, d: RPUDDesign, sectors: int | None = None):
     in 0 <= theta <= 2 pi / sectors."""
     c = d.coupler
     body = _annular_cylinder(occ, -c.length, c.length, c.outer_diameter / 2, d.coupler_bore / 2)
+    thread = d.bolt_thread
+    if thread is not None:      # the bore closed around the bolt's thread
+        plug = occ.addCylinder(0, 0, thread[0], 0, 0, thread[1] - thread[0], d.coupler_bore / 2)
+        body, _ = occ.fuse(body, [(3, plug)])
     tools = []
     R = c.outer_diameter / 2
     if c.n_teeth:
@@ -165,6 +169,8 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None, sectors: int | Non
     # ---- stack
     for *meta, z0, z1 in stack_regions(d):
         pieces.append((*meta, _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)))
+    if s.bolt_diameter:
+        pieces.append(("bolt", "bolt", s.bolt_material, None, _annular_cylinder(occ, 0.0, s.length, s.bolt_diameter / 2, 0.0)))
     zf = s.length
     if d.fillets():
         pieces += _filleted_flange_horn(occ, d)

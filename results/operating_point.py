@@ -178,9 +178,7 @@ def preload_stage(design, system, wp, say=None):
         say(f"      preload: {win.verdict()}")
     state = None
     if force > 0:
-        from fem.preload import PreloadState
-
-        state = PreloadState(unit.x * force, force, unit.faces, unit.areas_m2, unit.axis)
+        state = unit.scaled(force)
     return state, rec
 
 

@@ -44,7 +44,7 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse
     t0 = time.perf_counter()
     rec = StressRecovery(system)
     fld = rec.field(wp.x)
-    static = rec.field(preload.x) if preload is not None and preload.force_n > 0 else None
+    static = preload.field(rec) if preload is not None and preload.force_n > 0 else None
     preload_n = preload.force_n if static is not None else 0.0
     table = with_error(stress_table(fld, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=preload_n), coarse)
     files = {"png": None, "vtu": None}

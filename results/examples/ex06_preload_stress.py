@@ -56,7 +56,7 @@ print(bare.text())
 pre = fem.preload_solve(system, PRELOAD)
 print(f"preload {PRELOAD:g} N on {pre.faces[0]} / {pre.faces[1]}: "
       f"{PRELOAD / pre.areas_m2[0] * 1e-6:.1f} MPa on the {pre.areas_m2[0] * 1e6:.1f} mm^2 ring face")
-preloaded = fem.utilisation_table(dynamic, rec.field(pre.x), freq_hz=wp.freq_hz, voltage=VOLTAGE,
+preloaded = fem.utilisation_table(dynamic, pre.field(rec), freq_hz=wp.freq_hz, voltage=VOLTAGE,
                                   preload_n=PRELOAD)
 print(preloaded.text())
 
@@ -75,6 +75,6 @@ print(f"worst with preload: {preloaded}")
 
 # %%
 # The von Mises peak over the cycle on the surface, with the preload.
-fields = fem.stress_node_fields(dynamic, rec.field(pre.x))
+fields = fem.stress_node_fields(dynamic, pre.field(rec))
 fem.render_stress(system, fields["von_mises"], out / "stress_preloaded.png",
                   title=f"von Mises peak over one cycle, {VOLTAGE:g} V + {PRELOAD / 1e3:g} kN preload")
