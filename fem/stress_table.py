@@ -13,8 +13,9 @@ optional static state (bolt preload), see :mod:`fem.stress`:
 Each peak is also given away from the singular edges (:func:`bonded_edge_nodes`: the cells
 touching them left out), where the elastic solution is singular: a bonded interface of two
 different materials (or polings) meeting the free surface (a ring's rim or bore on an electrode
-plane, the rings on the flange), and a sharp corner where two regions meet (an unfilleted
-flange/horn edge). That value converges with the mesh, the peak itself need not. A row whose
+plane, the rings on the flange), a sharp corner where two regions meet (an unfilleted
+flange/horn edge), and a re-entrant crease of the surface inside one region (an unfilleted horn
+step, the roots of the coupler's slots and teeth). That value converges with the mesh, the peak itself need not. A row whose
 peak lies on such an edge is marked ``singular`` and its headline (:attr:`StressRow.headline`,
 the utilisation, the worst row) is the off-edge value. A filleted corner
 (:mod:`geometry.fillets`) is not singular: its peak is the headline. A limit the material record
@@ -233,10 +234,10 @@ def bonded_edge_nodes(system) -> np.ndarray:
     more regions that either differ in material or poling (a bonded bimaterial edge: ring bores
     and rims at the electrode planes, the rings on the flange) or meet at a sharp corner (their
     boundary facets' mean normals there differ by more than :data:`CORNER_ANGLE_DEG`: an
-    unfilleted flange/horn edge). In the elastic solution the stress there is singular. Two
-    regions of one material meeting on a smooth surface (a filleted flange/horn edge) are not
-    singular; nor are re-entrant corners inside one region (an unfilleted horn step, slot roots)
-    among them."""
+    unfilleted flange/horn edge), and the re-entrant creases of the surface whatever the regions
+    (:func:`_reentrant_vertices`: an unfilleted horn step, a slot's root, a tooth's root). In the
+    elastic solution the stress there is singular. Two regions of one material meeting on a
+    smooth surface (a filleted flange/horn edge) and a fillet's arc are not singular."""
     n = system.n_nodes
     skm = system.skmesh
     bf = np.asarray(skm.boundary_facets())
@@ -257,7 +258,11 @@ def bonded_edge_nodes(system) -> np.ndarray:
     centre = p[f].mean(axis=0)
     cut = (np.abs(nrm[:, 2]) < 1e-6) & (np.abs(np.einsum("ij,ij->i", nrm[:, :2], centre[:, :2]))
                                          < 1e-6 * np.linalg.norm(centre[:, :2], axis=1) + 1e-12)
+    cut[cut] = _periodic_partner(centre[cut])
     bf, f, nrm, cell = bf[~cut], f[:, ~cut], nrm[~cut], cell[~cut]
+    cos_max = np.cos(np.radians(CORNER_ANGLE_DEG))
+    out_mask = np.zeros(n, bool)
+    out_mask[np.asarray(system.basis.nodal_dofs)[0, _reentrant_vertices(p, f, nrm, cos_max)]] = True
     # the nodes of each boundary facet: its corners, and its edges' mid nodes (P2)
     basis = system.basis
     fdofs = [np.asarray(basis.nodal_dofs)[0, f]]
@@ -275,8 +280,6 @@ def bonded_edge_nodes(system) -> np.ndarray:
             np.add.at(acc, row, nrm[sel])
         present.append(mark & (np.linalg.norm(acc, axis=1) > 0))
         sums.append(acc)
-    out_mask = np.zeros(n, bool)
-    cos_max = np.cos(np.radians(CORNER_ANGLE_DEG))
     for a in range(len(regions)):
         for b in range(a + 1, len(regions)):
             both = present[a] & present[b]
@@ -291,6 +294,52 @@ def bonded_edge_nodes(system) -> np.ndarray:
             idx = np.flatnonzero(both)
             out_mask[idx[cos < cos_max]] = True
     return out_mask
+
+
+def _periodic_partner(centre: np.ndarray) -> np.ndarray:
+    """(n,) bool for facets (centroids ``centre`` (n, 3), m) on the planes through the axis: True
+    where the other such plane has a facet at the same (r, z) (a sector's cut: its neighbour
+    continues there), False where it has none (a real free face lying in a cut plane, e.g. a
+    tooth's wall). With fewer than two planes every facet is a cut's."""
+    from scipy.spatial import cKDTree
+
+    out = np.ones(len(centre), bool)
+    if not len(centre):
+        return out
+    theta = np.round(np.arctan2(centre[:, 1], centre[:, 0]), 6)
+    planes = np.unique(theta)
+    if len(planes) != 2:
+        return out
+    rz = np.c_[np.hypot(centre[:, 0], centre[:, 1]), centre[:, 2]]
+    tol = 1e-9 * (1.0 + np.abs(rz).max())
+    for a, b in ((planes[0], planes[1]), (planes[1], planes[0])):
+        on, other = theta == a, theta == b
+        if other.any():
+            out[on] = cKDTree(rz[other]).query(rz[on])[0] < tol
+        else:
+            out[on] = False
+    return out
+
+
+def _reentrant_vertices(p: np.ndarray, f: np.ndarray, nrm: np.ndarray, cos_max: float) -> np.ndarray:
+    """Mesh vertices on the re-entrant creases of the surface: the edges shared by two boundary
+    facets (``f`` (3, n) vertex indices, ``nrm`` (n, 3) outward unit normals, ``p`` the vertices)
+    whose normals turn by more than :data:`CORNER_ANGLE_DEG` (``cos_max``) and where each
+    facet's centroid lies in front of the other's plane: a concave edge (270-degree material
+    angle at a right-angled step), whose elastic stress is singular. A convex edge (centroids
+    behind the planes) and a fillet's arc (at most 45 degrees between neighbouring facets) are
+    not among them."""
+    nf = f.shape[1]
+    e = np.sort(np.concatenate([f[[0, 1]], f[[1, 2]], f[[2, 0]]], axis=1), axis=0)
+    owner = np.tile(np.arange(nf), 3)
+    key = e[0].astype(np.int64) * (int(e.max()) + 1) + e[1]
+    order = np.argsort(key, kind="stable")
+    pair = np.flatnonzero(key[order][1:] == key[order][:-1])
+    i, j = owner[order[pair]], owner[order[pair + 1]]
+    c = p[f].mean(axis=0)
+    turn = np.einsum("ij,ij->i", nrm[i], nrm[j]) < cos_max
+    concave = (np.einsum("ij,ij->i", nrm[i], c[j] - c[i]) > 0) & (np.einsum("ij,ij->i", nrm[j], c[i] - c[j]) > 0)
+    return np.unique(e[:, order[pair[turn & concave]]])
 
 
 def _region_limits(system):

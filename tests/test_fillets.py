@@ -280,7 +280,8 @@ def test_utilisation_table_marks_singular_edges_only():
     """On the filleted sector the horn's peak is at the flange fillet, not singular, headlined as
     is; on the sharp design the same row's peak sits on the sharp flange/horn edge: marked
     singular and headlined by the off-edge value. The rings' rims and bores on the electrode
-    planes (PZT/PZT of opposite poling, PZT/titanium) are singular edges on both."""
+    planes (PZT/PZT of opposite poling, PZT/titanium) are singular edges on both; the sharp
+    horn step (a re-entrant crease inside one region) is one, its fillet's arc is not."""
     from fem.stress_table import bonded_edge_nodes, stress_table
 
     d = plain()
@@ -294,6 +295,8 @@ def test_utilisation_table_marks_singular_edges_only():
     edge = system.nodes[bonded_edge_nodes(system)]
     r = np.hypot(edge[:, 0], edge[:, 1])
     assert np.all(np.abs(edge[:, 2] - a.mid[1]) > 1e-4)             # the filleted junction is clear
+    st = d.fillets()["step"]
+    assert np.all(np.hypot(r - st.corner[0], edge[:, 2] - st.corner[1]) > 0.5 * st.radius)   # and the step's arc
     assert np.isclose(r, d.stack.outer_diameter / 2).any() and np.isclose(r, d.stack.inner_diameter / 2).any()
 
     sharp = d.replace({"horn.flange_fillet": 0.0, "horn.step_fillet": 0.0})
@@ -309,6 +312,9 @@ def test_utilisation_table_marks_singular_edges_only():
     rows = {(r.region, r.quantity): r for r in stress_table(StressRecovery(sys2).field(x)).rows}
     h2 = rows[("horn", "von_mises")]
     z0 = sharp.stack.length + sharp.flange.thickness
+    e2 = sys2.nodes[bonded_edge_nodes(sys2)]
+    step = np.hypot(np.hypot(e2[:, 0], e2[:, 1]) - st.corner[0], e2[:, 2] - st.corner[1]) < 1e-9
+    assert step.sum() >= 2                                            # the sharp step's crease
     assert h2.singular and h2.headline == h2.value_off_edges < h2.value
     assert h2.location[2] == pytest.approx(z0, abs=1e-9)
     assert np.hypot(*h2.location[:2]) == pytest.approx(sharp.horn.back_diameter / 2, abs=1e-9)

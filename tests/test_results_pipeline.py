@@ -209,6 +209,8 @@ def test_stress_utilisation_table_in_summary_and_report(run):
     rows = {(r["region"], r["quantity"]): r for r in u["rows"]}
     assert rows[("horn", "von_mises")]["limit"] == 510e6 and rows[("horn", "von_mises")]["peak"] > 0
     assert {("ring_1", q) for q in ("principal_max", "principal_min", "efield")} <= set(rows)
+    # every peak's error from the discretisation-error stage's coarser mesh, never null
+    assert "two meshes" in u["note"] and all(r["error_estimate"] >= 0 for r in u["rows"])
     report = (out / "report.md").read_text()
     from results.report import escape_table_pipes
 
