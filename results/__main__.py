@@ -56,6 +56,9 @@ def build_parser() -> CliParser:
                    help="skip the coupled model (FE transducer in the impact loop); kinematic-horn results only")
     p.add_argument("--coupled-modes", type=int, default=None, metavar="N",
                    help="modes of the reduced transducer in the coupled model (default: tip-participation rule)")
+    p.add_argument("--compliant-members", type=int, default=None, metavar="N",
+                   help="run the compliant-contact model and its convergence study with N members per case "
+                        "(results.stage_compliant; the k = 0 sector path)")
     p.add_argument("--load", choices=["rock"], default=None,
                    help="also predict drilling under load: bit on sandstone, depth vs free mass (impact.drilling)")
     p.add_argument("--wob", type=float, default=None, metavar="N",
@@ -98,6 +101,8 @@ def check_options(args) -> None:
     check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
     if args.coupled_modes is not None:
         check_integer("--coupled-modes", args.coupled_modes, 1, 12)
+    if args.compliant_members is not None:
+        check_integer("--compliant-members", args.compliant_members, 2, 100_000)
     if args.wob is not None:
         check_range("--wob", args.wob, 0.0, 1e4, "N")
 
@@ -111,6 +116,8 @@ def _inputs(design, settings, out) -> dict:
              "matching": on[settings.match], "impact load on the tip": on[settings.couple_impacts],
              "coupled model": (f"{settings.coupled_modes} modes" if settings.coupled_model and settings.coupled_modes
                                else on[settings.coupled_model]),
+             "compliant model": (f"{settings.compliant_members} members per case" if settings.compliant_members
+                                 else "off"),
              "statistics": f"95 % CI within {settings.impact_rel_tol:g}, at most {settings.impact_max_members} "
                            f"members, seed {settings.seed}"}
     if settings.load:
@@ -135,6 +142,7 @@ def _settings(args):
                             couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                             impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
                             coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes,
+                            **({} if args.compliant_members is None else {"compliant_members": args.compliant_members}),
                             load=args.load, wob=WOB if args.wob is None else args.wob)
 
 

@@ -18,7 +18,7 @@ from impact.horn import ModalHorn
 log = logging.getLogger(__name__)
 
 __all__ = ["horn_from_reduced", "build_transducer", "FeTransducer", "rounded", "tip_body", "wideband_modes",
-           "wideband_horn"]
+           "wideband_horn", "truncated_horn"]
 
 
 def horn_from_reduced(reduced, voltage: float, start: str = "rest", series_resistance: float = 0.0) -> ModalHorn:
@@ -427,7 +427,9 @@ def wideband_modes(system, cutoff_hz: float):
         if n_req > 400:
             raise ParameterError("cutoff_hz", cutoff_hz, "needs more than 400 modes (lower the cut-off)")
         modes = modal_analysis(system, cutoff_hz / np.sqrt(2), n_req, open_circuit=False, sigma=lam_cut / 2)
-        n_req *= 2
+        # the next window from the density of the one found (+25 %): one more solve, not a doubling series
+        reach = float(np.max(np.abs((2 * np.pi * np.asarray(modes.f_r_hz)) ** 2 - modes.sigma)))
+        n_req = max(2 * n_req, int(np.ceil(1.25 * n_req * lam_cut / (2.0 * reach))) + 4)
     return modes
 
 
@@ -469,3 +471,33 @@ def wideband_horn(system, freq_hz: float, cutoff_hz: float, voltage: float, *, q
     basis = modal_basis(system, freq_hz, loss=LossModel(q_mech=q_mech), modes=sub)
     red = rounded(reduce_transducer(system, basis, freq_hz, n_modes=len(keep), tip_surface=tip_surface))
     return horn_from_reduced(red, voltage, start="steady"), body.residual, info
+
+
+def truncated_horn(horn: ModalHorn, residual: float, cutoff_hz: float, freq_hz: float) -> tuple[ModalHorn, float]:
+    """The horn of :func:`wideband_horn` with the modes above ``cutoff_hz`` (Hz) moved into its residuals.
+
+    A mode left out responds to an impact quasi-statically: its static tip compliance
+    ``s_i^2 / (m_i omega_i^2)`` joins the impact residual; under the drive its steady tip motion at
+    ``freq_hz`` joins the drive residual (the steady tip motion at the drive is unchanged). The same
+    truncation as a fresh :func:`wideband_horn` at the lower cut-off, without another FE solve.
+
+    Returns
+    -------
+    (ModalHorn, float)
+        The truncated horn and its impact residual, m/N.
+    """
+    import dataclasses
+
+    from rpud_common import ParameterError
+
+    keep = horn.omega <= 2 * np.pi * cutoff_hz
+    if not keep.any():
+        raise ParameterError("cutoff_hz", cutoff_hz, f"must keep a mode (lowest {horn.omega.min() / 2 / np.pi:.0f} Hz)")
+    drop = ~keep
+    g = residual + float(np.sum(horn.tip[drop] ** 2 / (horn.modal_mass[drop] * horn.omega[drop] ** 2)))
+    d = complex(horn.tip[drop] @ horn.steady_modal(freq_hz)[drop])       # m, phasor of Re(d e^{jWt})
+    v = horn.voltage if horn.voltage > 0 else 1.0                        # no drive: d = 0
+    arrays = {k: getattr(horn, k)[keep] for k in ("omega", "zeta", "modal_mass", "tip", "coupling_re", "coupling_im")}
+    out = dataclasses.replace(horn, **arrays, residual_im=horn.residual_im + d.real / v,
+                              residual_re=horn.residual_re - d.imag / v)
+    return out, g

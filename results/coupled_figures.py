@@ -78,3 +78,30 @@ def drive_power(coupled, unloaded_w: float | None = None, *, ax=None):
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     return ax
+
+
+def compliant_energy_power(doc: dict):
+    """The compliant model's answer against free mass (g): tool KE per impact (mJ, left) and tool
+    power, the tool's KE gained per second (W, right), each with two error bars: the 95 % sampling CI
+    (thick) and the CI plus the model-form estimate of the convergence study (thin, wide caps).
+    ``doc``: the ``compliant_model`` block of ``summary.json``. Returns the figure's Axes."""
+    from rpud_common.figures import subplots
+
+    fig, axes = subplots(1, 2, figsize=(12, 4.5), dpi=120)
+    rows = doc["rows"]
+    m = np.array([r["m_free_kg"] for r in rows]) * 1e3
+    for ax, key, scale, unit in ((axes[0], "mean_tool_ke_after_j", 1e3, "mJ"), (axes[1], "tool_power_w", 1.0, "W")):
+        mean = np.array([r[key]["mean"] for r in rows]) * scale
+        ci = np.array([r[key]["ci95_half_width"] for r in rows]) * scale
+        mf = np.array([r["model_form"][key] for r in rows]) * scale
+        ax.errorbar(m, mean, yerr=ci + mf, fmt="none", ecolor="0.55", capsize=7, lw=1.0,
+                    label="95 % CI + model form (cut-off, contact stiffness)")
+        ax.errorbar(m, mean, yerr=ci, fmt="o-", capsize=3, lw=2.0, ms=5, mfc="none", label="mean, 95 % sampling CI")
+        ax.set_xlabel("free mass (g)")
+        ax.set_ylabel(("tool kinetic energy after impact" if key.startswith("mean") else
+                       "tool power: KE gained per second") + f" ({unit})")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    axes[0].set_title(f"Compliant contacts, modes to {doc['cutoffs_hz'][-1] / 1e3:.0f} kHz (device scenario)")
+    axes[1].set_title("Tool power against free mass")
+    return axes[0]

@@ -99,6 +99,8 @@ class PipelineSettings:
     coupled_model : run the coupled model (FE transducer in the impact loop) beside the kinematic horn
     coupled_modes : modes of the reduced transducer (None: the tip-participation rule of fem.reduced)
     coupled_history_s : length of the coupled ring-up history with the reference free mass, s
+    compliant_members : ensemble members per case of the compliant-contact model and its convergence
+        study (:mod:`results.stage_compliant`; 0: the stage is skipped; it runs on the k = 0 sector path)
     load : None, or "rock": also predict drilling under load (results.drilling)
     wob : weight on bit of the drilling stage, N
     """
@@ -129,6 +131,7 @@ class PipelineSettings:
     coupled_model: bool = True
     coupled_modes: int | None = None
     coupled_history_s: float = 0.05
+    compliant_members: int = 0
     load: str | None = None
     wob: float = 7.0
 
@@ -153,6 +156,8 @@ class PipelineSettings:
         if self.coupled_modes is not None:
             check_integer("coupled_modes", self.coupled_modes, 1, 64)
         check_range("coupled_history_s", self.coupled_history_s, 1e-3, 1.0, "s")
+        if self.compliant_members:
+            check_integer("compliant_members", self.compliant_members, 2, 100_000)
         if self.load not in (None, "rock"):
             raise ParameterError("load", self.load, "must be None or 'rock'")
         check_range("wob", self.wob, 0.0, 1e4, "N")
@@ -272,6 +277,7 @@ class _Run:
     hist_ref: object = None
     sweeps: dict = field(default_factory=dict)
     coupled_model: dict | None = None
+    compliant: dict | None = None
     operating: dict | None = None
     bolt: object = None
     preload: dict | None = None
@@ -433,6 +439,9 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> None:
             reference_m_free=st.reference_m_free, say=say)
     clock.took("coupled_s", t0)
     t0 = time.perf_counter()
+    run.compliant = _compliant_stage(run, base, masses, say)
+    clock.took("compliant_s", t0)
+    t0 = time.perf_counter()
     from .operating_point import operating_point_stage
 
     m = run.matched
@@ -451,6 +460,22 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> None:
     top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in run.sweeps.items()}
     say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']}, "
         f"article scenario {top['article_fe']} (FE A0), {top['article_15um']} (A0 = 15 um)")
+
+
+def _compliant_stage(run: _Run, base, masses, say) -> dict | None:
+    """The compliant-contact model and its convergence study (:mod:`results.stage_compliant`), on
+    the k = 0 sector (the axial modes an impact excites); None when skipped."""
+    from fem.sector_system import SectorSystem
+
+    st, m = run.settings, run.matched
+    if not st.compliant_members or not isinstance(m.system, SectorSystem):
+        if st.compliant_members:
+            say("      compliant model skipped: it runs on the k = 0 sector path")
+        return None
+    from .stage_compliant import CompliantSettings, compliant_stage
+
+    return compliant_stage(m.system, m.design, base.freq, st.voltage, base, masses,
+                           CompliantSettings(members=st.compliant_members, seed=st.seed), q_mech=st.q_mech, say=say)
 
 
 def _render_stage(run: _Run) -> None:
@@ -495,6 +520,11 @@ def _figures(run: _Run) -> dict:
         drawn["ke_three_horn_models"] = (cf.ke_three_models(cm["kinematic"], sw["device_fe"].rows, cm["stats"]),
                                          "ke_vs_free_mass_three_horn_models.png")
         drawn["coupled_drive_power"] = (cf.drive_power(cm["stats"], h.wp.power_w), "drive_power_vs_free_mass.png")
+    if run.compliant is not None:
+        from .coupled_figures import compliant_energy_power
+
+        drawn["compliant_energy_power"] = (compliant_energy_power(run.compliant["json"]),
+                                           "compliant_tool_energy_and_power.png")
     if run.drilling is not None:
         from impact.drilling_plots import plot_depth_vs_mass
 
@@ -563,6 +593,7 @@ def _summary(run: _Run, figs: dict) -> dict:
                                         **run.hist_ref.summary()}},
         "kinetic_energy_table": ke_rows(run.sweeps, 0.0 in st.m_free_values, run.amps),
         "coupled_model": run.coupled_model["json"] if run.coupled_model is not None else None,
+        "compliant_model": run.compliant["json"] if run.compliant is not None else None,
         **({"drilling": run.drilling["json"]} if run.drilling is not None else {}),
         **({"rotor": run.rotor["json"]} if run.rotor is not None else {}),
         "stress": run.stress,

@@ -20,7 +20,7 @@ from rpud_common import atomic_write_text
 from .errors import error_text as _pm
 
 __all__ = ["write_report", "write_report_html", "report_lines", "markdown_to_html", "escape_table_pipes",
-           "table_cells", "headline_text", "ke_rows"]
+           "table_cells", "headline_text", "ke_rows", "ci_text", "compliant_lines"]
 
 #: a ``|x|`` inside a table cell (a magnitude such as ``|E|``): a pipe with a space before it and
 #: a token after it; table separators are ``| `` or `` |`` (space inside) and never match
@@ -33,7 +33,7 @@ def _f(v, scale=1.0, fmt=".3g", unit=""):
     return f"{v * scale:{fmt}}{(' ' + unit) if unit else ''}"
 
 
-def _ci(est: dict, scale: float = 1.0) -> str:
+def ci_text(est: dict, scale: float = 1.0) -> str:
     """'mean ± half-width' of an ``Estimate.to_dict()``: the half-width to 2 significant digits."""
     from impact.stats import Estimate
 
@@ -92,8 +92,8 @@ def headline_text(s: dict) -> str | None:
     e = row[key]
     scenario = {"device_fe": "device scenario"}.get(key, key)
     return (f"Headline ({scenario}, {m_ref * 1e3:g} g free mass): tool kinetic energy "
-            f"{_ci(e['mean_tool_ke_after_j'], 1e3)} mJ per impact at {_ci(e['tool_impact_rate_hz'])} Hz, "
-            f"{_ci(e['tool_power_w'])} W to the tool; horn-tip amplitude A0 "
+            f"{ci_text(e['mean_tool_ke_after_j'], 1e3)} mJ per impact at {ci_text(e['tool_impact_rate_hz'])} Hz, "
+            f"{ci_text(e['tool_power_w'])} W to the tool; horn-tip amplitude A0 "
             f"{_pm(a0['used_m'], a0.get('used_m_error'), 'um', 1e6)}.")
 
 
@@ -152,6 +152,7 @@ def report_lines(s: dict) -> list[str]:
 
     lines = _heading_lines(s) + _summary_table_lines(s) + _kinetic_energy_lines(s)
     lines += _coupled_model_lines(s.get("coupled_model"))
+    lines += compliant_lines(s.get("compliant_model"))
     if s.get("drilling"):                      # opt-in stage (python -m results --load rock)
         from .drilling import report_lines as drilling_lines
 
@@ -225,9 +226,9 @@ def _kinetic_energy_lines(s: dict) -> list[str]:
             lines.append(f"| {r['m_free_kg'] * 1e3:g} | - | 0 | - | 0 | 0 | 0 | - |")
             continue
         lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_pm(r['A0_fe_m'], r.get('A0_fe_m_error'), scale=1e6)} "
-                     f"| {_ci(r['device_fe']['mean_tool_ke_after_j'], 1e3)} | {_ci(r['device_fe']['tool_impact_rate_hz'])} "
-                     f"| {_ci(r['device_fe']['tool_power_w'])} | {_ci(r['article_fe']['mean_tool_ke_after_j'], 1e3)} "
-                     f"| {_ci(r['article_15um']['mean_tool_ke_after_j'], 1e3)} | {_ci(r['article_fe']['tool_impact_rate_hz'])} |")
+                     f"| {ci_text(r['device_fe']['mean_tool_ke_after_j'], 1e3)} | {ci_text(r['device_fe']['tool_impact_rate_hz'])} "
+                     f"| {ci_text(r['device_fe']['tool_power_w'])} | {ci_text(r['article_fe']['mean_tool_ke_after_j'], 1e3)} "
+                     f"| {ci_text(r['article_15um']['mean_tool_ke_after_j'], 1e3)} | {ci_text(r['article_fe']['tool_impact_rate_hz'])} |")
     imp = s["impacts"]
     lines += [""]
     for key, text in (("device_fe", "device, FE A0"), ("article_fe", "article scenario, FE A0"),
@@ -261,15 +262,62 @@ def _coupled_model_lines(cm: dict | None) -> list[str]:
              "|---|---|---|---|---|---|---|---|"]
     for r in cm["rows"]:
         c = r["coupled"]
-        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_ci(c['tip_amplitude_m'], 1e6)} | {r['damper']['A0_m'] * 1e6:.2f} "
-                     f"| {_ci(c['mean_tool_ke_after_j'], 1e3)} | {_ci(r['damper']['mean_tool_ke_after_j'], 1e3)} "
-                     f"| {_ci(r['kinematic_unloaded']['mean_tool_ke_after_j'], 1e3)} | {_ci(c['drive_power_w'])} "
-                     f"| {_ci(c['horn_power_w'])} |")
+        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {ci_text(c['tip_amplitude_m'], 1e6)} | {r['damper']['A0_m'] * 1e6:.2f} "
+                     f"| {ci_text(c['mean_tool_ke_after_j'], 1e3)} | {ci_text(r['damper']['mean_tool_ke_after_j'], 1e3)} "
+                     f"| {ci_text(r['kinematic_unloaded']['mean_tool_ke_after_j'], 1e3)} | {ci_text(c['drive_power_w'])} "
+                     f"| {ci_text(c['horn_power_w'])} |")
     tail = cm["history"]["tail"]
     lines += ["", f"Ring-up from rest with the reference free mass in place ({cm['history']['t_end_s'] * 1e3:g} ms, "
               f"one sample): tip amplitude over the last {(tail['t_to_s'] - tail['t_from_s']) * 1e3:.0f} ms "
               f"{tail['tip_amplitude_m'] * 1e6:.2f} um, drive {tail['drive_power_w']:.1f} W, "
               f"{tail['drive_current_rms_a']:.3f} A rms; energy balance per interval in `summary.json`."]
+    return lines
+
+
+def _pm2(est: dict, mf: float, scale: float, fmt: str = ".3g") -> str:
+    """'mean ± CI ± model form' of an estimate's dict and its model-form estimate."""
+    if est["mean"] is None:
+        return "n/a"
+    return (f"{est['mean'] * scale:{fmt}} ± {est['ci95_half_width'] * scale:.2g} ± {mf * scale:.2g}")
+
+
+def compliant_lines(doc: dict | None) -> list[str]:
+    """The report's section of the compliant model: the answer per free mass with its two
+    uncertainties, the convergence study, and what is assumed and calibrated."""
+    if not doc:
+        return []
+    cuts = ", ".join(f"{c / 1e3:.0f}" for c in doc["cutoffs_hz"])
+    ct = doc["contact"]
+    lines = ["", "## Compliant contacts: the tool energy with its model-form uncertainty", "",
+             f"The FE transducer's axial modes up to {doc['cutoffs_hz'][-1] / 1e3:.0f} kHz "
+             f"({len(doc['modes_hz']) - 1} modes with the rigid translation left out, static residual "
+             f"{doc['residual_m_per_n']:.3g} m/N of the rest) drive the free mass through Hertz contacts at the tip "
+             f"and at the tool (crowned face R = {ct['face_radius_m'] * 1e3:.2f} mm, {ct['face_radius_from']}; "
+             f"restitutions {ct['e_horn']:g} / {ct['e_tool']:g}). The cut-off is "
+             f"{doc['cutoff_factors'][-1]:g} / t_c with t_c = {doc['contact_time_s'] * 1e6:.1f} us, the shortest "
+             f"contact of the study. Device scenario ({doc['scenario']['spring_force_n']:g} N spring, "
+             f"{doc['scenario']['t_from_s'] * 1e3:g} ms discarded, window to {doc['scenario']['t_end_s'] * 1e3:g} ms); "
+             f"{doc['settings']['members']} members per case. Each value: mean ± 95 % sampling CI ± model-form "
+             "estimate (the change between the two highest cut-offs plus half the spread between contact "
+             "stiffness x0.5 and x2).", "",
+             "| free mass (g) | tool KE after impact (mJ) | tool impact rate (Hz) | tool power (W) | model form from |",
+             "|---|---|---|---|---|"]
+    for r in doc["rows"]:
+        mf = r["model_form"]
+        lines.append(f"| {r['m_free_kg'] * 1e3:g} | {_pm2(r['mean_tool_ke_after_j'], mf['mean_tool_ke_after_j'], 1e3)} "
+                     f"| {_pm2(r['tool_impact_rate_hz'], mf['tool_impact_rate_hz'], 1.0)} "
+                     f"| {_pm2(r['tool_power_w'], mf['tool_power_w'], 1.0)} | {r['model_form_from']} |")
+    lines += ["", f"Convergence study (mode cut-offs {cuts} kHz; contact stiffness x"
+              f"{' and x'.join(f'{f:g}' for f in doc['settings']['stiffness_factors'])} at the highest cut-off):", "",
+              "| free mass | case | tool KE after impact (mJ) | tool impact rate (Hz) |", "|---|---|---|---|"]
+    for mass, st in doc["study"].items():
+        for c in st["cutoff"]:
+            lines.append(f"| {mass} | modes to {c['cutoff_hz'] / 1e3:.0f} kHz | {ci_text(c['mean_tool_ke_after_j'], 1e3)} "
+                         f"| {ci_text(c['tool_impact_rate_hz'])} |")
+        for c in st["stiffness"]:
+            lines.append(f"| {mass} | contact stiffness x{c['stiffness_factor']:g} | "
+                         f"{ci_text(c['mean_tool_ke_after_j'], 1e3)} | {ci_text(c['tool_impact_rate_hz'])} |")
+    lines += ["", "Assumed: " + "; ".join(doc["assumed"]) + ". Calibrated: " + "; ".join(doc["calibrated"]) + "."]
     return lines
 
 

@@ -1,0 +1,328 @@
+"""The compliant-contact stage: the drill tool's kinetic energy with its model-form uncertainty.
+
+The headline model is the FE transducer in the impact loop with compliant contacts at the horn
+tip and at the tool (:func:`impact.compliant_loop.simulate_compliant`): Hertz loading with the
+contact geometry below, the restitution unloading of :class:`impact.hertz.HertzLaw`, and the
+transducer's axial (k = 0) modes up to a cut-off plus the static residual of the rest
+(:func:`results.coupled.wideband_horn`).
+
+Which modes take part is set by the contact's duration: a mode well above the contact frequency
+responds quasi-statically and the residual carries it; a mode near or below it responds
+dynamically and must be kept. The cut-off is therefore chosen from the contact time: ``t_c`` is
+the shortest Hertz contact of the study (the lightest free mass, both laws, on a rigid flat at the
+launch speed; :meth:`impact.hertz.HertzLaw.contact_time`), and the headline keeps every mode up to
+``cutoff_factors[-1] / t_c`` (the rod reference of the contact helper: cut-off x contact time >= 2
+brings the rebound speed within 0.2 % of the wave solution).
+
+Convergence study (every run): tool KE after impact and tool impact rate at the lightest and the
+heaviest free mass against the cut-off (``cutoff_factors / t_c``) and against the contact
+stiffness (x0.5, x2 at the headline cut-off). The model-form estimate of a quantity is the sum of
+the cut-off term (the change between the two highest cut-offs: the last increment of a
+converging sequence) and the stiffness term (half the spread between x0.5 and x2: the contact
+stiffness is known to about a factor of two, the face radius and the surface finish being
+assumed). Both differences carry the sampling noise of the two ensembles they compare; the table
+gives each with its 95 % CI.
+
+Contact geometry (design data of this stage, :class:`CompliantSettings`): the free mass's faces
+are crowned with the radius of a sphere of its own mass and material (unless a face radius is
+given), striking the flat horn tip (the design's horn material) and the flat tool face (the
+tool's material). The restitutions are the impact parameters' ``e2`` (horn) and ``e1`` (tool).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from types import SimpleNamespace
+
+import numpy as np
+
+from rpud_common import ParameterError, check_integer, check_range
+
+log = logging.getLogger(__name__)
+
+#: the quantities with a model-form estimate: tool KE after impact, tool impact rate, tool power
+QUANTITIES = ("mean_tool_ke_after_j", "tool_impact_rate_hz", "tool_power_w")
+
+__all__ = ["QUANTITIES", "CompliantSettings", "contact_laws", "shortest_contact_time", "window_stats", "compliant_ensembles",
+           "compliant_stage", "model_form"]
+
+
+@dataclass(frozen=True)
+class CompliantSettings:
+    """Settings of the compliant stage (SI units).
+
+    Attributes
+    ----------
+    cutoff_factors : mode cut-offs of the study in units of ``1 / t_c`` (increasing; the last is
+        the headline's)
+    stiffness_factors : contact-stiffness multipliers of the study (at the headline cut-off)
+    members : ensemble members per case to start with (launch speeds as :func:`impact.stats.ensemble_members`)
+    rel_tol : members are doubled until every driving 95 % CI is within ``rel_tol`` of its mean ...
+    max_members : ... or this cap is reached (reported)
+    seed : seed of the members' launch speeds
+    v0_spread : relative half-range of the launch speeds
+    free_mass_material, tool_material : materials of the free mass and of the tool face
+    face_radius : crown radius of the free mass's faces, m (None: the radius of a sphere of the
+        free mass's own mass and material)
+    t_from, t_end : the statistics window, s (the device scenario's: 20 ms discarded, 200 ms kept)
+    spring_force : restoring spring on the free mass, N (the device scenario's)
+    """
+
+    cutoff_factors: tuple[float, ...] = (0.5, 1.0, 2.0)
+    stiffness_factors: tuple[float, ...] = (0.5, 2.0)
+    members: int = 16
+    rel_tol: float = 0.05
+    max_members: int = 64
+    seed: int = 20260
+    v0_spread: float = 0.05
+    free_mass_material: str = "steel_45"
+    tool_material: str = "steel_45"
+    face_radius: float | None = None
+    t_from: float = 0.02
+    t_end: float = 0.22
+    spring_force: float = 5.0
+
+    def __post_init__(self):
+        f = self.cutoff_factors
+        if len(f) < 2 or any(not (0.1 <= x <= 10.0) for x in f) or any(b <= a for a, b in zip(f, f[1:])):
+            raise ParameterError("cutoff_factors", f, "must be >= 2 increasing numbers in [0.1, 10]")
+        if len(self.stiffness_factors) != 2 or any(not (0.01 <= x <= 100) for x in self.stiffness_factors):
+            raise ParameterError("stiffness_factors", self.stiffness_factors, "must be two numbers in [0.01, 100]")
+        check_integer("members", self.members, 2, 100_000)
+        check_range("rel_tol", self.rel_tol, 0.0, 1.0, lo_open=True)
+        check_integer("max_members", self.max_members, self.members, 1_000_000)
+        check_integer("seed", self.seed, 0)
+        check_range("v0_spread", self.v0_spread, 0.0, 0.5)
+        if self.face_radius is not None:
+            check_range("face_radius", self.face_radius, 1e-4, 1.0, "m")
+        check_range("t_from", self.t_from, 0.0, 10.0, "s")
+        check_range("t_end", self.t_end, self.t_from, 10.0, "s", lo_open=True)
+        check_range("spring_force", self.spring_force, 0.0, 1e4, "N")
+
+
+def contact_laws(design, m_free: float, e_horn: float, e_tool: float, settings: CompliantSettings,
+                 stiffness_factor: float = 1.0):
+    """The Hertz laws at the horn tip and at the tool face for the free mass ``m_free`` (kg).
+
+    Returns
+    -------
+    (impact.hertz.HertzLaw, impact.hertz.HertzLaw, dict)
+        Horn law, tool law, and their description (stiffnesses in N/m^1.5, face radius in m).
+    """
+    from geometry.materials import get_material
+    from impact.hertz import ContactGeometry, HertzLaw, effective_modulus, hertz_stiffness
+
+    def mat(name):
+        return get_material(name, design.library)
+
+    ball = mat(settings.free_mass_material)
+    radius = settings.face_radius or (3.0 * m_free / (4.0 * math.pi * ball.density)) ** (1.0 / 3.0)
+    geom = ContactGeometry.crowned(radius)
+    k = {}
+    for side, other in (("horn", mat(design.part_material("horn"))), ("tool", mat(settings.tool_material))):
+        e_star = effective_modulus(other.youngs_modulus, other.poisson_ratio, ball.youngs_modulus, ball.poisson_ratio)
+        k[side] = stiffness_factor * hertz_stiffness(e_star, geom)
+    info = {"face_radius_m": radius, "face_radius_from": "given" if settings.face_radius else
+            f"a {settings.free_mass_material} sphere of the free mass", "horn_stiffness_n_per_m1_5": k["horn"],
+            "tool_stiffness_n_per_m1_5": k["tool"], "stiffness_factor": stiffness_factor,
+            "e_horn": e_horn, "e_tool": e_tool}
+    return HertzLaw(k["horn"], e_horn), HertzLaw(k["tool"], e_tool), info
+
+
+def shortest_contact_time(design, masses, base, settings: CompliantSettings) -> float:
+    """The shortest Hertz contact of the study, s: each free mass on a rigid flat at the fastest
+    launch speed, through either law (the cut-off is chosen from it)."""
+    v = base.v0 * (1.0 + settings.v0_spread)
+    times = []
+    for m in masses:
+        horn, tool, _ = contact_laws(design, m, base.e2, base.e1, settings)
+        times += [horn.contact_time(m, v), tool.contact_time(m, v)]
+    return min(times)
+
+
+def window_stats(run, t_from: float, t_end: float, m_tool: float) -> dict:
+    """One member's sums over the window ``[t_from, t_end]`` (contacts starting in it): tool
+    contacts, their tool KE after separation (J), horn contacts."""
+    tool = [c for c in run.contacts if c.body == "tool" and t_from <= c.t_start < t_end]
+    horn = [c for c in run.contacts if c.body == "horn" and t_from <= c.t_start < t_end]
+    return {"n_tool": len(tool), "ke_after_sum_j": float(sum(0.5 * m_tool * c.tool_after ** 2 for c in tool)),
+            "n_horn": len(horn)}
+
+
+def _python_batch(cases, horn, *, horn_law, tool_law, horn_residual, scenario, settings) -> list:
+    """:func:`impact.compliant_engine.compliant_batch`'s answer from the Python reference engine
+    (:func:`impact.compliant_loop.simulate_compliant`), ``settings.n_start`` members per case and no
+    growth; the tool power needs the tool's speed at touch, which the reference does not record."""
+    from impact.compliant_loop import simulate_compliant
+    from impact.stats import Estimate, ensemble_members, mean_ci, ratio_ci
+
+    out = []
+    for case, hl, tl in zip(cases, horn_law, tool_law):
+        rows = [window_stats(simulate_compliant(p, horn, horn_law=hl, tool_law=tl, horn_residual=horn_residual),
+                             scenario.t_from, scenario.t_end, p.m_tool)
+                for p in ensemble_members(scenario.apply(case), settings.n_start, settings)]
+        n_tool = np.array([r["n_tool"] for r in rows], float)
+        ke = np.array([r["ke_after_sum_j"] for r in rows])
+        T = scenario.window_s
+        est = {"mean_tool_ke_after_j": ratio_ci(ke, n_tool), "tool_impact_rate_hz": mean_ci(n_tool / T),
+               "horn_impact_rate_hz": mean_ci(np.array([r["n_horn"] for r in rows], float) / T),
+               "tool_power_w": Estimate(math.nan, math.nan, len(rows), settings.level,
+                                        "the Python engine records no tool speed at touch")}
+        out.append(SimpleNamespace(estimates=est, members=len(rows), converged=False))
+    return out
+
+
+def _default_engine():
+    """The compiled compliant batch where it exists, else the Python reference's."""
+    try:
+        from impact.compliant_engine import compliant_batch
+    except ImportError:
+        return _python_batch
+    return compliant_batch
+
+
+def compliant_ensembles(cases, horn, laws: list, residual: float, settings: CompliantSettings, *,
+                        engine=None) -> list[dict]:
+    """Ensemble statistics of several cases of the compliant model on one horn (95 % CIs).
+
+    Parameters
+    ----------
+    cases : list of impact.params.ImpactParams
+        The cases (their ``v0`` the members' centre; the spring and ``t_end`` are set here).
+    horn : impact.horn.ModalHorn
+    laws : list of (HertzLaw, HertzLaw)
+        Horn and tool laws of each case.
+    residual : float
+        The horn's static tip compliance of the modes left out, m/N.
+    engine : callable, optional
+        :func:`impact.compliant_engine.compliant_batch`'s signature (default: that batch, or the
+        Python reference's without it).
+
+    Returns
+    -------
+    list of dict
+        Per case :data:`QUANTITIES` as :class:`impact.stats.Estimate`, ``members`` and ``converged``.
+    """
+    from impact.stats import Scenario, StatsSettings
+
+    engine = engine or _default_engine()
+    sc = Scenario("device", settings.spring_force, settings.t_from, settings.t_end, "the compliant stage's window")
+    st = StatsSettings(rel_tol=settings.rel_tol, n_start=settings.members, n_max=settings.max_members,
+                       seed=settings.seed, v0_spread=settings.v0_spread)
+    res = engine(list(cases), horn, horn_law=[lw[0] for lw in laws], tool_law=[lw[1] for lw in laws],
+                 horn_residual=residual, scenario=sc, settings=st)
+    return [{**{q: r.estimates[q] for q in QUANTITIES}, "members": r.members, "converged": bool(r.converged)}
+            for r in res]
+
+
+def model_form(study: dict, quantity: str) -> dict:
+    """The model-form estimate of ``quantity`` from one mass's study (see the module docstring):
+    ``cutoff`` = |headline - next-lower cut-off|, ``stiffness`` = half the spread of the two
+    stiffness variants, ``total`` = their sum; each difference with its sampling half-width
+    (the two ensembles' CIs added in quadrature)."""
+    levels = study["cutoff"]
+    top, below = levels[-1][quantity], levels[-2][quantity]
+    lo, hi = (v[quantity] for v in study["stiffness"])
+
+    def diff(a, b, scale):
+        return scale * abs(a.mean - b.mean), scale * math.hypot(a.half_width, b.half_width)
+
+    cut, cut_hw = diff(top, below, 1.0)
+    stiff, stiff_hw = diff(hi, lo, 0.5)
+    return {"cutoff": cut, "cutoff_sampling_half_width": cut_hw, "stiffness": stiff,
+            "stiffness_sampling_half_width": stiff_hw, "total": cut + stiff}
+
+
+def _runs(base, design, masses, horns: dict, settings: CompliantSettings, engine) -> tuple[dict, dict]:
+    """Every ensemble of the stage, one batch per horn: the lower cut-offs at the two end masses; at
+    the headline cut-off every mass and the ends' stiffness variants. Returns ``(study, headline)``:
+    end mass -> {"cutoff": [...], "stiffness": [...]}, and mass -> its headline estimates."""
+    ends = sorted({masses[0], masses[-1]})
+    study = {m: {"cutoff": [], "stiffness": []} for m in ends}
+    top = max(horns)
+    for cut, (horn, g, _) in horns.items():
+        cases = [(m, 1.0) for m in (masses if cut == top else ends)]
+        if cut == top:
+            cases += [(m, f) for m in ends for f in settings.stiffness_factors]
+        laws = [contact_laws(design, m, base.e2, base.e1, settings, f)[:2] for m, f in cases]
+        res = compliant_ensembles([base.with_(m_free=m) for m, _ in cases], horn, laws, g, settings, engine=engine)
+        for (m, f), r in zip(cases, res):
+            if f != 1.0:
+                study[m]["stiffness"].append(r | {"stiffness_factor": f})
+            elif m in study:
+                study[m]["cutoff"].append(r | {"cutoff_hz": cut})
+    headline = {m: r for (m, f), r in zip(cases, res) if f == 1.0}
+    return study, headline
+
+
+def _json(est: dict) -> dict:
+    return {k: (v.to_dict() if hasattr(v, "to_dict") else v) for k, v in est.items()}
+
+
+def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses, settings: CompliantSettings, *,
+                    q_mech: float | None = 100.0, engine=None, say=None) -> dict:
+    """The pipeline's compliant stage: the headline tool KE per free mass on the compliant model at
+    the headline cut-off, and the convergence study at the lightest and heaviest free mass.
+
+    Parameters
+    ----------
+    system : the k = 0 FE system of the run (its axial modes are the ones an impact excites)
+    design : the design (materials of the contact)
+    freq_hz : drive frequency, Hz
+    voltage : drive amplitude, V
+    base : impact.params.ImpactParams of the run (gap, tool, restitutions, launch speed)
+    masses : free masses of the headline table, kg
+    settings : CompliantSettings
+    q_mech : assembled-transducer quality factor of the modes
+    engine : the compliant batch (:func:`impact.compliant_engine.compliant_batch`'s signature)
+
+    Returns
+    -------
+    dict with ``json`` (summary part) and ``rows`` (per mass: the estimates and the model-form).
+    """
+    from .coupled import truncated_horn, wideband_horn, wideband_modes
+
+    say = say or (lambda msg: log.info("%s", msg))
+    masses = sorted(masses)
+    ends = sorted({masses[0], masses[-1]})
+    t_c = shortest_contact_time(design, ends, base, settings)
+    cutoffs = [round(f / t_c, -2) for f in settings.cutoff_factors]
+    top = wideband_horn(system, freq_hz, cutoffs[-1], voltage, q_mech=q_mech, modes=wideband_modes(system, cutoffs[-1]),
+                        say=say)
+    horns = {c: truncated_horn(top[0], top[1], c, freq_hz) + (top[2],) for c in cutoffs[:-1]} | {cutoffs[-1]: top}
+    study, headline = _runs(base, design, masses, horns, settings, engine)
+    mf = {m: {q: model_form(study[m], q) for q in QUANTITIES} for m in ends}
+    horn, g, info = horns[cutoffs[-1]]
+    rel = {q: max(mf[e][q]["total"] / abs(study[e]["cutoff"][-1][q].mean) for e in ends) for q in QUANTITIES}
+    rows = []
+    for m in masses:
+        est = headline[m]
+        rows.append({"m_free_kg": m, **_json({k: v for k, v in est.items() if k != "cutoff_hz"}),
+                     "model_form": {q: (mf[m][q]["total"] if m in mf else rel[q] * abs(est[q].mean))
+                                    for q in QUANTITIES},
+                     "model_form_from": "this mass's study" if m in mf else
+                     "the larger relative estimate of the lightest and heaviest masses' studies"})
+    top = rows[-1]
+    say(f"      compliant model (modes to {cutoffs[-1] / 1e3:.0f} kHz, contact {t_c * 1e6:.1f} us): tool KE at "
+        f"{masses[-1] * 1e3:g} g {top['mean_tool_ke_after_j']['mean'] * 1e3:.2f} "
+        f"± {top['mean_tool_ke_after_j']['ci95_half_width'] * 1e3:.2f} (95 % CI) "
+        f"± {top['model_form']['mean_tool_ke_after_j'] * 1e3:.2f} (model form) mJ")
+    doc = {
+        "contact_time_s": t_c, "cutoffs_hz": cutoffs, "cutoff_factors": list(settings.cutoff_factors),
+        "modes_hz": info["modes_hz"], "residual_m_per_n": g, "tip_end_mass_kg": info["end_mass_kg"],
+        "settings": {k: getattr(settings, k) for k in settings.__dataclass_fields__},
+        "contact": contact_laws(design, masses[-1], base.e2, base.e1, settings)[2],
+        "scenario": {"spring_force_n": settings.spring_force, "t_from_s": settings.t_from, "t_end_s": settings.t_end},
+        "assumed": ["contact face radius (a sphere of the free mass)", "restitutions e1, e2 (article Table 1)",
+                    "q_mech of the assembled transducer", "contact stiffness within x0.5-x2 (the study's range)"],
+        "calibrated": ["gap, tool stiffness k0 and damping c, launch speed v0: the article scenario's 520 Hz "
+                       "tool-impact rate, fitted on the kinematic horn at 15 um (inherited)"],
+        "study": {f"{m * 1e3:g} g": {"cutoff": [_json(x) for x in study[m]["cutoff"]],
+                                     "stiffness": [_json(x) for x in study[m]["stiffness"]],
+                                     "model_form": mf[m]} for m in ends},
+        "rows": rows,
+    }
+    return {"json": doc, "rows": rows}
+

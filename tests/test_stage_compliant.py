@@ -1,0 +1,125 @@
+"""The compliant-contact stage (results.stage_compliant): the cut-off study's horns, its statistics
+and its model-form estimate, and the report section."""
+
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from impact.stats import Estimate
+from rpud_common import ParameterError
+from results.report import compliant_lines
+from results.stage_compliant import CompliantSettings, model_form, window_stats
+
+
+@pytest.fixture(scope="module")
+def drill():
+    import geometry
+    from fem.matching import working_mode
+    from fem.modal import modal_analysis
+    from fem.sector_system import axial_sector
+
+    design = geometry.default_design()
+    system = axial_sector(design)
+    modes = modal_analysis(system, 70e3, 32, open_circuit=False, sigma=(2 * np.pi * 100e3) ** 2 / 2)
+    f = float(np.round(modes.f_r_hz[working_mode(system, modes.f_r_hz, modes.vectors,
+                                                  float(design.target_frequency))], 1))
+    return design, system, modes, f
+
+
+def test_truncated_horn_is_a_fresh_horn_at_the_lower_cutoff(drill):
+    """Two methods for the horn at 45 kHz: the 100 kHz horn with the modes above 45 kHz moved into
+    its residuals (results.coupled.truncated_horn: their static compliance s^2 / (m omega^2), no FE
+    solve) against tip_body's factorised static solve deflated of the modes kept at 45 kHz. The
+    horn's modal numbers are rounded to 6 significant digits (results.coupled.rounded): each term
+    s^2 / (m omega^2) carries <= 4 x 5e-7 = 2e-6 of rounding; with the eigen-solver's 1e-10 and the
+    shift correction's (sigma0/lambda)^2 <= 1e-8 the two agree to 1e-5. The steady tip motion at
+    the drive is the 100 kHz horn's, which is the FE working point's to 1e-4 (test_contact_fe)."""
+    from results.coupled import tip_body, truncated_horn, wideband_horn
+
+    design, system, modes, f = drill
+    top, g_top, _ = wideband_horn(system, f, 100e3, 225.0, modes=modes)
+    low, g_low = truncated_horn(top, g_top, 45e3, f)
+    body, info = tip_body(system, 45e3, modes=modes)
+    assert low.n_modes == len(info["modes_hz"]) - 1 < top.n_modes
+    assert g_low == pytest.approx(body.residual, rel=1e-5)
+    assert low.steady_tip(f) == pytest.approx(top.steady_tip(f), rel=1e-12)
+    assert low.tip_mass > top.tip_mass                  # fewer modes answer an impulse: a heavier tip
+    with pytest.raises(ParameterError, match="cutoff_hz"):
+        truncated_horn(top, g_top, 1e3, f)
+
+
+def test_stage_chooses_the_cutoff_from_the_contact_time(drill):
+    """The stage's cut-offs are its factors over the shortest Hertz contact, recomputed here from the
+    closed form (Johnson eq. 11.24: t_c = 2.94 (5 m / (4 k))^(2/5) v^(-1/5) for e = 1, the
+    1-g free mass at the fastest launch speed through the stiffer, steel-on-steel tool law);
+    a short run (2 members, 4 ms) gives one row per mass with both uncertainties and a study per end."""
+    from impact.params import ImpactParams
+    from results.stage_compliant import compliant_stage, contact_laws
+
+    design, system, modes, f = drill
+    st = CompliantSettings(cutoff_factors=(0.5, 1.0), members=2, t_from=0.001, t_end=0.004)
+    base = ImpactParams(A0=17e-6, freq=f)
+    v = base.v0 * (1 + st.v0_spread)
+    k_tool = contact_laws(design, 0.001, base.e2, base.e1, st)[1].stiffness
+    t_c = 2.9432 * (1.25 * 0.001 / k_tool) ** 0.4 * v ** -0.2
+    out = compliant_stage(system, design, f, 225.0, base, [0.001, 0.008], st)
+    doc = out["json"]
+    assert doc["contact_time_s"] == pytest.approx(t_c, rel=1e-4)       # 2.9432 to 5 digits
+    assert doc["cutoffs_hz"] == [round(0.5 / doc["contact_time_s"], -2), round(1.0 / doc["contact_time_s"], -2)]
+    assert [r["m_free_kg"] for r in doc["rows"]] == [0.001, 0.008]
+    for r in doc["rows"]:
+        assert r["members"] == 2 and r["model_form"]["mean_tool_ke_after_j"] >= 0
+    assert set(doc["study"]) == {"1 g", "8 g"}
+
+
+def _est(mean, hw):
+    return Estimate(mean, hw, 16)
+
+
+def test_model_form_is_the_last_cutoff_step_plus_half_the_stiffness_spread():
+    study = {"cutoff": [{"q": _est(10.0, 1.0)}, {"q": _est(8.0, 1.0)}, {"q": _est(7.5, 0.3)}],
+             "stiffness": [{"q": _est(7.0, 0.4)}, {"q": _est(8.2, 0.3)}]}
+    mf = model_form(study, "q")
+    assert mf["cutoff"] == pytest.approx(0.5)
+    assert mf["cutoff_sampling_half_width"] == pytest.approx(math.hypot(1.0, 0.3))
+    assert mf["stiffness"] == pytest.approx(0.6)
+    assert mf["stiffness_sampling_half_width"] == pytest.approx(0.5 * math.hypot(0.4, 0.3))
+    assert mf["total"] == pytest.approx(1.1)
+
+
+def test_window_stats_counts_the_contacts_starting_in_the_window():
+    def c(body, t, after):
+        return SimpleNamespace(body=body, t_start=t, tool_after=after)
+
+    run = SimpleNamespace(contacts=[c("tool", 0.001, 3.0), c("horn", 0.0105, 0.0), c("tool", 0.011, 2.0),
+                                    c("tool", 0.0199, 1.0), c("tool", 0.02, 9.0)])
+    s = window_stats(run, 0.01, 0.02, 0.05)
+    assert s == {"n_tool": 2, "ke_after_sum_j": pytest.approx(0.5 * 0.05 * (4.0 + 1.0)), "n_horn": 1}
+
+
+@pytest.mark.parametrize("field, value", [("cutoff_factors", (1.0,)), ("cutoff_factors", (2.0, 1.0)),
+                                          ("stiffness_factors", (0.5,)), ("members", 1), ("face_radius", 0.0),
+                                          ("t_end", 0.01)])
+def test_settings_refuse_bad_values(field, value):
+    with pytest.raises(ParameterError, match=field):
+        CompliantSettings(**{field: value})
+
+
+def test_report_section_carries_both_uncertainties():
+    e = {"mean": 0.01, "ci95_half_width": 0.001, "members": 16}
+    row = {"m_free_kg": 0.008, "mean_tool_ke_after_j": e, "tool_impact_rate_hz": {**e, "mean": 500.0},
+           "tool_power_w": {**e, "mean": 5.0}, "members": 16, "model_form_from": "this mass's study",
+           "model_form": {"mean_tool_ke_after_j": 0.002, "tool_impact_rate_hz": 30.0, "tool_power_w": 1.0}}
+    doc = {"cutoffs_hz": [30e3, 60e3], "cutoff_factors": [0.5, 1.0], "modes_hz": [0.0, 20e3, 40e3],
+           "residual_m_per_n": 1e-9, "contact_time_s": 16e-6, "members": 16,
+           "contact": {"face_radius_m": 6e-3, "face_radius_from": "given", "e_horn": 0.9, "e_tool": 0.8},
+           "scenario": {"spring_force_n": 5.0, "t_from_s": 0.02, "t_end_s": 0.22},
+           "settings": {"members": 16, "stiffness_factors": [0.5, 2.0]},
+           "study": {"8 g": {"cutoff": [{**row, "cutoff_hz": 30e3}], "stiffness": [{**row, "stiffness_factor": 2.0}]}},
+           "rows": [row], "assumed": ["a"], "calibrated": ["b"]}
+    text = "\n".join(compliant_lines(doc))
+    assert "| 8 | 10 ± 1 ± 2 |" in text
+    assert "modes to 30 kHz" in text and "contact stiffness x2" in text
+    assert compliant_lines(None) == []
