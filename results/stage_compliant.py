@@ -34,7 +34,6 @@ from __future__ import annotations
 import logging
 import math
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -45,7 +44,7 @@ log = logging.getLogger(__name__)
 #: the quantities with a model-form estimate: tool KE after impact, tool impact rate, tool power
 QUANTITIES = ("mean_tool_ke_after_j", "tool_impact_rate_hz", "tool_power_w")
 
-__all__ = ["QUANTITIES", "CompliantSettings", "contact_laws", "shortest_contact_time", "window_stats", "compliant_ensembles",
+__all__ = ["QUANTITIES", "CompliantSettings", "contact_laws", "shortest_contact_time", "compliant_ensembles",
            "compliant_stage", "model_form"]
 
 
@@ -142,47 +141,6 @@ def shortest_contact_time(design, masses, base, settings: CompliantSettings) -> 
     return min(times)
 
 
-def window_stats(run, t_from: float, t_end: float, m_tool: float) -> dict:
-    """One member's sums over the window ``[t_from, t_end]`` (contacts starting in it): tool
-    contacts, their tool KE after separation (J), horn contacts."""
-    tool = [c for c in run.contacts if c.body == "tool" and t_from <= c.t_start < t_end]
-    horn = [c for c in run.contacts if c.body == "horn" and t_from <= c.t_start < t_end]
-    return {"n_tool": len(tool), "ke_after_sum_j": float(sum(0.5 * m_tool * c.tool_after ** 2 for c in tool)),
-            "n_horn": len(horn)}
-
-
-def _python_batch(cases, horn, *, horn_law, tool_law, horn_residual, scenario, settings) -> list:
-    """:func:`impact.compliant_engine.compliant_batch`'s answer from the Python reference engine
-    (:func:`impact.compliant_loop.simulate_compliant`), ``settings.n_start`` members per case and no
-    growth; the tool power needs the tool's speed at touch, which the reference does not record."""
-    from impact.compliant_loop import simulate_compliant
-    from impact.stats import Estimate, ensemble_members, mean_ci, ratio_ci
-
-    out = []
-    for case, hl, tl in zip(cases, horn_law, tool_law):
-        rows = [window_stats(simulate_compliant(p, horn, horn_law=hl, tool_law=tl, horn_residual=horn_residual),
-                             scenario.t_from, scenario.t_end, p.m_tool)
-                for p in ensemble_members(scenario.apply(case), settings.n_start, settings)]
-        n_tool = np.array([r["n_tool"] for r in rows], float)
-        ke = np.array([r["ke_after_sum_j"] for r in rows])
-        T = scenario.window_s
-        est = {"mean_tool_ke_after_j": ratio_ci(ke, n_tool), "tool_impact_rate_hz": mean_ci(n_tool / T),
-               "horn_impact_rate_hz": mean_ci(np.array([r["n_horn"] for r in rows], float) / T),
-               "tool_power_w": Estimate(math.nan, math.nan, len(rows), settings.level,
-                                        "the Python engine records no tool speed at touch")}
-        out.append(SimpleNamespace(estimates=est, members=len(rows), converged=False))
-    return out
-
-
-def _default_engine():
-    """The compiled compliant batch where it exists, else the Python reference's."""
-    try:
-        from impact.compliant_engine import compliant_batch
-    except ImportError:
-        return _python_batch
-    return compliant_batch
-
-
 def compliant_ensembles(cases, horn, laws: list, residual: float, settings: CompliantSettings, *,
                         engine=None) -> list[dict]:
     """Ensemble statistics of several cases of the compliant model on one horn (95 % CIs).
@@ -197,17 +155,17 @@ def compliant_ensembles(cases, horn, laws: list, residual: float, settings: Comp
     residual : float
         The horn's static tip compliance of the modes left out, m/N.
     engine : callable, optional
-        :func:`impact.compliant_engine.compliant_batch`'s signature (default: that batch, or the
-        Python reference's without it).
+        :func:`impact.compliant_engine.compliant_batch`'s signature (default: that batch).
 
     Returns
     -------
     list of dict
         Per case :data:`QUANTITIES` as :class:`impact.stats.Estimate`, ``members`` and ``converged``.
     """
+    from impact.compliant_engine import compliant_batch
     from impact.stats import Scenario, StatsSettings
 
-    engine = engine or _default_engine()
+    engine = engine or compliant_batch
     sc = Scenario("device", settings.spring_force, settings.t_from, settings.t_end, "the compliant stage's window")
     st = StatsSettings(rel_tol=settings.rel_tol, n_start=settings.members, n_max=settings.max_members,
                        seed=settings.seed, v0_spread=settings.v0_spread)

@@ -2,15 +2,13 @@
 and its model-form estimate, and the report section."""
 
 import math
-from types import SimpleNamespace
-
 import numpy as np
 import pytest
 
 from impact.stats import Estimate
 from rpud_common import ParameterError
 from results.report import compliant_lines
-from results.stage_compliant import CompliantSettings, model_form, window_stats
+from results.stage_compliant import CompliantSettings, model_form
 
 
 @pytest.fixture(scope="module")
@@ -59,7 +57,7 @@ def test_stage_chooses_the_cutoff_from_the_contact_time(drill):
     from results.stage_compliant import compliant_stage, contact_laws
 
     design, system, modes, f = drill
-    st = CompliantSettings(cutoff_factors=(0.5, 1.0), members=2, t_from=0.001, t_end=0.004)
+    st = CompliantSettings(cutoff_factors=(0.5, 1.0), members=2, max_members=2, t_from=0.001, t_end=0.004)
     base = ImpactParams(A0=17e-6, freq=f)
     v = base.v0 * (1 + st.v0_spread)
     k_tool = contact_laws(design, 0.001, base.e2, base.e1, st)[1].stiffness
@@ -89,16 +87,6 @@ def test_model_form_is_the_last_cutoff_step_plus_half_the_stiffness_spread():
     assert mf["total"] == pytest.approx(1.1)
 
 
-def test_window_stats_counts_the_contacts_starting_in_the_window():
-    def c(body, t, after):
-        return SimpleNamespace(body=body, t_start=t, tool_after=after)
-
-    run = SimpleNamespace(contacts=[c("tool", 0.001, 3.0), c("horn", 0.0105, 0.0), c("tool", 0.011, 2.0),
-                                    c("tool", 0.0199, 1.0), c("tool", 0.02, 9.0)])
-    s = window_stats(run, 0.01, 0.02, 0.05)
-    assert s == {"n_tool": 2, "ke_after_sum_j": pytest.approx(0.5 * 0.05 * (4.0 + 1.0)), "n_horn": 1}
-
-
 @pytest.mark.parametrize("field, value", [("cutoff_factors", (1.0,)), ("cutoff_factors", (2.0, 1.0)),
                                           ("stiffness_factors", (0.5,)), ("members", 1), ("face_radius", 0.0),
                                           ("t_end", 0.01)])
@@ -107,19 +95,43 @@ def test_settings_refuse_bad_values(field, value):
         CompliantSettings(**{field: value})
 
 
-def test_report_section_carries_both_uncertainties():
+def _doc():
     e = {"mean": 0.01, "ci95_half_width": 0.001, "members": 16}
     row = {"m_free_kg": 0.008, "mean_tool_ke_after_j": e, "tool_impact_rate_hz": {**e, "mean": 500.0},
            "tool_power_w": {**e, "mean": 5.0}, "members": 16, "model_form_from": "this mass's study",
            "model_form": {"mean_tool_ke_after_j": 0.002, "tool_impact_rate_hz": 30.0, "tool_power_w": 1.0}}
-    doc = {"cutoffs_hz": [30e3, 60e3], "cutoff_factors": [0.5, 1.0], "modes_hz": [0.0, 20e3, 40e3],
-           "residual_m_per_n": 1e-9, "contact_time_s": 16e-6, "members": 16,
-           "contact": {"face_radius_m": 6e-3, "face_radius_from": "given", "e_horn": 0.9, "e_tool": 0.8},
-           "scenario": {"spring_force_n": 5.0, "t_from_s": 0.02, "t_end_s": 0.22},
-           "settings": {"members": 16, "stiffness_factors": [0.5, 2.0]},
-           "study": {"8 g": {"cutoff": [{**row, "cutoff_hz": 30e3}], "stiffness": [{**row, "stiffness_factor": 2.0}]}},
-           "rows": [row], "assumed": ["a"], "calibrated": ["b"]}
-    text = "\n".join(compliant_lines(doc))
-    assert "| 8 | 10 ± 1 ± 2 |" in text
+    return {"cutoffs_hz": [30e3, 60e3], "cutoff_factors": [0.5, 1.0], "modes_hz": [0.0, 20e3, 40e3],
+            "residual_m_per_n": 1e-9, "contact_time_s": 16e-6,
+            "contact": {"face_radius_m": 6e-3, "face_radius_from": "given", "e_horn": 0.9, "e_tool": 0.8},
+            "scenario": {"spring_force_n": 5.0, "t_from_s": 0.02, "t_end_s": 0.22},
+            "settings": {"members": 16, "rel_tol": 0.05, "max_members": 64, "stiffness_factors": [0.5, 2.0]},
+            "study": {"8 g": {"cutoff": [{**row, "cutoff_hz": 30e3}], "stiffness": [{**row, "stiffness_factor": 2.0}]}},
+            "rows": [row], "assumed": ["a"], "calibrated": ["b"]}
+
+
+def test_report_section_carries_both_uncertainties():
+    text = "\n".join(compliant_lines(_doc()))
+    assert "| 8 | 10 ± 1 ± 2 | 500 ± 0.001 ± 30 | 5 ± 0.001 ± 1 | 16 |" in text
     assert "modes to 30 kHz" in text and "contact stiffness x2" in text
     assert compliant_lines(None) == []
+
+
+def test_headline_and_comparison_use_the_compliant_model():
+    """With the compliant stage the headline sentence is its answer with both uncertainties, and one
+    paragraph sets the kinematic horns (loaded and unloaded amplitude) and the Newton coupled model
+    beside it; without it the headline is the device scenario's, as before the stage ran."""
+    from results.report import comparison_lines, headline_text
+
+    est = {"mean": 0.02, "ci95_half_width": 0.0005, "members": 64}
+    s = {"A0": {"reference_m_free_kg": 0.008, "used_m": 17e-6}, "impacts": {"headline": "device_fe"},
+         "kinetic_energy_table": [{"m_free_kg": 0.008, "device_fe": {"mean_tool_ke_after_j": est,
+                                                                     "tool_impact_rate_hz": est, "tool_power_w": est}}],
+         "coupled_model": {"rows": [{"m_free_kg": 0.008, "coupled": {"mean_tool_ke_after_j": est},
+                                     "kinematic_unloaded": {"mean_tool_ke_after_j": est}}]}}
+    assert headline_text(s).startswith("Headline (device scenario, 8 g")
+    assert comparison_lines(s) == []
+    s["compliant_model"] = _doc()
+    head = headline_text(s)
+    assert head.startswith("Headline (compliant contacts") and "10 ± 1 ± 2 mJ" in head
+    para = "\n".join(comparison_lines(s))
+    assert "compliant contacts 10 ± 1 ± 2" in para and para.count("20.00 ± 0.50") == 3
