@@ -254,11 +254,17 @@ def bonded_edge_nodes(system) -> np.ndarray:
     out = p[f].mean(axis=0) - p[np.asarray(skm.t)[:, cell]].mean(axis=0)
     nrm *= np.sign(np.einsum("ij,ij->i", nrm, out))[:, None]
     nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-    # a sector's cut faces (planes through the axis) are no surface: the whole drill continues there
+    # a sector's cut faces are no surface, the whole drill continues there: facets on a plane
+    # through the axis that bounds the whole mesh (a tooth's radial wall has metal beyond its
+    # plane), with a partner on the other cut plane
     centre = p[f].mean(axis=0)
     cut = (np.abs(nrm[:, 2]) < 1e-6) & (np.abs(np.einsum("ij,ij->i", nrm[:, :2], centre[:, :2]))
                                          < 1e-6 * np.linalg.norm(centre[:, :2], axis=1) + 1e-12)
-    cut[cut] = _periodic_partner(centre[cut])
+    if cut.any():
+        u, inv = np.unique(np.round(nrm[cut, :2], 6), axis=0, return_inverse=True)
+        reach = (p[:, :2] @ u.T).max(axis=0)
+        cut[cut] = reach[inv.ravel()] <= 1e-9 * (1.0 + np.abs(p).max())
+        cut[cut] = _periodic_partner(centre[cut])
     bf, f, nrm, cell = bf[~cut], f[:, ~cut], nrm[~cut], cell[~cut]
     cos_max = np.cos(np.radians(CORNER_ANGLE_DEG))
     out_mask = np.zeros(n, bool)
