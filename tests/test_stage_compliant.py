@@ -135,3 +135,21 @@ def test_headline_and_comparison_use_the_compliant_model():
     assert head.startswith("Headline (compliant contacts") and "10 ± 1 ± 2 mJ" in head
     para = "\n".join(comparison_lines(s))
     assert "compliant contacts 10 ± 1 ± 2" in para and para.count("20.00 ± 0.50") == 3
+
+
+def test_whole_report_with_the_compliant_stage():
+    """The committed run's summary with a compliant block: its section, the comparison paragraph, and
+    the kinematic table announced as comparison rows (without the block: the device scenario's
+    headline, unchanged)."""
+    import json
+    from pathlib import Path
+
+    from results.report import report_lines
+
+    s = json.loads((Path(__file__).resolve().parent.parent / "results" / "default" / "summary.json").read_text())
+    plain = "\n".join(report_lines(s))
+    assert "**Headline: the device scenario**" in plain and "Compliant contacts" not in plain
+    s["compliant_model"] = _doc()
+    text = "\n".join(report_lines(s))
+    assert "Kinematic horn (comparison rows" in text and "## Compliant contacts" in text
+    assert "**Comparison at 8 g**" in text and "**Headline (compliant contacts" in text
