@@ -329,50 +329,117 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         far, and of ``design`` when ``mesh`` is not given (default: :func:`geometry.build_mesh`
         with the settings' mesh options)
     """
+    system_of = system_of or (lambda m: assemble(m, order=settings.order))
+    remesh = remesh or (lambda d: _default_remesh(d, settings))
+    search = _Search(settings, system_of, progress)
+    front, back = _tuned_paths(design, settings)
+    if mesh is None:
+        mesh = remesh(design)
+    search.timings["mesh_s"] = time.perf_counter() - search.t_start
+    start = {p: float(design.get(p)) for p in settings.tune}
+    design, mesh, last_shape, reuse = _rounds(search, design, mesh, front, back, remesh)
+
+    # ---- final: one true assembly of the tuned geometry, paired resonance/anti-resonance
+    t0 = time.perf_counter()
+    system, factor = reuse if reuse is not None else (system_of(mesh), None)   # reuse: the same mesh and shift
+    modal, w, motion = _final_modes(system, mesh, factor, settings.target_hz, settings.n_modes, last_shape)
+    search.timings["final_s"] = time.perf_counter() - t0
+    search.timings["total_s"] = time.perf_counter() - search.t_start
+    matched = float(modal.f_r_hz[w])
+    return MatchResult(target_hz=settings.target_hz, matched_hz=matched,
+                       converged=abs(matched / settings.target_hz - 1) <= settings.tolerance,
+                       tuned={p: float(design.get(p)) for p in settings.tune}, start=start,
+                       iterations=search.iterations, design=design, mesh=mesh, system=system, modal=modal,
+                       working_index=w, **motion, timings=search.timings)
+
+
+def _default_remesh(design, settings: MatchSettings) -> TaggedMesh:
+    """The mesh of ``design`` with the settings' mesh options (:func:`geometry.build_mesh`)."""
     import geometry
 
-    def default_remesh(d):
-        return geometry.build_mesh(d, mesh_size=settings.mesh_size, refine=settings.refine, grade=settings.grade,
-                                   mesher=settings.mesher)
+    return geometry.build_mesh(design, mesh_size=settings.mesh_size, refine=settings.refine, grade=settings.grade,
+                               mesher=settings.mesher)
 
-    system_of = system_of or (lambda m: assemble(m, order=settings.order))
-    remesh = remesh or default_remesh
-    t_start = time.perf_counter()
+
+def _tuned_paths(design, settings: MatchSettings) -> tuple[str | None, str]:
+    """``(front, back)``: the tuned lengths, checked (``front`` None when only one is tuned)."""
     for path in settings.tune:
         if path not in design.tunable_lengths():
             raise ParameterError("tune", path, "unknown; tunable: " + ", ".join(design.tunable_lengths()))
-    if len(settings.tune) == 2:
-        front, back = settings.tune
-        if _side(design, front) != "front" or _side(design, back) != "back":
-            raise ParameterError("tune", settings.tune, "give a front (horn/flange) length, then a back "
-                                 "(coupler/stack) length")
-    else:
-        front, back = None, settings.tune[0]
-    target = settings.target_hz
-    if mesh is None:
+    if len(settings.tune) == 1:
+        return None, settings.tune[0]
+    front, back = settings.tune
+    if _side(design, front) != "front" or _side(design, back) != "back":
+        raise ParameterError("tune", settings.tune, "give a front (horn/flange) length, then a back "
+                             "(coupler/stack) length")
+    return front, back
+
+
+def _rounds(search: "_Search", design, mesh: TaggedMesh, front: str | None, back: str, remesh):
+    """The two stages, repeated on a fresh mesh of the tuned design while the morphed mesh is
+    stretched beyond ``max_stretch`` (at most ``max_rounds`` rounds). Returns ``(design, mesh,
+    last working-mode shape, (system, factor) to reuse or None)``."""
+    settings = search.settings
+    mesh_design = design                   # the design the current mesh was built for
+    for round_ in range(settings.max_rounds):
+        # ---- stage 1: horn side against a node in the middle of the stack
+        if front is not None:
+            t0 = time.perf_counter()
+            z_cut = nodal_plane(design)
+            design, mesh, _, _ = search.tune(
+                "horn", front, design, mesh, lambda m: _front_cells(m, z_cut),
+                lambda sy: np.setdiff1d(sy.free_dofs("short"), sy.dofs_on("node_plane", (2,))))
+            search.add_time("horn_side_s", t0)
+
+        # ---- stage 2: the whole composition (free-free; rigid modes lie far below the shift)
+        t0 = time.perf_counter()
+        design, mesh, last_shape, reuse = search.tune("whole", back, design, mesh, None,
+                                                      lambda sy: sy.free_dofs("short"), keep=settings.reuse)
+        search.add_time("whole_s", t0)
+        # a mesh stretched far from the design it was built for is re-made at the tuned design
+        # (and the match repeated from there), so the result does not depend on the start
+        if _distortion(mesh_design, design) <= settings.max_stretch or round_ == settings.max_rounds - 1:
+            return design, mesh, last_shape, reuse
+        t0 = time.perf_counter()
+        log.info("match: re-meshing the tuned design (zones stretched by %.1f %%)",
+                 100 * _distortion(mesh_design, design))
+        mesh_design = design
         mesh = remesh(design)
-    t_mesh = time.perf_counter() - t_start
-    iterations: list[dict] = []
-    start = {p: float(design.get(p)) for p in settings.tune}
-    timings = {"mesh_s": t_mesh}
+        search.add_time("mesh_s", t0)
+    raise AssertionError("unreachable: the last round returns")
 
-    def record(stage, path, value, f):
+
+class _Search:
+    """The trials of one match: their record (``iterations``, reported through ``progress``), the
+    stage timings, and :meth:`tune`, one length tuned on the morphed mesh."""
+
+    def __init__(self, settings: MatchSettings, system_of, progress):
+        self.settings, self.system_of, self.progress = settings, system_of, progress
+        self.iterations: list[dict] = []
+        self.timings: dict[str, float] = {}
+        self.t_start = time.perf_counter()
+
+    def add_time(self, key: str, t0: float) -> None:
+        self.timings[key] = self.timings.get(key, 0.0) + time.perf_counter() - t0
+
+    def record(self, stage: str, path: str, value: float, f: float) -> None:
         rec = {"stage": stage, "parameter": path, "value_m": float(value), "f_hz": float(f),
-               "seconds": time.perf_counter() - t_start}
-        iterations.append(rec)
+               "seconds": time.perf_counter() - self.t_start}
+        self.iterations.append(rec)
         log.info("match %-5s %s = %.4f mm -> %.2f Hz", stage, path, value * 1e3, f)
-        if progress:
-            progress(rec)
+        if self.progress:
+            self.progress(rec)
 
-    def stage(name, path, design, mesh, select, free_of, n_modes, keep=False):
+    def tune(self, name, path, design, mesh, select, free_of, keep=False):
         """Tune ``path`` so that the (selected) model's working mode is at the target. With
         ``keep``, the system and factorisation of the evaluation nearest the target are kept
-        (Brent's method returns one of its evaluated points)."""
+        (Brent's method returns one of its evaluated points). Returns ``(design, mesh, working
+        shape, (system, factor) or None)``."""
         _check_morphable(design, path)
+        target, settings = self.settings.target_hz, self.settings
         idx = {"keep": None}
         prev = {"shape": None, "vectors": None}
-        cache = {}
-        best = {}
+        cache, best = {}, {}
 
         def evaluate(value):
             value = snap(value)
@@ -383,12 +450,12 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
                 if idx["keep"] is None:
                     idx["keep"] = select(m)
                 m = _select(m, idx["keep"])
-            sy = system_of(m)
-            f, vec, F = _modes(sy, free_of(sy), target, n_modes, keep=True, warm=prev["vectors"])
+            sy = self.system_of(m)
+            f, vec, F = _modes(sy, free_of(sy), target, settings.n_modes, keep=True, warm=prev["vectors"])
             prev["vectors"] = vec
             i = working_mode(sy, f, vec, target, prev["shape"])
             prev["shape"] = sy.displacement(vec[:, i])
-            record(name, path, value, f[i])
+            self.record(name, path, value, f[i])
             cache[value] = f[i]
             if keep and (not best or abs(f[i] - target) <= abs(best["f"] - target)):
                 best.clear()
@@ -401,47 +468,6 @@ def match(design, settings: MatchSettings = MatchSettings(), *, mesh: TaggedMesh
         new, m = _morphed(design, mesh, path, tuned)
         reuse = (best["system"], best["factor"]) if best.get("value") == tuned else None
         return new, m, prev["shape"], reuse
-
-    mesh_design = design                   # the design the current mesh was built for
-    for round_ in range(settings.max_rounds):
-        # ---- stage 1: horn side against a node in the middle of the stack
-        if front is not None:
-            t0 = time.perf_counter()
-            z_cut = nodal_plane(design)
-            design, mesh, _, _ = stage(
-                "horn", front, design, mesh, lambda m: _front_cells(m, z_cut),
-                lambda sy: np.setdiff1d(sy.free_dofs("short"), sy.dofs_on("node_plane", (2,))),
-                settings.n_modes)
-            timings["horn_side_s"] = timings.get("horn_side_s", 0.0) + time.perf_counter() - t0
-
-        # ---- stage 2: the whole composition (free-free; rigid modes lie far below the shift)
-        t0 = time.perf_counter()
-        design, mesh, last_shape, reuse = stage("whole", back, design, mesh, None,
-                                                lambda sy: sy.free_dofs("short"), settings.n_modes,
-                                                keep=settings.reuse)
-        timings["whole_s"] = timings.get("whole_s", 0.0) + time.perf_counter() - t0
-        # a mesh stretched far from the design it was built for is re-made at the tuned design
-        # (and the match repeated from there), so the result does not depend on the start
-        if _distortion(mesh_design, design) <= settings.max_stretch or round_ == settings.max_rounds - 1:
-            break
-        t0 = time.perf_counter()
-        log.info("match: re-meshing the tuned design (zones stretched by %.1f %%)",
-                 100 * _distortion(mesh_design, design))
-        mesh_design = design
-        mesh = remesh(design)
-        timings["mesh_s"] += time.perf_counter() - t0
-
-    # ---- final: one true assembly of the tuned geometry, paired resonance/anti-resonance
-    t0 = time.perf_counter()
-    system, factor = reuse if reuse is not None else (system_of(mesh), None)   # reuse: the same mesh and shift
-    modal, w, motion = _final_modes(system, mesh, factor, target, settings.n_modes, last_shape)
-    timings["final_s"] = time.perf_counter() - t0
-    timings["total_s"] = time.perf_counter() - t_start
-    matched = float(modal.f_r_hz[w])
-    return MatchResult(target_hz=target, matched_hz=matched, converged=abs(matched / target - 1) <= settings.tolerance,
-                       tuned={p: float(design.get(p)) for p in settings.tune}, start=start,
-                       iterations=iterations, design=design, mesh=mesh, system=system, modal=modal,
-                       working_index=w, **motion, timings=timings)
 
 
 def _final_modes(system: PiezoSystem, mesh: TaggedMesh, factor, target: float, n_modes: int, last_shape):

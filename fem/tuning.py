@@ -4,7 +4,12 @@
 Bracketing: from the start value the next trial scales the length by ``(f / f_target)^1.5`` (a
 quarter-wave section has ``f ~ 1/L``; only part of the resonator is tuned), then secant steps
 with 20 % overshoot follow until the target is bracketed; Brent's method finishes inside that
-bracket. The search never leaves the user's bracket (:func:`valid_bounds`: default 0.5x-2x the
+bracket. A trial whose frequency error, over the secant slope of the last two trials (or of the
+bracket), puts the root within ``RESIDUAL_FRACTION`` of ``xtol`` ends the search there: every
+evaluation is a full eigen solve, and Brent's method would otherwise spend one more to shrink a
+bracket that already holds the root far inside the tolerance (the law is smooth and nearly
+linear over the last steps, so the secant estimate of the distance is good to ~10 %, and the
+criterion keeps a 10x margin on ``xtol``). The search never leaves the user's bracket (:func:`valid_bounds`: default 0.5x-2x the
 start value, shrunk to where the design is valid).
 
 The lattice: every trial length is snapped to 10 nm (8 decimals in m, 1000x finer than the
@@ -24,10 +29,11 @@ from scipy.optimize import brentq
 
 from rpud_common import ParameterError
 
-__all__ = ["GRID_DECIMALS", "CELL", "snap", "valid_bounds", "find_length"]
+__all__ = ["GRID_DECIMALS", "CELL", "RESIDUAL_FRACTION", "snap", "valid_bounds", "find_length"]
 
 GRID_DECIMALS = 8                 # lengths in m to 8 decimals: the 10 nm lattice
 CELL = 10.0 ** -GRID_DECIMALS     # m, one cell of the lattice
+RESIDUAL_FRACTION = 0.1           # a trial this close to the root (in units of xtol, by the secant) ends the search
 
 
 def snap(value: float) -> float:
@@ -85,6 +91,36 @@ def _trial(v: float, towards: float, bounds: tuple[float, float]) -> float:
     return t
 
 
+class _Close(Exception):
+    """Raised inside Brent's method by a trial close enough to the root (it carries the length)."""
+
+    def __init__(self, value: float):
+        super().__init__(value)
+        self.value = value
+
+
+def _close(g: float, slope: float, xtol: float) -> bool:
+    """The secant's distance to the root ``|g / slope|`` is within ``RESIDUAL_FRACTION`` of ``xtol``."""
+    return g == 0 or (slope != 0 and np.isfinite(slope) and abs(g) <= RESIDUAL_FRACTION * xtol * abs(slope))
+
+
+def _brent(evaluate, target: float, a: float, ga: float, b: float, gb: float, xtol: float) -> float:
+    """Brent's method on the bracket ``[a, b]`` (errors ``ga``, ``gb``), stopped early at a trial
+    the bracket's secant puts within ``RESIDUAL_FRACTION`` of ``xtol`` of the root."""
+    slope = (gb - ga) / (b - a)
+
+    def g(x):
+        gx = evaluate(x) - target
+        if _close(gx, slope, xtol):
+            raise _Close(snap(x))
+        return gx
+
+    try:
+        return snap(brentq(g, a, b, xtol=xtol, rtol=4 * np.finfo(float).eps, maxiter=60))
+    except _Close as hit:
+        return hit.value
+
+
 def find_length(evaluate: Callable[[float], float], v0: float, target: float,
                 bounds: tuple[float, float], xtol: float, path: str, label: str,
                 max_steps: int = 200) -> float:
@@ -134,11 +170,12 @@ def find_length(evaluate: Callable[[float], float], v0: float, target: float,
             break
         g = evaluate(v) - target
         seen.append((v, g + target))
-        if np.sign(g) != np.sign(g_prev):
-            a, b = sorted((v_prev, v))
-            return snap(brentq(lambda x: evaluate(x) - target, a, b, xtol=xtol,
-                               rtol=4 * np.finfo(float).eps, maxiter=60))
         slope = (g - g_prev) / (v - v_prev)
+        if _close(g, slope, xtol):
+            return v
+        if np.sign(g) != np.sign(g_prev):
+            (a, ga), (b, gb) = sorted(((v_prev, g_prev), (v, g)))
+            return _brent(evaluate, target, a, ga, b, gb, xtol)
         if slope * (v - v_prev) * g < 0:             # the error shrinks: secant, overshoot by 20 %
             v_next = v - 1.2 * g / slope
         else:                                         # no progress: keep going the same way

@@ -22,6 +22,10 @@ Stages (each timed, each reported on the terminal through ``progress``):
    with the FE amplitude, next to the article's assumed 15 um;
 6. **renders** of the working mode and its neighbours, VTU with every mode.
 
+Two pieces of stage 3 run side by side on two cores: the band response (a worker thread) and
+the discretisation-error estimate on the coarser mesh; ``timings``
+therefore holds overlapping intervals (``discretisation_error_s`` lies inside ``harmonic_s``).
+
 Assumption stated loudly: with datasheet losses (PZT-8 Qm 1000, Ti-6Al-4V Q 10 000) the
 matched transducer at 225 V and exact resonance would reach ~0.5 mm at the tip and draw
 kilowatts: an unloaded resonator. A bolted, mounted Langevin transducer loses far more in its
@@ -335,10 +339,9 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
 
 def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
     """Matching, harmonic response, stress and the discretisation error of the FE outputs."""
-    from .errors import estimate_stage
     from .stage_fe import match_stage
-    from .stage_harmonic import harmonic_stage, response_stage
-    from .stress_stage import coarse_hook, stress_stage
+    from .stage_harmonic import harmonic_stage
+    from .stress_stage import stress_stage
 
     st = run.settings
     t0 = clock.stage("resonance matching" if st.match else "modal analysis")
@@ -355,18 +358,15 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
 
         st = run.settings = measured_settings(st, m.system, m.modal, m.w, say)
     h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
-    run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
     from .operating_point import preload_stage
 
     run.bolt, run.preload = preload_stage(m.design, m.system, h.wp, say=say)   # the design's bolt, the window
+    estimated = _response_beside_estimate(run, clock)
     clock.took("harmonic_s", t0)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
         f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
-    t0 = time.perf_counter()          # one solve on a 1.4x coarser mesh: the error of every FE output
-    run.est = estimate_stage(m.design, m.options, st, m.system, m.modal, m.w, h.wp, h.surfaces,
-                             float(m.design.target_frequency), say, extra=coarse_hook(h.wp.voltage, run.bolt))
-    clock.took("discretisation_error_s", t0)
+    estimated.replay(say)
     run.stress = stress_stage(*_field_system(m.system, h.wp), run.out, render=st.render, say=say, coarse=run.est,
                               preload=_field_state(m.system, run.bolt))    # own timing
     t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
@@ -374,6 +374,56 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
 
     run.rotor = pipeline_rotor_stage(m.design, h.wp, h.f_w, run.est, st.wob, say=say)
     clock.took("rotor_s", t0)
+
+
+class _Lines:
+    """Progress lines of a stage run beside another, kept and shown afterwards in the stage order
+    (the terminal reads the same whichever finishes first)."""
+
+    def __init__(self):
+        self.lines: list[str] = []
+
+    def __call__(self, msg: str) -> None:
+        self.lines.append(msg)
+
+    def replay(self, say) -> None:
+        for line in self.lines:
+            say(line)
+
+
+def _response_beside_estimate(run: _Run, clock: _Clock) -> "_Lines":
+    """The band response (a worker thread) beside the discretisation-error estimate (this
+    thread: its coarse mesh is made by Gmsh, which is started from here).
+
+    The two share no data that either writes (the estimate meshes, assembles and solves the
+    tuned design afresh on the coarser mesh); their work is in PARDISO, NumPy and Gmsh, which
+    release the interpreter, so on two cores they overlap. OpenBLAS stays on one thread across
+    both (the eigen solves limit it anyway): no thread count changes under the other's dense
+    products, so the numbers do not depend on which runs when. Returns the estimate's progress
+    lines, to be shown after the response's.
+    """
+    from concurrent.futures import ThreadPoolExecutor
+
+    from fem.solvers import blas_threads
+
+    from .errors import estimate_stage
+    from .stage_harmonic import response_stage
+    from .stress_stage import coarse_hook
+
+    st, m, h = run.settings, run.matched, run.harm
+    lines = _Lines()
+
+    def response():
+        run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
+
+    with blas_threads(1), ThreadPoolExecutor(max_workers=1, thread_name_prefix="response") as pool:
+        job = pool.submit(response)
+        t0 = time.perf_counter()          # one solve on a 1.4x coarser mesh: the error of every FE output
+        run.est = estimate_stage(m.design, m.options, st, m.system, m.modal, m.w, h.wp, h.surfaces,
+                                 float(m.design.target_frequency), lines, extra=coarse_hook(h.wp.voltage, run.bolt))
+        clock.took("discretisation_error_s", t0)
+        job.result()
+    return lines
 
 
 def _field_state(system, state):

@@ -94,3 +94,29 @@ def test_match_settings_refuse_an_xtol_below_the_lattice():
 
     with pytest.raises(ParameterError, match="xtol.*10 nm lattice"):
         MatchSettings(xtol=1e-9)
+
+
+
+
+def test_a_trial_the_secant_puts_within_a_tenth_of_xtol_ends_the_search(monkeypatch):
+    """Each evaluation is an eigen solve: a trial whose frequency error over the secant slope
+    puts the root within RESIDUAL_FRACTION x xtol ends the search without Brent's last steps.
+    Reference: the exact root of the power law, and the search with the stop switched off
+    (Brent's method to xtol): the same lattice length within xtol of the root (the secant's
+    distance estimate on this smooth law is good to a few % of the distance, inside the 10x
+    margin), never more evaluations, and fewer over these targets."""
+    import fem.tuning
+
+    xtol, default = 1e-5, fem.tuning.RESIDUAL_FRACTION
+    counts = {default: 0, 0.0: 0}
+    for target in (19_000.0, 19_500.0, 19_900.0, 20_100.0, 20_500.0, 21_000.0):
+        exact = L0 * (F0 / target) ** (1 / P)
+        got = {}
+        for fraction in (default, 0.0):
+            monkeypatch.setattr(fem.tuning, "RESIDUAL_FRACTION", fraction)
+            trials = []
+            got[fraction] = find_length(_law(trials=trials), L0, target, (0.025, 0.1), xtol, "horn.length", "the law")
+            counts[fraction] += len({snap(t) for t in trials})
+            assert abs(got[fraction] - exact) <= xtol
+        assert got[default] == got[0.0]
+    assert counts[default] < counts[0.0], counts
