@@ -307,10 +307,11 @@ def nearest_modes(systems, sectors: int, near_hz: float, n_modes: int, **kw):
     ask = {k: min(n_modes, -(-n_modes // (len(ks) + 1)) + 2) for k in ks}
     results, asked = {}, {}
     while True:
-        for k in ks:
-            if asked.get(k, 0) < ask[k]:
-                results[k] = cyclic_modes(systems[k], sectors, k, near_hz, ask[k], **kw)
-                asked[k] = ask[k]
+        todo = [k for k in ks if asked.get(k, 0) < ask[k]]
+        solved = _side_by_side(lambda k: cyclic_modes(systems[k], sectors, k, near_hz, ask[k], **kw), todo)
+        for k, res in zip(todo, solved):
+            results[k] = res
+            asked[k] = ask[k]
         cands = sorted((abs(f * f - near_hz * near_hz), k, j) for k in ks for j, f in enumerate(results[k].f_hz))
         chosen, total = [], 0
         for _d, k, j in cands:
@@ -325,6 +326,20 @@ def nearest_modes(systems, sectors: int, near_hz: float, n_modes: int, **kw):
             return results, chosen
         for k in short:
             ask[k] = min(n_modes, 2 * ask[k])
+
+
+def _side_by_side(fn, items: list) -> list:
+    """``[fn(item) for item in items]``, the items in threads side by side (each harmonic is its
+    own factorisation and Lanczos run: PARDISO and NumPy release the interpreter, so two cores
+    overlap one's sparse products with the other's factorisation). OpenBLAS stays on one thread
+    across all of them (each run limits it anyway), so no run sees another's thread count
+    change: the same numbers as one after the other."""
+    if len(items) < 2:
+        return [fn(item) for item in items]
+    from concurrent.futures import ThreadPoolExecutor
+
+    with blas_threads(1), ThreadPoolExecutor(max_workers=len(items), thread_name_prefix="harmonic") as pool:
+        return list(pool.map(fn, items))
 
 
 def _pair_open(system, x_r, x_o, f_o, mac_min: float = 0.5):

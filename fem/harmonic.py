@@ -302,7 +302,8 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
     clamp (its vectors are reused); otherwise ``n_modes`` modes are computed. The residual
     needs one factorisation of ``K - sigma M`` (the modal shift); ``reuse``, a basis of the same
     system, modes and clamp under another loss model, lends its factorisation (it does not
-    depend on the losses).
+    depend on the losses); so do ``modes`` that kept theirs (:attr:`fem.modal.ModalResult.factor`)
+    when the residual's shift is the modal shift.
     """
     from .modal import modal_analysis
 
@@ -330,6 +331,8 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
     sigma = _residual_shift(float(modes.sigma), lam)
     if reuse is not None and reuse.factor is not None and reuse.sigma == sigma and reuse.clamp == clamp:
         F = reuse.factor
+    elif getattr(modes, "factor", None) is not None and float(modes.sigma) == sigma:
+        F = modes.factor                           # the modal analysis' own, at the same shift and free set
     else:
         F = factorize((split.K - sigma * split.M).tocsr(), backend=backend)
 

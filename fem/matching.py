@@ -476,7 +476,7 @@ def _final_modes(system: PiezoSystem, mesh: TaggedMesh, factor, target: float, n
     (``teeth``, ``tip`` and the flange-to-tip ``node_ratio`` of :class:`MatchResult`)."""
     from .modal import modal_analysis
 
-    modal = modal_analysis(system, target, n_modes, sigma=_shift(target), factor=factor)
+    modal = modal_analysis(system, target, n_modes, sigma=_shift(target), factor=factor, keep_factor=True)
     log.info("match: final modal analysis %s", "reuses the last stage's system and factorisation"
              if factor is not None else "assembles and factorises afresh")
     w = working_mode(system, modal.f_r_hz, modal.vectors, target, last_shape)

@@ -126,6 +126,13 @@ class ModalResult(Result):
     timings: dict = field(default_factory=dict)
     system: PiezoSystem | None = field(default=None, repr=False)
     mode_shares: ModeShares | None = field(default=None, repr=False)
+    factor: object = field(default=None, repr=False)
+    """With ``keep_factor``: the factorisation of ``K - sigma M`` on the short-circuit free set,
+    which :func:`fem.harmonic.modal_basis` reuses for its residual at the same shift (a solver
+    handle: not pickled)."""
+
+    def __getstate__(self):
+        return {**self.__dict__, "factor": None}
 
     @property
     def labels(self) -> list[str]:
@@ -243,7 +250,7 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
                    sigma: float | None = None, rigid_hz: float | None = None,
                    backend: str | None = None, tol: float = 1e-10,
                    open_circuit: bool | str = True, mac_min: float = 0.5,
-                   eigen: str = "block", factor=None) -> ModalResult:
+                   eigen: str = "block", factor=None, keep_factor: bool = False) -> ModalResult:
     """Short- and open-circuit modes nearest ``near_hz`` (see the module docstring).
 
     ``eigen="block"`` (default): :func:`fem.eigen.block_eigs`, block right-hand sides, Rayleigh
@@ -254,7 +261,8 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
     iteration started from the short-circuit modes and the response to the hot electrode),
     ``"scratch"`` (ARPACK from a random start, window widened until every mode has a partner),
     ``False`` (no anti-resonances). ``factor``: an existing factorisation of ``K - sigma M`` on
-    ``system.reduce("short", clamp)`` (same ``sigma``), reused instead of factorising again.
+    ``system.reduce("short", clamp)`` (same ``sigma``), reused instead of factorising again;
+    ``keep_factor``: the result keeps the factorisation (:attr:`ModalResult.factor`).
 
     Parameters
     ----------
@@ -326,7 +334,7 @@ def modal_analysis(system: PiezoSystem, near_hz: float, n_modes: int, clamp: Ite
                        vectors_open=full_o, shares=shares, rigid_hz=rigid_f,
                        ndof=system.ndof, backend=F.backend, sigma=float(plan.sigma),
                        near_hz=float(near_hz), clamp=plan.clamp, timings=timings, system=system,
-                       mode_shares=mode_shares)
+                       mode_shares=mode_shares, factor=F if keep_factor else None)
 
 
 @dataclass(frozen=True)

@@ -212,6 +212,28 @@ def test_basis_reusing_another_basis_factorisation_is_the_same_basis(system, mod
     assert b.tip_amplitude_m == pytest.approx(a.tip_amplitude_m, rel=1e-10)
 
 
+def test_basis_on_modes_that_kept_their_factorisation_reuses_it(system, modes):
+    """A modal analysis that keeps its factorisation of K - sigma M (the matching's final one)
+    lends it to the basis's residual at the same shift: the same basis as one that factorises
+    afresh to 1e-10 of each array's norm (PARDISO without/with weighted matching pivots
+    differently: round-off of a shifted matrix conditioned ~ lambda / |lambda - sigma| < 1e4
+    here, ~1e-12); the kept
+    handle is not pickled."""
+    import pickle
+
+    f_r, _ = _longitudinal(modes)
+    kept = modal_analysis(system, 70e3, 8, keep_factor=True)
+    assert kept.factor is not None and modes.factor is None
+    np.testing.assert_allclose(kept.f_r_hz, modes.f_r_hz, rtol=1e-12)
+    reused = modal_basis(system, f_r, 8, loss=LossModel(300.0, 0.004), modes=kept)
+    fresh = modal_basis(system, f_r, 8, loss=LossModel(300.0, 0.004), modes=modes)
+    assert reused.sigma == fresh.sigma == kept.sigma and reused.factor is kept.factor
+    for name in ("R", "W", "g", "R_terms"):          # relative to each array's norm: round-off
+        a, b = getattr(reused, name), getattr(fresh, name)
+        assert np.linalg.norm(a - b) <= 1e-10 * np.linalg.norm(b), name
+    assert pickle.loads(pickle.dumps(kept)).factor is None
+
+
 # --------------------------------------------------------------------------- wide bands
 
 
