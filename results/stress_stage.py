@@ -91,10 +91,10 @@ def report_lines(stress: dict | None) -> list[str]:
              "discretisation-error stage's coarser mesh (without it: the difference to the raw element values around "
              "the peak, a single-mesh indicator; the table's note says which). Peaks on "
              "singular edges (bonded bimaterial edges: the ring bores and rims at the electrode planes and on the "
-             "flange; sharp corners: an unfilleted flange/horn edge) grow with mesh refinement: such a row is "
-             "marked singular and its utilisation is that of the peak off the edge. Sharp re-entrant corners "
-             "inside one part (an unfilleted horn step) are singular too: give the design fillet radii "
-             "(horn.flange_fillet, horn.step_fillet) for converged peaks there.", "",
+             "flange; sharp corners and creases: an unfilleted flange/horn edge or horn step, a slot's end or V apex, "
+             "a tooth's root) grow with mesh refinement: such a row is marked singular and its utilisation is that of "
+             "the peak off the edge. The horn's fillet radii (horn.flange_fillet, horn.step_fillet) make its "
+             "shoulders converge.", "",
              stress["markdown"], ""]
     if u.get("note"):
         lines += [f"Errors: {u['note']}.", ""]
