@@ -377,8 +377,10 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
     set_periodic(gmsh, vols, sectors)
     if coupler_refine != 1.0:
         sizes = {k: v * coupler_refine if k == "coupler" or k.startswith("@") else v for k, v in sizes.items()}
+    if meshing.slot_refine != 1.0 and "@slots" in sizes:
+        sizes = {**sizes, "@slots": sizes["@slots"] * meshing.slot_refine}
     apply_fields(gmsh, d, sizes, {"coupler": vols}, refine, grade=grade, revolve=True, region_faces=section,
-                 notch_fraction=meshing.notch_fraction)
+                 notch_fraction=meshing.notch_fraction, junction_fraction=meshing.junction_fraction)
     if coupler_refine != 1.0:
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", CURVATURE_ELEMENTS / (refine * coupler_refine))
     gmsh.option.setNumber("Mesh.Algorithm", 6)

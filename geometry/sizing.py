@@ -52,7 +52,7 @@ from .notches import add_notch_field
 __all__ = ["region_sizes", "mesh_layers", "feature_caps", "shear_wavelength", "graded_edges", "GradedEdge", "apply_fields",
            "REFINE_RANGE", "CURVATURE_ELEMENTS", "EDGE_FRACTION", "GROWTH", "MAJOR_STEP",
            "check_refine", "revolve_sizes", "REVOLVE_EDGE_FRACTION", "REVOLVE_GROWTH", "fillet_sizes",
-           "FILLET_ELEMENTS", "REVOLVE_FILLET_ELEMENTS"]
+           "FILLET_ELEMENTS", "REVOLVE_FILLET_ELEMENTS", "junction_edges", "JUNCTION_FRACTION", "JUNCTION_GROWTH"]
 
 REFINE_RANGE = (0.2, 5.0)
 """Accepted refinement factors: 0.2 is ~125x the default element count (far above any
@@ -99,6 +99,23 @@ edge 0.02 / growth 0.8 (the rule) +0.041 % / +0.044 % at 80k (112k); 0.01 / 0.7 
 The rule is the cheapest measured that keeps both within 0.045 %: ``python -m fem.modal`` on the
 default design then takes 0.88x the free 68.6k-DOF run with the earlier modal path
 (benchmarks/bench_modal_cli.py; 1.07x before the PARDISO settings of fem.solvers)."""
+
+JUNCTION_FRACTION = 0.2
+"""Default edge size (:func:`junction_edges`; the ``k = 0`` sector's rule,
+:data:`geometry.sector.AXIAL_RULE`, sets its own), in a swept (r, z) section, at a junction on the outer surface: a circle where
+two parts of different material or poling meet without a major step (the electrodes' outer
+edges between oppositely poled rings, the stack's ends on the coupler and on the flange), as a
+fraction of the smaller adjacent region size. The fields jump there (the piezoelectric constants
+change sign across an electrode), and the tip amplitude per volt converges slowly toward them
+while the frequencies hardly move. Measured on the default design without slots and teeth,
+sharp corners, sector path at refine 1 (working f_r / f_a / tip amplitude per volt against the
+converged (r, z) model, DOFs): not graded +0.019 / +0.022 / -0.080 %, 29.3k; 0.2 / growth 0.4
+(the rule) +0.015 / +0.019 / -0.041 %, 39.3k; 0.1 / 0.5 -0.041 %, 44.2k; 0.1 / 0.8 -0.049 %,
+40.8k; 0.05 / 0.8 -0.044 %, 47.9k; the inner edges too (0.05 / 0.8) -0.038 % at 60.6k: the
+outer ones carry most of it."""
+
+JUNCTION_GROWTH = 0.4
+"""Growth of the element size with the distance from a junction (:data:`JUNCTION_FRACTION`)."""
 
 RING_ELEMENTS = 1.0
 """Element size cap in a ring: its thickness divided by this."""
@@ -337,6 +354,27 @@ def graded_edges(design: DesignBase, sizes: dict[str, float], refine: float = 1.
     return [e for e in edges if (round(e.r, 9), round(e.z, 9)) not in corners]
 
 
+def junction_edges(design: DesignBase, sizes: dict[str, float], refine: float = 1.0,
+                   fraction: float = None) -> list[GradedEdge]:
+    """The junctions of a swept section's outer surface (:data:`JUNCTION_FRACTION`): between
+    consecutive slices that touch, belong to different regions and do not leave a major
+    re-entrant edge (those are :func:`graded_edges`'), the circle at the smaller outer radius,
+    sized ``fraction`` (default :data:`JUNCTION_FRACTION`) of the smaller adjacent region size.
+    ``sizes`` are :func:`region_sizes` at ``refine``; the growth is :data:`JUNCTION_GROWTH` x
+    ``refine`` (the size function scales with ``refine`` as a whole)."""
+    secs = _sections(design)
+    edges: list[GradedEdge] = []
+    for a, b in zip(secs, secs[1:]):
+        if a is None or b is None or abs(a.z1 - b.z0) > _TOL or a.region == b.region:
+            continue
+        r, big = min(a.r1, b.r0), max(a.r1, b.r0)
+        if 1 - r / big < MAJOR_STEP:
+            h_min = min(sizes[a.region], sizes[b.region])
+            frac = JUNCTION_FRACTION if fraction is None else fraction
+            edges.append(GradedEdge(a.z1, r, frac * h_min, JUNCTION_GROWTH * refine, (a.region, b.region)))
+    return edges
+
+
 FILLET_ELEMENTS = 2.0
 """Elements along a quarter turn of a fillet arc at ``refine = 1`` in the free mesh (size
 ``refine pi r / (2 FILLET_ELEMENTS)`` on the arc); a swept section, where the size costs only
@@ -368,7 +406,7 @@ def fillet_sizes(design: DesignBase, sizes: dict[str, float], refine: float = 1.
 def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols: dict[str, list[int]],
                  refine: float = 1.0, *, layers: dict[str, Layer] | None = None, grade: bool = False,
                  revolve: bool = False, region_faces: dict[str, list[int]] | None = None,
-                 notch_fraction: float | None = None) -> None:
+                 notch_fraction: float | None = None, junction_fraction: float | None = None) -> None:
     """Install the size fields and the size options of a synchronised Gmsh model.
 
     Parameters
@@ -395,6 +433,9 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
     notch_fraction : float, optional
         With ``grade``: the notch edges' size over the slot zone's (default
         :data:`geometry.notches.NOTCH_FRACTION`).
+    junction_fraction : float, optional
+        With ``revolve``: grade the section's outer junctions (:func:`junction_edges`) to this
+        fraction of the adjacent region size; None: not graded.
     """
     field = gmsh.model.mesh.field
     fields = []
@@ -419,7 +460,10 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
         fields.append(fid)
     if layers:
         fields += rim_fields(gmsh, layers, region_vols)
-    for e in (graded_edges(design, sizes, refine, revolve) if grade or revolve else []):
+    edges = graded_edges(design, sizes, refine, revolve) if grade or revolve else []
+    if revolve and junction_fraction is not None:
+        edges += junction_edges(design, sizes, refine, junction_fraction)
+    for e in edges:
         # exact distance to the circle (r, z): no sampling of the curve, no curve tags needed
         fid = field.add("MathEval")
         field.setString(fid, "F", f"{e.h_edge!r} + {e.growth!r} * Sqrt((Sqrt(x*x + y*y) - {e.r!r})^2 "

@@ -25,15 +25,15 @@ from rpud_common import ParameterError
 
 def test_guard_sizes_the_sector_that_runs():
     sharp = filleted(default_design(), 0.0)
-    # the calibration points (sharp horn corners): 80 162 DOFs at refine 1 and 259 000 at 0.6
+    # the calibration points (sharp horn corners): 78 233 DOFs at refine 1 and 252 683 at 0.6
     # (measured), within the rounding of the whole-drill estimate it scales (+-1 %)
-    assert sector_estimate(sharp, 6, refine=1.0).dofs == pytest.approx(80_162, rel=0.01)
-    assert sector_estimate(sharp, 6, refine=0.6).dofs == pytest.approx(259_000, rel=0.01)
+    assert sector_estimate(sharp, 6, refine=1.0).dofs == pytest.approx(78_233, rel=0.01)
+    assert sector_estimate(sharp, 6, refine=0.6).dofs == pytest.approx(252_683, rel=0.01)
     d = default_design()
-    # the fillet arcs' zones, a model not fitted to it (fillet_sector_dofs): 90 024 DOFs measured
+    # the fillet arcs' zones, a model not fitted to it (fillet_sector_dofs): 87 585 DOFs measured
     # (axial_sector at refine 1); the model's triangle density assumes equilateral triangles of
     # the local size and ~2 P2 nodes per triangle, each good to ~10 % on a frontal mesh
-    assert sector_estimate(d, 6, refine=1.0).dofs == pytest.approx(90_024, rel=0.10)
+    assert sector_estimate(d, 6, refine=1.0).dofs == pytest.approx(87_585, rel=0.10)
     assert fillet_sector_dofs(sharp, 6) == 0
     assert check_budget(d, refine=0.6, sectors=6, mesher="revolve").dofs < MAX_DOFS
     with pytest.raises(ParameterError, match="--refine"):
@@ -110,28 +110,71 @@ def test_modal_harmonic_and_library_give_one_resonance(tmp_path):
     assert fem.system_label(system).startswith("swept sector 1/6 (k = 0), refine 2")
 
 
-def test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it():
-    """The default design without slots and teeth on the default (sector) path, at --refine 1:
-    f_r and f_a within 0.05 % of the converged (r, z) model of tests/axisym_reference.py
-    (tests/test_discretisation_error.py: F_R, F_A, TIP_PER_VOLT, themselves within 0.036 % of a
-    coarse level that converges as h^3-h^4, so good to ~1e-5), and the two-level error estimated on
-    the same path (order 2) at least the true error of f_r, f_a and the horn-tip
-    amplitude per volt at f_r (Q 100, datasheet tan delta: the pipeline's losses). The tip
-    amplitude is -0.080 % off at --refine 1 (-0.057 % at 0.8, measured): the 0.05 % asked of it
-    is not met by the k = 0 rule; its stated error covers it."""
+VARIANT = {"horn.length": 0.072, "coupler.length": 0.045, "stack.outer_diameter": 0.038,
+           "coupler.outer_diameter": 0.038}
+"""A design of the default's kind with other lengths and diameters (and the default's 2 mm horn
+fillets), whose (r, z) answer is computed here rather than read from a constant."""
+
+
+def _axisym_limit(design):
+    """f_r, f_a and the horn-tip amplitude per volt (Q 100) of the (r, z) model of
+    tests/axisym_reference.py: three graded levels h = 2, 1.41, 1 mm, the Richardson limit of the
+    last three, and its error |limit - finest level| (the observed orders are 2-5 on these
+    designs, so the limit is nearer the answer than the finest level is)."""
+    import math
+
+    import axisym_reference as ar
+
+    sec = ar.section(design)
+    levels = []
+    for h in (2e-3, 2e-3 / math.sqrt(2), 1e-3):
+        model = ar.assemble(sec, h, 4e-3)
+        res = ar.modes(model, design.target_frequency, 3)
+        w = res.working
+        levels.append((res.f_r[w], res.f_a[w], ar.tip_per_volt(model, res.f_r[w], q_mech=100.0)))
+    out = {}
+    for i, q in enumerate(("f_r_hz", "f_a_hz", "tip_per_volt_m")):
+        _p, limit = ar.richardson([lev[i] for lev in levels], math.sqrt(2))
+        out[q] = (float(limit), abs(float(limit) - levels[-1][i]))
+    return out
+
+
+@pytest.mark.parametrize("kind", ["default", "variant"])
+def test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it(kind):
+    """Designs of the default's kind without slots and teeth on the default (sector) path at
+    --refine 1: f_r, f_a and the horn-tip amplitude per volt at f_r (Q 100, datasheet tan delta:
+    the pipeline's losses) within 0.05 % of the converged (r, z) model of
+    tests/axisym_reference.py, and the two-level error estimated on the same path (order 2) at
+    least the true error.
+
+    ``default``: the default design with sharp horn corners against F_R, F_A, TIP_PER_VOLT of
+    tests/test_discretisation_error.py (themselves within 0.036 % of a coarse level that
+    converges as h^3-h^4, so good to ~1e-5: the tolerance is 0.05 % less 1e-5). ``variant``:
+    :data:`VARIANT` with the default's fillets, its (r, z) limit computed here with its own error
+    (measured <= 4e-5), which the tolerance gives up. Measured (sector error; stated error):
+    default f_r +0.015 % (0.071 %), f_a +0.018 % (0.089 %), tip -0.041 % (0.28 %); variant
+    +0.009 % (0.026 %), +0.010 % (0.029 %), -0.017 % (0.062 %). Without the junction grading of
+    geometry.sector.AXIAL_RULE the default's tip was -0.080 % off."""
     import geometry
     from fem.convergence import working_mode_level
     from fem.errors import estimate
     from test_discretisation_error import F_A, F_R, TIP_PER_VOLT
 
     d = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    if kind == "default":
+        exact = {"f_r_hz": (F_R, 1e-5 * F_R), "f_a_hz": (F_A, 1e-5 * F_A),
+                 "tip_per_volt_m": (TIP_PER_VOLT, 1e-5 * TIP_PER_VOLT)}
+    else:
+        d = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, **VARIANT})
+        exact = _axisym_limit(d)
     fine = working_mode_level(d, 1.0, path="sector", q_mech=100.0)
     est = estimate(d, fine.values, fine.ndof, refine=1.0, q_mech=100.0, path="sector")
     assert est.order == 2.0
-    for q, exact in (("f_r_hz", F_R), ("f_a_hz", F_A), ("tip_per_volt_m", TIP_PER_VOLT)):
-        true = abs(fine.values[q] - exact)
-        assert q == "tip_per_volt_m" or true <= 5e-4 * exact, (q, fine.values[q], exact)
-        assert true <= est.error(q), (q, true, est.error(q))
+    for q, (value, ref_error) in exact.items():
+        assert ref_error <= 1e-4 * value, (q, ref_error)               # the reference is converged
+        true = abs(fine.values[q] - value)
+        assert true + ref_error <= 5e-4 * value, (q, fine.values[q], value)
+        assert true + ref_error <= est.error(q), (q, true, est.error(q))
 
 
 def test_energy_shares_of_the_swept_whole_drill_are_the_sectors():
