@@ -153,3 +153,30 @@ def test_whole_report_with_the_compliant_stage():
     text = "\n".join(report_lines(s))
     assert "Kinematic horn (comparison rows" in text and "## Compliant contacts" in text
     assert "**Comparison at 8 g**" in text and "**Headline (compliant contacts" in text
+
+
+def test_compliant_model_cannot_reach_the_article_rate(drill):
+    """benchmarks/calibrate_compliant.py finds no gap, tool f_n or launch speed with which the
+    compliant model gives the article's 520 Hz (8 g, first 50 ms, no spring, horn driven to 15 um).
+    Checked at the corner of that scan where the rate is highest (gap 1.5 mm, f_n 200 Hz, v0 8 m/s;
+    modes to 100 kHz, inside the cut-offs the stage found converged): the rate's upper 95 % bound
+    stays below 520 Hz minus the calibration test's allowance (10 Hz for "about 520" plus the 3 %
+    CI rule: 25.6 Hz, tests/test_impact_stats.py)."""
+    from impact.compliant_engine import compliant_batch
+    from impact.params import ImpactParams
+    from impact.stats import StatsSettings
+    from results.coupled import wideband_horn
+    from results.stage_compliant import contact_laws
+
+    design, system, modes, f = drill
+    horn, g, _ = wideband_horn(system, f, 100e3, 225.0, modes=modes)
+    horn = horn.with_(voltage=225.0 * 15e-6 / abs(horn.steady_tip(f)))
+    base = ImpactParams()
+    k0 = float(f"{base.m_tool * (2 * math.pi * 200.0) ** 2:.3g}")
+    case = base.with_(gap=1.5e-3, v0=8.0, k0=k0, c=float(f"{2 * base.tool_zeta * math.sqrt(k0 * base.m_tool):.3g}"),
+                      freq=f)
+    hl, tl, _ = contact_laws(design, 0.008, base.e2, base.e1, CompliantSettings())
+    r = compliant_batch([case], horn, horn_law=hl, tool_law=tl, horn_residual=g, scenario="article",
+                        settings=StatsSettings(n_start=64, n_max=64))[0]
+    e = r["tool_impact_rate_hz"]
+    assert e.mean + e.half_width < 520.0 - 25.6, (e.mean, e.half_width)
