@@ -141,3 +141,28 @@ def test_error_estimate_of_the_default_swept_mesh_covers_the_coupler_study():
         assert smallest > 0                                  # converging from above
         assert smallest <= est.error(key) <= 4 * largest, (key, est.error(key), smallest, largest)
     assert values["f_r_hz"] == pytest.approx(19915.19, abs=0.01)   # the mesh the study measured
+
+
+TEETH_STUDY = {1.4: 0.145355, 1.0: 0.150828, 0.8: 0.153228, 0.64: 0.154723}
+"""Teeth ellipse ratio of the filleted default design on the k = 0 sector path (Q 100, harmonic
+response on the modes + residual) at refine 1.4 / 1 / 0.8 / 0.64 (49.7k / 87.6k / 148.8k /
+254.0k DOFs), measured once. From 1 / 0.8 / 0.64: observed order 2.72, Richardson limit 0.15711;
+from 1.4 / 1 / 0.8 the order was 4.14: the order falls with refinement (the notch edges'
+singular rate takes over), so the limit is a lower bound of the answer, and the finest level is
+too (the ratio grows as the mesh is refined)."""
+
+
+def test_teeth_ellipse_ratio_estimate_on_the_sector_covers_the_finer_study():
+    """The stated error of the teeth ellipse ratio (two-level on the k = 0 sector, order 2) at
+    refine 1 against the refinement study of :data:`TEETH_STUDY`: at least the error to the
+    study's Richardson limit plus the limit's own error (|limit - finest level|, the size of
+    the last extrapolation step: 0.0063 + 0.0024), at most 4x it (measured 0.012: 7.9 % of the
+    value; the 5 % asked of it is not met at this cost)."""
+    d = geometry.default_design()
+    fine = working_mode_level(d, 1.0, path="sector", q_mech=100.0, harmonic_method="modal")
+    q = fine.values["teeth_ellipse_ratio"]
+    assert q == pytest.approx(TEETH_STUDY[1.0], abs=2e-6)            # the mesh the study measured
+    est = estimate(d, fine.values, fine.ndof, refine=1.0, q_mech=100.0, path="sector")
+    limit, finest = 0.15711, TEETH_STUDY[0.64]
+    largest = abs(limit - q) + abs(limit - finest)
+    assert largest <= est.error("teeth_ellipse_ratio") <= 4 * largest, (est.error("teeth_ellipse_ratio"), largest)
