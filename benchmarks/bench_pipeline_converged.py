@@ -129,7 +129,7 @@ def main():
     if not args.no_baseline:
         rows += baseline_rows(cpu)
     print_table(rows, ("run", "mesh", "DOFs", "working mode (± estimated error)", "wall", "CPU",
-                       "CPU vs the default (target >= 5x as accurate)", "stages (wall s)"))
+                       "CPU / the default's (target >= 5x at equal accuracy)", "stages (wall s)"))
     print_table(modal_rows(None if args.no_baseline else FREE_LEVELS[-1][0]),
                 ("command", "DOFs", "working f_r / f_a Hz", "wall", "CPU"))
     print(f"load average (1 min) at the start: {load:.1f}, at the end: {os.getloadavg()[0]:.1f}")
