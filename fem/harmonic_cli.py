@@ -326,13 +326,23 @@ def _run(args, design, system, surfaces, near: float, loss, band) -> int:
         from .stress_cli import coarse_hook
 
         hook = coarse_hook(args, design, wp)
-    est = (_error(args, design, modal, w, wp, system, near, loss, surfaces, extra=hook)
-           if args.error or auto or hook is not None else None)
+    run_est = args.error or auto or hook is not None
+    from .operating_errors import CoarseOperatingPoint, annotate_operating_point, operating_quantities
+    from .operating_errors import error_lines as operating_error_lines
+
+    fine = operating_quantities(system, wp, loss) if run_est and system.has_piezo else None
+    est = (_error(args, design, modal, w, wp, system, near, loss, surfaces,
+                  extra=CoarseOperatingPoint(loss, hook) if fine else hook) if run_est else None)
     stress = None
     if args.stress:
         from .stress_cli import run_stress
 
         stress = run_stress(args, system, basis, wp, band, est=est)
+    # the window's and the temperature's two-level errors (fem.operating_errors)
+    op = {"operating_point": {"thermal": thermal, "preload": (stress or {}).get("preload_window") or {}}}
+    annotate_operating_point(op, fine, est)
+    for line in operating_error_lines(op):
+        print(line)
     text = None
     if args.json:
         text = json_text({**_record(args, design, modal, w, f_w, wp, res, ring, system, est, stress),

@@ -107,6 +107,7 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
         for region, kind, z0, z1 in design.stack_layers():
             lengths[region] = z1 - z0
             radii[region] = s.outer_diameter / 2
+        lengths["bolt"], radii["bolt"] = s.length, s.bolt_diameter / 2
         for region, _part, _mat, vol in design.region_table():
             out.append((region, vol, lengths[region], radii[region]))
     elif isinstance(design, CadDesign):

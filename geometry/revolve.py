@@ -119,13 +119,15 @@ def section_outlines(d: RPUDDesign) -> list[tuple[str, str, str, object, tuple]]
     """(region, part, material, poling, outline) of the stack, flange and horn: (r, z) polygons
     (m), counter-clockwise, in the order of :func:`geometry.solids.make_rpud`; the flange's and
     the horn's with their fillet arcs (:func:`geometry.fillets.flange_horn_outlines`; a stepped or
-    conical horn)."""
+    conical horn). A bolt part is one outline per stack layer (one region): a plane across the
+    stack at an electrode (where the matching cuts the drill) then cuts no element of it."""
     s, f, h = d.stack, d.flange, d.horn
     ri, ro = s.inner_diameter / 2, s.outer_diameter / 2
     out = [(*meta, ((ri, z0), (ro, z0), (ro, z1), (ri, z1))) for *meta, z0, z1 in stack_regions(d)]
-    if s.bolt_diameter:
+    if s.bolt_diameter:        # one piece per stack layer: its faces meet every electrode plane
         rb = s.bolt_diameter / 2
-        out.append(("bolt", "bolt", s.bolt_material, None, ((0.0, 0.0), (rb, 0.0), (rb, s.length), (0.0, s.length))))
+        out += [("bolt", "bolt", s.bolt_material, None, ((0.0, z0), (rb, z0), (rb, z1), (0.0, z1)))
+                for _r, _kind, z0, z1 in d.stack_layers()]
     flange, horn = flange_horn_outlines(d)
     out.append(("flange_disc", "flange", f.material, None, flange))
     out.append(("horn", "horn", h.material, None, horn))

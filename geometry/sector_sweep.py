@@ -69,7 +69,9 @@ def sector_model(gmsh, d: RPUDDesign, sectors: int):
     _out, omap = occ.fragment(coupler + faces + _far_imprints(occ, d, sectors, outlines), [])
     occ.synchronize()
     vols = sorted({t for m in omap[:len(coupler)] for dim, t in m if dim == 3})
-    section = {o[0]: sorted(t for dim, t in m if dim == 2) for o, m in zip(outlines, omap[len(coupler):])}
+    section: dict[str, list[int]] = {}
+    for o, m in zip(outlines, omap[len(coupler):len(coupler) + len(outlines)]):     # a region of several faces
+        section[o[0]] = sorted(set(section.get(o[0], []) + [t for dim, t in m if dim == 2]))
     top = [f for f in boundary_surfaces(gmsh, vols) if planar_at(gmsh, f, "z", 0.0, 1e-6)]
     if len(top) != 1:      # pragma: no cover - check_sweepable keeps the coupler top one face
         raise ParameterError("design", d.name, f"the coupler's top face is {len(top)} faces")

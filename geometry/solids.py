@@ -169,8 +169,10 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None, sectors: int | Non
     # ---- stack
     for *meta, z0, z1 in stack_regions(d):
         pieces.append((*meta, _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)))
-    if s.bolt_diameter:
-        pieces.append(("bolt", "bolt", s.bolt_material, None, _annular_cylinder(occ, 0.0, s.length, s.bolt_diameter / 2, 0.0)))
+    if s.bolt_diameter:        # one cylinder per stack layer, as the swept section's (geometry.revolve)
+        pieces.append(("bolt", "bolt", s.bolt_material, None,
+                       [dt for _r, _k, z0, z1 in d.stack_layers()
+                        for dt in _annular_cylinder(occ, z0, z1 - z0, s.bolt_diameter / 2, 0.0)]))
     zf = s.length
     if d.fillets():
         pieces += _filleted_flange_horn(occ, d)

@@ -91,7 +91,7 @@ def parametric_model(gmsh, design: DesignBase, layers, revolve: int | None = Non
             k += 1
         if not vols:
             raise ParameterError("design", design.name, f"region {region} vanished when fragmenting")
-        region_vols[region] = sorted(set(vols))
+        region_vols[region] = sorted(set(region_vols.get(region, []) + vols))     # a region of several pieces
     claimed = [v for vs in region_vols.values() for v in vs]
     if len(claimed) != len(set(claimed)):
         raise ParameterError("design", design.name, "overlapping parts: two regions share a volume")

@@ -273,15 +273,18 @@ def summary_lines(s: dict) -> list[str]:
              f"{brk('A0_m', 1e6, 'um')} |",
              f"| input power, unloaded | {h['power_w']:.3g} W | {brk('power_w', 1, 'W')} |"]
     if pre.get("rings"):
-        hi_n = "-" if pre["p_max_n"] is None else f"{pre['p_max_n'] * 1e-3:.1f}"
-        vmax = "-" if pre["voltage_max_v"] is None else f"{pre['voltage_max_v']:.4g} V amplitude"
-        lines.append(f"| preload window (every ring) | {pre['p_min_n'] * 1e-3:.1f} .. {hi_n} kN, bolt "
+        hi_n = "-" if pre["p_max_n"] is None else _pm(pre["p_max_n"], pre.get("p_max_n_error"), "", 1e-3, ".1f").strip()
+        vmax = ("-" if pre["voltage_max_v"] is None else
+                _pm(pre["voltage_max_v"], pre.get("voltage_max_v_error"), "V amplitude", 1.0, ".4g"))
+        lines.append(f"| preload window (every ring; ± discretisation) | "
+                     f"{_pm(pre['p_min_n'], pre.get('p_min_n_error'), '', 1e-3, '.1f').strip()} .. {hi_n} kN, bolt "
                      f"{pre['preload_n'] * 1e-3:.1f} kN: {'inside' if pre['ok'] else 'NOT inside'} | largest drive "
                      f"with a window {vmax} |")
     t = th.get("temperature")
     if t:
         hr = " / ".join(f"{v:.0f} °C at h {k}" for k, v in th["final_c_h_range"].items())
-        lines.append(f"| temperature after {t['duration_s']:g} s (lumped mean) | {t['final_c']:.0f} °C | {hr} W/m²/K |")
+        lines.append(f"| temperature after {t['duration_s']:g} s (lumped mean) | "
+                     f"{_pm(t['final_c'], t.get('final_c_error'), '°C', 1.0, '.1f')} (discretisation) | {hr} W/m²/K |")
     lines.append(f"| tool kinetic energy (headline, {a0['reference_m_free_kg'] * 1e3:g} g) | "
                  f"{_ci(ke, 1e3)} mJ (95 % CI) | {brk('mean_tool_ke_after_j', 1e3, 'mJ') if lo else '-'} |")
     return lines + [""]

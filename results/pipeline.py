@@ -285,6 +285,7 @@ class _Run:
     operating: dict | None = None
     bolt: object = None
     preload: dict | None = None
+    op_fine: dict | None = None
     drilling: dict | None = None
     rotor: dict | None = None
     renders: list = field(default_factory=list)
@@ -326,9 +327,13 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     clock.took("total_s", clock.t_all)
     summary["timings"] = clock.timings
     from .errors import annotate_summary
+    from fem.operating_errors import annotate_operating_point, error_lines
     from .report import write_report
 
     annotate_summary(summary, run.est)
+    annotate_operating_point(summary, run.op_fine, run.est)
+    for line in error_lines(summary):
+        say(f"      {line}")
     # in the summary itself, not only in the file: the report and PipelineResult.summary show it too
     summary["provenance"] = provenance_record()
     write_json(run.out / "summary.json", summary)
@@ -412,6 +417,10 @@ def _response_beside_estimate(run: _Run, clock: _Clock) -> "_Lines":
 
     st, m, h = run.settings, run.matched, run.harm
     lines = _Lines()
+    from fem.operating_errors import CoarseOperatingPoint, operating_quantities
+
+    loss = st.losses().loss_model()
+    run.op_fine = operating_quantities(m.system, h.wp, loss)     # what the window and the heat scale with
 
     def response():
         run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
@@ -420,7 +429,8 @@ def _response_beside_estimate(run: _Run, clock: _Clock) -> "_Lines":
         job = pool.submit(response)
         t0 = time.perf_counter()          # one solve on a 1.4x coarser mesh: the error of every FE output
         run.est = estimate_stage(m.design, m.options, st, m.system, m.modal, m.w, h.wp, h.surfaces,
-                                 float(m.design.target_frequency), lines, extra=coarse_hook(h.wp.voltage, run.bolt))
+                                 float(m.design.target_frequency), lines,
+                                 extra=CoarseOperatingPoint(loss, coarse_hook(h.wp.voltage, run.bolt)))
         clock.took("discretisation_error_s", t0)
         job.result()
     return lines

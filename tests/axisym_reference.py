@@ -106,7 +106,12 @@ def _rpud_section(d: RPUDDesign) -> Section:
         raise ParameterError("coupler.n_slots/n_teeth", (c.n_slots, c.n_teeth),
                              "must both be 0: slots and teeth are not axisymmetric")
     bore = d.bore_diameter / 2
-    blocks = [_rect("coupler", c.material, 0, max(c.inner_diameter / 2, bore), c.outer_diameter / 2, -c.length, 0.0)]
+    rc, Rc = max(c.inner_diameter / 2, bore), c.outer_diameter / 2
+    blocks = [_rect("coupler", c.material, 0, rc, Rc, -c.length, 0.0)]
+    if d.bolt_thread is not None:       # the coupler's bore closed around the bolt's thread
+        zt = d.bolt_thread[0]
+        blocks = [Block("coupler", c.material, 0, ((rc, -c.length), (Rc, -c.length), (Rc, 0.0), (0.0, 0.0), (0.0, zt),
+                                                   (rc, zt)))]
     # the stack from z = 0: electrode planes 0..n alternate ground, hot, ...; with shims each
     # electrode is a copper shim whose two faces touch ceramic; a ring is poled along the field
     # of a positive hot electrode (from its hot face toward its ground face), so all expand together
@@ -156,7 +161,7 @@ def _rpud_section(d: RPUDDesign) -> Section:
             horn.append((Rt, z + l1))
         horn += [(Rt, z + L), (bore, z + L)]
         blocks.append(Block("horn", h.material, 0, tuple(horn), tuple(arcs)))
-        return Section(tuple(blocks), tuple(electrodes))
+        return Section(tuple(blocks + _bolt(d)), tuple(electrodes))
     blocks.append(_rect("flange", f.material, 0, bore, Rf, zf, z))
     if h.profile == "stepped":
         l1 = h.step_fraction * L
@@ -168,7 +173,14 @@ def _rpud_section(d: RPUDDesign) -> Section:
         rs = R0 * (R0 / Rt) ** (-sz / L)
         outline = ((bore, z), *zip(rs.tolist(), (z + sz).tolist()), (bore, z + L))
     blocks.append(Block("horn", h.material, 0, tuple(outline)))
-    return Section(tuple(blocks), tuple(electrodes))
+    return Section(tuple(blocks + _bolt(d)), tuple(electrodes))
+
+
+def _bolt(d: RPUDDesign) -> list:
+    """The stack bolt's block (none without a bolt part): a rod in the rings' bore from the
+    coupler's top to the flange, free along the rings."""
+    s = d.stack
+    return [_rect("bolt", s.bolt_material, 0, 0.0, s.bolt_diameter / 2, 0.0, s.length)] if s.bolt_diameter else []
 
 
 def _stack_section(d: StackDesign) -> Section:

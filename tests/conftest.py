@@ -37,6 +37,7 @@ SLOW: tuple[str, ...] = (
     "tests/test_bolt.py::test_bolt_tension_equals_the_stack_compression",
     "tests/test_bolt.py::test_bolt_is_bonded_at_both_ends_and_free_along_the_rings",
     "tests/test_bvd.py::test_harmonic_command_takes_its_losses_from_a_measured_sweep",
+    "tests/test_preload_errors.py::test_two_level_estimate_bounds_the_true_error_of_the_window_and_the_heat",
     "tests/test_preload_window.py",
     "tests/test_thermal.py::test_heat_is_input_minus_delivered_power",
     "tests/test_thermal.py::test_lumped_body_of_the_stack_from_its_materials",

@@ -233,7 +233,7 @@ def test_section_of_the_default_drill_reads_the_design(fillets):
     d = geometry.filleted(no_slots()) if fillets else no_slots()
     sec = ar.section(d)
     names = [b.name for b in sec.blocks]
-    assert names == ["coupler", "ring_1", "ring_2", "ring_3", "ring_4", "flange", "horn"]
+    assert names == ["coupler", "ring_1", "ring_2", "ring_3", "ring_4", "flange", "horn", "bolt"]
     # closed-form volumes of the design = Pappus volumes of the section's polygons
     vol = {}
     for b in sec.blocks:
@@ -259,6 +259,7 @@ def test_section_of_the_default_drill_reads_the_design(fillets):
     assert vol["coupler"] == pytest.approx(table["coupler"], rel=1e-12)
     assert vol["horn"] == pytest.approx(table["horn"], rel=1e-12)
     assert vol["flange"] == pytest.approx(table["flange_disc"], rel=1e-12)
+    assert vol["bolt"] == pytest.approx(table["bolt"], rel=1e-12)
     assert [b.poling for b in sec.blocks[1:5]] == [-1, 1, -1, 1]
     assert [e.role for e in sec.electrodes] == ["ground", "hot", "hot", "ground", "ground", "hot", "hot", "ground"]
     with pytest.raises(ParameterError):

@@ -121,7 +121,7 @@ def test_part_extents_and_electrode_planes():
 
 def test_morph_points_is_a_piecewise_linear_map():
     d = default_design()
-    new = d.replace({"horn.length": 0.09, "coupler.length": 0.036})
+    new = d.replace({"horn.length": 0.09, "coupler.length": 0.046})
     zs = np.array([[0, 0, z] for _, z in d.axial_breakpoints()])
     moved = d.morph_points(zs, new)
     assert moved[:, 2] == pytest.approx([z for _, z in new.axial_breakpoints()])
