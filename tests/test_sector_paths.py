@@ -160,12 +160,16 @@ def test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it(ki
     from fem.errors import estimate
     from test_discretisation_error import F_A, F_R, TIP_PER_VOLT
 
-    d = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    # without the bolt part: its bonded ends are re-entrant corners the sector rule does not grade
+    # (docs/theory/operating-point.md, the bolt's discretisation error)
+    d = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+                                                                    "stack.bolt_diameter": 0.0})
     if kind == "default":
         exact = {"f_r_hz": (F_R, 1e-5 * F_R), "f_a_hz": (F_A, 1e-5 * F_A),
                  "tip_per_volt_m": (TIP_PER_VOLT, 1e-5 * TIP_PER_VOLT)}
     else:
-        d = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, **VARIANT})
+        d = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.bolt_diameter": 0.0,
+                                               **VARIANT})
         exact = _axisym_limit(d)
     fine = working_mode_level(d, 1.0, path="sector", q_mech=100.0)
     est = estimate(d, fine.values, fine.ndof, refine=1.0, q_mech=100.0, path="sector")
