@@ -150,7 +150,9 @@ def _describe(rule) -> str:
     if m is None:
         return f"free, refine {refine:g}"
     return (f"swept parts at refine {refine:g}, layers <= {m.layer_deg:g} deg, coupler x{m.coupler_refine:g}"
-            + (f", notch edges graded to {m.notch_fraction:g} of the slot zone's size" if m.notch_fraction else ""))
+            + (f", slot zone x{m.slot_refine:g}" if m.slot_refine != 1.0 else "")
+            + (f", notch edges graded to {m.notch_fraction:g} of the slot zone's size" if m.notch_fraction else "")
+            + (f", outer junctions graded to {m.junction_fraction:g}" if m.junction_fraction else ""))
 
 
 def own_note(f_a, driven: bool) -> list[str]:
