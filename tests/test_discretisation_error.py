@@ -147,7 +147,7 @@ def test_error_estimate_of_the_default_swept_mesh_covers_the_coupler_study():
 
 
 TEETH_STUDY = {1.4: 0.145355, 1.0: 0.150828, 0.8: 0.153228, 0.64: 0.154723}
-"""Teeth ellipse ratio of the filleted default design on the k = 0 sector path (Q 100, harmonic
+"""Teeth ellipse ratio of the filleted default design without the bolt part on the k = 0 sector path (Q 100, harmonic
 response on the modes + residual) at refine 1.4 / 1 / 0.8 / 0.64 (49.7k / 87.6k / 148.8k /
 254.0k DOFs), measured once. From 1 / 0.8 / 0.64: observed order 2.72, Richardson limit 0.15711;
 from 1.4 / 1 / 0.8 the order was 4.14: the order falls with refinement (the notch edges'
