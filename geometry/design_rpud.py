@@ -633,6 +633,14 @@ class RPUDDesign(DesignBase):
             out["horn"] += revolved_volume(Outline((ff.corner, ff.mid, ff.end, *back), {1: ff.centre}))
         return out
 
+    def part_extents(self) -> dict[str, tuple[float, float]]:
+        """Axial extent ``(z0, z1)`` in m of every part; the bolt part shares the stack's zones
+        (it runs through the rings' bore from the flange to the coupler)."""
+        out = super().part_extents()
+        if self.stack.bolt_diameter:
+            out["bolt"] = (0.0, self.stack.length)
+        return out
+
     def region_table(self) -> list[tuple[str, str, str, float]]:
         s = self.stack
         thread = self.bolt_thread
