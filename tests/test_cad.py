@@ -30,8 +30,9 @@ def _default():
     """The default drill, with its 2 mm fillets: the horn's length stretches the two sections
     around the step fillet (one declared band spans both and the fillet between), and the flange
     fillet's metal is split between flange and horn along a slanted line (the flange part reaches
-    above the flange's face, to the arc's mid point)."""
-    return geometry.default_design()
+    above the flange's face, to the arc's mid point). Without the bolt part: the STEP export's
+    parametric layout has no bolt region."""
+    return geometry.default_design().replace({"stack.bolt_diameter": 0.0})
 
 
 @pytest.fixture(scope="module")
