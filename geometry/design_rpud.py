@@ -192,13 +192,15 @@ class StackRings:
         gap), its back end threaded into the coupler and its front end into the flange; both
         threads are modelled as bonded faces: its front face bonded to the flange's back face,
         its back face to the coupler's top face, whose bore is closed over the thread's length
-        :attr:`bolt_engagement` (the threaded hole, titanium in the model). Default 12 mm, an M12
+        :attr:`bolt_engagement` (the threaded hole, titanium in the model). 12 mm is an M12
         bolt: the largest metric coarse size that clears the rings' 15 mm bore (1.5 mm radial gap;
         M14 would leave 0.5 mm), and the bolt force of the default prestress (35.3 kN) stresses
         its 84.3 mm^2 stress area to 419 MPa, half the 830 MPa proof stress of a property class 10.9
-        bolt, the class Langevin stacks use. It is a part of the model by default because it
-        stiffens the working mode: +10.3 % on f_r of the default drill at fixed lengths
-        (docs/theory/operating-point.md).
+        bolt, the class Langevin stacks use. Default 0 (the bolt is its prestress only): the
+        M12 part stiffens the working mode (+10.3 % on f_r of the default drill at fixed
+        lengths), and the drill re-matched with it loses its rotary drive (teeth ellipse ratio
+        0.17 -> 0.007), so it needs a coupler designed with the bolt; see
+        docs/theory/operating-point.md.
     bolt_material : str
         Material of the bolt (default the library's steel).
     """
@@ -213,7 +215,7 @@ class StackRings:
     shim_thickness: float = 0.0003
     shim_material: str = "copper"
     bolt_prestress: float = 45e6
-    bolt_diameter: float = 0.012
+    bolt_diameter: float = 0.0
     bolt_material: str = "steel_45"
 
     def __post_init__(self):

@@ -280,6 +280,10 @@ def summary_lines(s: dict) -> list[str]:
                      f"{_pm(pre['p_min_n'], pre.get('p_min_n_error'), '', 1e-3, '.1f').strip()} .. {hi_n} kN, bolt "
                      f"{pre['preload_n'] * 1e-3:.1f} kN: {'inside' if pre['ok'] else 'NOT inside'} | largest drive "
                      f"with a window {vmax} |")
+    stack = s.get("design", {}).get("stack", {})
+    if "bolt_diameter" in stack and not stack["bolt_diameter"]:
+        lines.append("| stack bolt | its prestress only, no elastic part | model form: an M12 part bonded at "
+                     "the stack's faces raises f_r by up to 10.3 % at these lengths (docs: operating point) |")
     t = th.get("temperature")
     if t:
         hr = " / ".join(f"{v:.0f} °C at h {k}" for k, v in th["final_c_h_range"].items())

@@ -110,8 +110,9 @@ def test_part_extents_and_electrode_planes():
     assert ext["coupler"] == (-d.coupler.length, 0.0)
     assert ext["stack"] == pytest.approx((0.0, 4 * 0.005))
     assert ext["horn"][1] == pytest.approx(0.02 + d.flange.thickness + d.horn.length)
-    assert ext["bolt"] == pytest.approx((0.0, d.stack.length))     # through the rings' bore
-    assert "bolt" not in d.replace({"stack.bolt_diameter": 0.0}).part_extents()
+    assert "bolt" not in ext
+    bolted = d.replace({"stack.bolt_diameter": 0.012}).part_extents()
+    assert bolted["bolt"] == pytest.approx((0.0, d.stack.length))     # through the rings' bore
     planes = d.electrode_planes()
     assert [p[0][1] for p in planes.values()] == pytest.approx([0.0, 0.005, 0.01, 0.015, 0.02])
     assert d.electrode_roles() == {"electrode_0": "ground", "electrode_1": "hot", "electrode_2": "ground",
