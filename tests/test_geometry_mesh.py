@@ -84,7 +84,7 @@ def test_default_groups_regions_and_electrodes(default_build):
     tm, rep = default_build
     d = default_design()
     names = {r.name: r for r in tm.regions}
-    assert set(names) == {"coupler", "ring_1", "ring_2", "ring_3", "ring_4", "bolt", "flange_disc", "horn"}
+    assert set(names) == {"coupler", "ring_1", "ring_2", "ring_3", "ring_4", "flange_disc", "horn"}
     for k in range(1, 5):
         r = names[f"ring_{k}"]
         assert (r.part, r.material) == ("stack", "PZT-8")
