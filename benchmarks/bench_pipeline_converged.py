@@ -3,7 +3,7 @@ side by side in one run: ``python -m results`` (what ``make run`` does) and ``py
 
 Equal accuracy
 --------------
-The default path solves the ``k = 0`` swept sector (90 024 DOFs at refine 1); its working mode on
+The default path solves the ``k = 0`` swept sector (87 585 DOFs at refine 1); its working mode on
 the default design is within its stated error (about 10 Hz, 0.05 %) of the converged value. The
 baseline is the whole drill meshed freely and graded toward the re-entrant edges. Its accuracy
 was measured once, on the default design as it is (no matching), with ``python -m fem.modal
