@@ -37,6 +37,7 @@ import numpy as np
 from rpud_common import ParameterError
 from rpud_common.result import Result
 
+from .convergence import two_level_error
 from .stress import (StressField, StressRecovery, efield_cycle_peak, principal_cycle_extremes,
                      principal_values, quadratic_peak, vm_cycle_peak)
 
@@ -528,7 +529,7 @@ def converged_table(coarse: StressTable, fine: StressTable, ratio: float, order:
             rows.append(r)
             continue
         head_c = c.value_off_edges if r.singular and c.value_off_edges is not None else c.value
-        est = abs(r.headline - head_c) / (ratio ** order - 1.0)
+        est = two_level_error(r.headline, head_c, ratio, order)
         rows.append(dataclasses.replace(r, error_estimate=float(est)))
     note = (f"error estimates: two meshes (element sizes {ratio:g}:1), Richardson at order {order:g}"
             + (f"; {fine.note}" if fine.note else ""))
