@@ -38,7 +38,7 @@ from .modal import BLOCK_MIN, frequency_hz, own_anti_resonance
 from .solvers import blas_threads, factorize
 
 __all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "multiplicity", "nearest_modes",
-           "harmonic_shares", "harmonic_labels", "expand"]
+           "harmonic_shares", "harmonic_labels", "expand", "sector_images"]
 
 log = logging.getLogger(__name__)
 
@@ -397,14 +397,15 @@ def harmonic_labels(shares: np.ndarray, harmonic: int, coupled: float = 0.15) ->
     return out
 
 
-def expand(system: PiezoSystem, x: np.ndarray, harmonic: int, sectors: int, nodes: np.ndarray) -> np.ndarray:
-    """The whole drill's displacement ``(n, len(nodes), 3)`` (complex) at ``nodes`` (m; e.g. the
-    P2 nodes of :func:`geometry.sector.replicate`'s mesh) from sector vectors ``x``: node
-    ``p`` in copy ``s`` (``theta`` in ``[s alpha, (s+1) alpha]``) moves as
-    ``exp(i k s alpha) R(s alpha) u(R(-s alpha) p)``. Its real and imaginary parts are the two
-    members of a pair (``k > 0``)."""
+def sector_images(sector_nodes: np.ndarray, nodes: np.ndarray, sectors: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(copy, j)``: for each of ``nodes`` (m; e.g. the P2 nodes of
+    :func:`geometry.sector.replicate`'s mesh) the sector copy ``s`` it lies in (``theta`` in
+    ``[s alpha, (s+1) alpha]``, 0 on the axis) and the index ``j`` into ``sector_nodes`` (the
+    sector's nodes) of its image rotated back by ``-s alpha``. A node with no image within
+    1e-7 of the mesh's extent raises a ParameterError."""
     from scipy.spatial import cKDTree
 
+    nodes = np.asarray(nodes, float)
     alpha = 2 * math.pi / sectors
     theta = np.mod(np.arctan2(nodes[:, 1], nodes[:, 0]), 2 * math.pi)
     copy = np.minimum(np.floor(theta / alpha + 1e-9).astype(np.int64), sectors - 1)
@@ -413,9 +414,20 @@ def expand(system: PiezoSystem, x: np.ndarray, harmonic: int, sectors: int, node
     for s in range(sectors):
         m = copy == s
         back[m] = nodes[m] @ rotation(s * alpha)        # rotated by -s alpha
-    dist, j = cKDTree(system.nodes).query(back)
+    dist, j = cKDTree(sector_nodes).query(back)
     if dist.max() > 1e-7 * max(float(np.ptp(nodes, axis=0).max()), 1e-3):
         raise ParameterError("nodes", f"{dist.max():.3g} m from the sector's", "must be the replicated mesh's nodes")
+    return copy, j
+
+
+def expand(system: PiezoSystem, x: np.ndarray, harmonic: int, sectors: int, nodes: np.ndarray) -> np.ndarray:
+    """The whole drill's displacement ``(n, len(nodes), 3)`` (complex) at ``nodes`` (m; e.g. the
+    P2 nodes of :func:`geometry.sector.replicate`'s mesh) from sector vectors ``x``: node
+    ``p`` in copy ``s`` (``theta`` in ``[s alpha, (s+1) alpha]``) moves as
+    ``exp(i k s alpha) R(s alpha) u(R(-s alpha) p)``. Its real and imaginary parts are the two
+    members of a pair (``k > 0``)."""
+    alpha = 2 * math.pi / sectors
+    copy, j = sector_images(system.nodes, nodes, sectors)
     u = x[: system.n_u].T.reshape(x.shape[1], system.n_nodes, 3)[:, j]          # (n, P, 3)
     out = np.empty(u.shape, dtype=complex)
     for s in range(sectors):

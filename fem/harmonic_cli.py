@@ -175,17 +175,15 @@ def _parse_band(text: str) -> tuple[float, float]:
 
 def resolve_path(args, design) -> str:
     """The FE path of ``--path`` for ``design`` (:func:`fem.sector_system.check_path`): ``auto``
-    is the sector where the design can be swept and ``--mesher`` is auto, and no stress table is
-    asked (its recovery runs on the whole drill); refused where the design cannot take it."""
+    is the sector where the design can be swept and ``--mesher`` is auto (the stress table
+    included: the pipeline's path); refused where the design cannot take it."""
     from .sector_system import check_path, default_path
 
     if args.path == "auto":
-        whole = getattr(args, "mesher", "auto") != "auto" or getattr(args, "stress", None)
+        whole = getattr(args, "mesher", "auto") != "auto"
         return "whole" if whole else default_path(design)
     if args.path == "sector" and getattr(args, "mesher", "auto") != "auto":
         raise ParameterError("--mesher", args.mesher, "applies to the whole drill (--path whole); the sector has its rule")
-    if args.path == "sector" and getattr(args, "stress", None):
-        raise ParameterError("--stress", args.stress, "runs on the whole drill: use --path whole")
     return check_path(design, args.path)
 
 
@@ -337,7 +335,7 @@ def _run(args, design, system, surfaces, near: float, loss, band) -> int:
     if args.stress:
         from .stress_cli import run_stress
 
-        stress = run_stress(args, system, basis, wp, band, est=est)
+        stress = run_stress(args, system, basis, wp, band, est=est, mesh=_mesh_label(args, design, args.fe_path))
     # the window's and the temperature's two-level errors (fem.operating_errors)
     op = {"operating_point": {"thermal": thermal, "preload": (stress or {}).get("preload_window") or {}}}
     annotate_operating_point(op, fine, est)

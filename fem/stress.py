@@ -253,11 +253,17 @@ class StressField:
     strain: np.ndarray
     efield: np.ndarray
     dfield: np.ndarray
+    periodic: object = field(default=None, repr=False)
     _averages: dict = field(default_factory=dict, repr=False)
 
     def nodal_average(self, name: str = "stress") -> np.ndarray:
         """``name`` ("stress", "efield"...) averaged over the cells of each region that share a
-        node, returned at every element node (same shape as the field; computed once)."""
+        node, returned at every element node (same shape as the field; computed once).
+
+        On a ``k = 0`` sector (``periodic``: its :class:`geometry.sector.SectorPairs`) a node
+        on a cut face or on the axis is shared with the neighbouring sectors: its average takes
+        their cells too, as the sector's own cells rotated (:func:`periodic_sums`), so that the
+        recovered field is the whole drill's."""
         if name in self._averages:
             return self._averages[name]
         v = getattr(self, name)
@@ -267,16 +273,54 @@ class StressField:
             sel = self.region == r
             keys = self.nodes[sel].ravel()
             vals = v[sel].reshape(-1, v.shape[-1])
-            count = np.bincount(keys, minlength=n)
+            count = np.bincount(keys, minlength=n).astype(float)
             avg = np.zeros((n, v.shape[-1]), dtype=v.dtype)
             for c in range(v.shape[-1]):
                 avg[:, c] = np.bincount(keys, weights=vals[:, c].real, minlength=n)
                 if np.iscomplexobj(v):
                     avg[:, c] = avg[:, c] + 1j * np.bincount(keys, weights=vals[:, c].imag, minlength=n)
+            if self.periodic is not None:
+                avg, count = periodic_sums(avg, count, self.periodic)
             avg /= np.maximum(count, 1)[:, None]
             out[sel] = avg[self.nodes[sel]]
         self._averages[name] = out
         return out
+
+
+def _rotate(v: np.ndarray, angle: float) -> np.ndarray:
+    """Rows ``v`` (..., 6) Voigt tensors or (..., 3) vectors turned by ``angle`` (rad) about z."""
+    from geometry.sector import rotation
+
+    R = rotation(angle)
+    if v.shape[-1] == 3:
+        return v @ R.T
+    i, j = (0, 1, 2, 1, 0, 0), (0, 1, 2, 2, 2, 1)
+    T = np.zeros(v.shape[:-1] + (3, 3), dtype=v.dtype)
+    for k, (a, b) in enumerate(zip(i, j)):
+        T[..., a, b] = T[..., b, a] = v[..., k]
+    T = np.einsum("ab,...bc,dc->...ad", R, T, R)
+    return np.stack([T[..., a, b] for a, b in zip(i, j)], axis=-1)
+
+
+def periodic_sums(sums: np.ndarray, count: np.ndarray, pairs) -> tuple[np.ndarray, np.ndarray]:
+    """Per-node sums (n, c) and counts (n,) of one region on a ``k = 0`` sector completed with
+    the cells of the neighbouring sectors (``pairs``: :class:`geometry.sector.SectorPairs`).
+
+    A near cut-face node is the far node of the sector before, turned by ``-alpha``: its cells
+    add the far node's sums turned back; the far node holds the near node's result turned by
+    ``alpha``. An axis node is shared by all ``N`` copies: the mean of its sums turned by
+    ``s alpha``. A field of harmonic ``k = 0`` makes this the whole drill's nodal average."""
+    n_sec = int(pairs.sectors)
+    alpha = 2 * np.pi / n_sec
+    sums, count = sums.copy(), count.copy()
+    near, far = pairs.near, pairs.far
+    joined = sums[near] + _rotate(sums[far], -alpha)
+    sums[near], sums[far] = joined, _rotate(joined, alpha)
+    count[near] = count[far] = count[near] + count[far]
+    ax = pairs.axis
+    if len(ax):
+        sums[ax] = np.mean([_rotate(sums[ax], s * alpha) for s in range(n_sec)], axis=0)
+    return sums, count
 
 
 class StressRecovery:
@@ -310,6 +354,11 @@ class StressRecovery:
         self.cells = np.concatenate([ch[1] for ch in self._chunks])
         self.region = np.concatenate([np.full(len(ch[1]), ch[0]) for ch in self._chunks])
         self.points = system.nodes[self.nodes]
+        self.periodic = None
+        if getattr(system, "sectors", 0) and getattr(system, "tie", None) is not None:
+            from geometry.sector import sector_pairs
+
+            self.periodic = sector_pairs(system.nodes, int(system.sectors))
 
     def field(self, x: np.ndarray) -> StressField:
         """Stress, strain, E and D of the solution ``x`` (real or complex, full length)."""
@@ -341,4 +390,5 @@ class StressRecovery:
                 efield[sl] = E
                 dfield[sl] = S @ rd.e.T + E @ rd.eps.T
             stress[sl], strain[sl] = T, S
-        return StressField(sysm, self.cells, self.nodes, self.points, self.region, stress, strain, efield, dfield)
+        return StressField(sysm, self.cells, self.nodes, self.points, self.region, stress, strain, efield, dfield,
+                           self.periodic)

@@ -69,71 +69,78 @@ def coarse_hook(args, design, wp):
     return CoarseTable(float(wp.voltage), float(args.preload))
 
 
-def run_stress(args, system, basis, wp, band, near_label: str = "", est=None) -> dict:
+def run_stress(args, system, basis, wp, band, est=None, mesh: str | None = None) -> dict:
     """Compute, print and write the stress results; returns their JSON record. ``est``: the
     discretisation-error estimate run with :func:`coarse_hook` (its coarse table gives every
-    row a two-mesh estimate; None: the single-mesh one, said in the note)."""
-    from rpud_common import atomic_write_text, json_text, save_figure, subplots
+    row a two-mesh estimate; None: the single-mesh one, said in the note); ``mesh``: the mesh
+    that ran, in words (printed and written). The table is :func:`fem.stress_state.working_point_stress`'s,
+    the pipeline's; the files show the whole drill."""
+    from rpud_common import atomic_write_text, json_text
 
-    from .preload import preload_solve
-    from .stress import StressRecovery
-    from .stress_converged import with_error
-    from .stress_output import node_fields, peak_title, render_stress, write_stress_vtu
-    from .stress_table import QUANTITIES, stress_sweep, stress_table
+    from .preload import preload_solve, preload_windows, window_lines
+    from .stress_state import working_point_stress
 
     out = Path(args.stress)
-    rec = StressRecovery(system)
-    static, pre = None, None
-    if args.preload > 0:
-        pre = preload_solve(system, args.preload)
-        static = pre.field(rec)
-    from .preload import preload_windows, window_lines
-
-    win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, args.preload, recovery=rec, unit_state=pre)
-    dyn = rec.field(wp.x)
-    table = with_error(stress_table(dyn, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=args.preload), est)
+    pre = preload_solve(system, args.preload) if args.preload > 0 else None
+    res = working_point_stress(system, wp, pre, est, mesh)
+    win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, args.preload, recovery=res.recovery,
+                          unit_state=pre)
+    table = res.table
     state = f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz" + (f" + bolt preload {args.preload:g} N on "
                                                            f"{pre.faces[0]}/{pre.faces[1]}" if pre else "")
-    print(f"stress, peaks over one cycle ({state}) (rows marked * peak on a singular edge: their utilisation is "
-          "the off-edge peak's)")
+    print(f"stress, peaks over one cycle ({state}; mesh: {res.mesh}) (rows marked * peak on a singular edge: "
+          "their utilisation is the off-edge peak's)")
     print(table.text())
     print(table.note)
     print(f"preload window per ring at {wp.voltage:.4g} V amplitude (least preload keeping the ring's mean stress "
           "compressive over the cycle .. most within the rated compressive stress):")
     print("\n".join(window_lines(win)))
-    sweep = None
-    if args.stress_points:
-        # the band's grid and the working frequency (a coarse grid may straddle the resonance)
-        freqs = np.union1d(np.linspace(band[0], band[1], args.stress_points), [wp.freq_hz])
-        sweep = stress_sweep(system, basis, freqs, wp.voltage, static=static, preload_n=args.preload, recovery=rec)
-        worst = sweep.worst_utilisation()
-        if worst is not None:
-            print(f"along the band ({len(freqs)} frequencies, {band[0]:.0f}-{band[1]:.0f} Hz): highest "
-                  f"utilisation {100 * worst[2]:.1f} % ({worst[0]}) at {worst[1]:.1f} Hz")
-    fields = node_fields(dyn, static)
+    sweep = _band_sweep(args, system, basis, wp, band, res) if args.stress_points else None
     out.mkdir(exist_ok=True)
-    w = table.worst()
-    title, mark = peak_title(state, table)
-    render_stress(system, fields["von_mises"], out / "stress.png", title=title, mark=mark)
-    write_stress_vtu(system, fields, out / "stress.vtu")
+    res.write_files(out / "stress.png", out / "stress.vtu", state)
     if sweep is not None:
-        _fig, ax = subplots(1, 1, figsize=(7, 4))
-        for (region, q), vals in sweep.peaks.items():
-            lim = sweep.limits.get((region, q))
-            if lim is None or q == "efield":
-                continue
-            v = -vals if q == "principal_min" else vals
-            ax.plot(sweep.freqs_hz / 1e3, 100 * np.maximum(v, 0) / lim, label=f"{region} {QUANTITIES[q][0]}")
-        ax.set_xlabel("frequency (kHz)")
-        ax.set_ylabel("utilisation (%)")
-        ax.set_title(f"stress peaks along the band at {wp.voltage:g} V")
-        ax.grid(True, alpha=0.3)
-        if ax.get_legend_handles_labels()[0]:
-            ax.legend(fontsize=7)
-        save_figure(ax, out / "stress_sweep.png")
-    data = {"working_point": table.to_dict(), "sweep": sweep.to_dict() if sweep is not None else None,
+        _sweep_figure(sweep, wp.voltage, out / "stress_sweep.png")
+    w = table.worst()
+    data = {"mesh": res.mesh, "working_point": table.to_dict(), "sweep": sweep.to_dict() if sweep is not None else None,
             "preload": None if pre is None else {"force_n": pre.force_n, "faces": list(pre.faces),
                                                  "areas_m2": list(pre.areas_m2)},
             "worst": None if w is None else w.record(), "preload_window": win.record()}
     atomic_write_text(out / "stress.json", json_text(data, nonfinite="null"))
     return data
+
+
+def _band_sweep(args, system, basis, wp, band, res):
+    """The table's headlines along the band's grid and the working frequency (a coarse grid
+    may straddle the resonance), printed: their highest utilisation."""
+    from .stress_table import stress_sweep
+
+    freqs = np.union1d(np.linspace(band[0], band[1], args.stress_points), [wp.freq_hz])
+    sweep = stress_sweep(system, basis, freqs, wp.voltage, static=res.static, preload_n=res.preload_n,
+                         recovery=res.recovery)
+    worst = sweep.worst_utilisation()
+    if worst is not None:
+        print(f"along the band ({len(freqs)} frequencies, {band[0]:.0f}-{band[1]:.0f} Hz): highest "
+              f"utilisation {100 * worst[2]:.1f} % ({worst[0]}) at {worst[1]:.1f} Hz")
+    return sweep
+
+
+def _sweep_figure(sweep, voltage: float, path: Path) -> None:
+    """Utilisation of each rated stress row along the band (PNG)."""
+    from rpud_common import save_figure, subplots
+
+    from .stress_table import QUANTITIES
+
+    _fig, ax = subplots(1, 1, figsize=(7, 4))
+    for (region, q), vals in sweep.peaks.items():
+        lim = sweep.limits.get((region, q))
+        if lim is None or q == "efield":
+            continue
+        v = -vals if q == "principal_min" else vals
+        ax.plot(sweep.freqs_hz / 1e3, 100 * np.maximum(v, 0) / lim, label=f"{region} {QUANTITIES[q][0]}")
+    ax.set_xlabel("frequency (kHz)")
+    ax.set_ylabel("utilisation (%)")
+    ax.set_title(f"stress peaks along the band at {voltage:g} V")
+    ax.grid(True, alpha=0.3)
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(fontsize=7)
+    save_figure(ax, path)

@@ -22,22 +22,11 @@ from dataclasses import dataclass
 
 from .stress_table import StressTable, converged_table, stress_table
 
-__all__ = ["field_state", "CoarseTable", "with_error", "ZZ_NOTE"]
+__all__ = ["CoarseTable", "with_error", "ZZ_NOTE"]
 
 ZZ_NOTE = ("error estimates: recovered minus raw element values near each peak (no coarser mesh ran: "
            "a single-mesh indicator, not a two-mesh estimate)")
 """The note of a table whose rows keep the single-mesh estimate."""
-
-
-def field_state(system, x):
-    """``(system, x)`` whose solution is a field on a mesh: on a
-    :class:`fem.sector_system.SectorSystem` the sector's own system and the sector's field of the
-    ``k = 0`` solution ``x`` (:meth:`~fem.sector_system.SectorSystem.complete`), else both as given."""
-    from .sector_system import SectorSystem
-
-    if isinstance(system, SectorSystem):
-        return system.sector, system.complete(x)
-    return system, x
 
 
 @dataclass(frozen=True)
@@ -53,15 +42,13 @@ class CoarseTable:
     def __call__(self, system, wp) -> dict:
         from .stress import StressRecovery
 
-        fsys, x = field_state(system, wp.x * self.voltage)
-        rec = StressRecovery(fsys)
+        rec = StressRecovery(system)         # on a k = 0 sector: the whole drill's recovered field
         static = None
         if self.preload_n > 0:
             from .preload import preload_solve
 
-            pre = preload_solve(system, self.preload_n)
-            static = dataclasses.replace(pre, x=field_state(system, pre.x)[1]).field(rec)
-        table = stress_table(rec.field(x), static, freq_hz=float(wp.freq_hz), voltage=self.voltage,
+            static = preload_solve(system, self.preload_n).field(rec)
+        table = stress_table(rec.field(wp.x * self.voltage), static, freq_hz=float(wp.freq_hz), voltage=self.voltage,
                              preload_n=self.preload_n)
         return {"stress": table}
 

@@ -18,7 +18,7 @@ from rpud_common import ParameterError, atomic_output
 
 from .stress import StressField, efield_cycle_peak, principal_cycle_extremes, vm_cycle_peak
 
-__all__ = ["node_fields", "write_stress_vtu", "render_stress", "peak_title", "FIELDS"]
+__all__ = ["node_fields", "whole_drill_fields", "write_stress_vtu", "render_stress", "peak_title", "FIELDS"]
 
 FIELDS = ("von_mises", "principal_max", "principal_min", "efield")
 
@@ -56,22 +56,44 @@ def node_fields(dynamic: StressField | None, static: StressField | None = None) 
     return out
 
 
-def write_stress_vtu(system, fields: dict[str, np.ndarray], path) -> Path:
-    """Write the node fields (``{name: (n_nodes,)}``, SI) on the quadratic mesh to a VTU
-    (atomic); cell data ``region`` and ``part`` as in :func:`fem.render.write_modes_vtu`."""
+def whole_drill_fields(system, fields: dict[str, np.ndarray]) -> tuple:
+    """``(mesh, fields)`` to draw and write: on a :class:`fem.sector_system.SectorSystem` the
+    whole drill replicated from the sector (:meth:`~fem.sector_system.SectorSystem.whole_mesh`,
+    a P2 mesh) with each node's value that of its image in the sector (the node fields are
+    invariants of a ``k = 0`` state: every sector carries the same values); else ``system`` and
+    ``fields`` as given."""
+    from .cyclic import sector_images
+    from .modeshape import p2_nodes
+    from .sector_system import SectorSystem
+
+    if not isinstance(system, SectorSystem):
+        return system, fields
+    whole, _ = system.whole_mesh()
+    _, j = sector_images(system.nodes, p2_nodes(whole), system.sectors)
+    return whole, {k: np.asarray(v)[j] for k, v in fields.items()}
+
+
+def write_stress_vtu(mesh, fields: dict[str, np.ndarray], path) -> Path:
+    """Write the node fields (``{name: (n_nodes,)}``, SI) of ``mesh`` (a system, on its own
+    order, or a quadratic :class:`geometry.mesh.TaggedMesh`) to a VTU (atomic); cell data
+    ``region`` and ``part`` as in :func:`fem.render.write_modes_vtu`."""
     import meshio
+
+    from .modeshape import mesh_context
 
     path = Path(path)
     if path.suffix.lower() != ".vtu":
         raise ParameterError("path", str(path), "must end in .vtu")
-    mesh = system.mesh
+    ctx = mesh_context(mesh)
+    n = len(ctx.nodes)
     for name, v in fields.items():
-        if np.shape(v) != (system.n_nodes,):
-            raise ParameterError(f"fields.{name}", np.shape(v), f"must be ({system.n_nodes},) node values")
-    cells = np.asarray(system.basis.element_dofs.T, dtype=np.int64)
+        if np.shape(v) != (n,):
+            raise ParameterError(f"fields.{name}", np.shape(v), f"must be ({n},) node values")
+    mesh = ctx.mesh
+    cells = np.asarray(ctx.basis.element_dofs.T, dtype=np.int64)
     cell_type = "tetra10" if cells.shape[1] == 10 else "tetra"
     part_of_region = np.array([mesh.parts.index(r.part) for r in mesh.regions], dtype=np.int64)
-    out = meshio.Mesh(np.asarray(system.nodes, float), [(cell_type, cells)],
+    out = meshio.Mesh(np.asarray(ctx.nodes, float), [(cell_type, cells)],
                       point_data={f"{k}_{'V_per_m' if k == 'efield' else 'Pa'}": np.ascontiguousarray(v, float)
                                   for k, v in fields.items()},
                       cell_data={"region": [mesh.cell_region.astype(np.int64)],
@@ -91,24 +113,27 @@ def peak_title(state: str, table) -> tuple[str, tuple | None]:
             "(red dot; may lie on the far side)", top.location)
 
 
-def render_stress(system, values: np.ndarray, path, *, title: str = "", label: str = "von Mises peak (MPa)",
+def render_stress(mesh, values: np.ndarray, path, *, title: str = "", label: str = "von Mises peak (MPa)",
                   scale: float = 1e-6, mark=None, window_size=(1200, 800), axis_dir=(0.0, 0.0, 1.0)) -> Path:
-    """Off-screen PNG of the undeformed surface coloured by ``values`` (n_nodes,) x ``scale``.
+    """Off-screen PNG of the undeformed surface of ``mesh`` (a system or a quadratic
+    :class:`geometry.mesh.TaggedMesh`) coloured by ``values`` (n_nodes,) x ``scale``.
 
     ``mark``: a point (3,) m drawn as a red dot (the peak's location).
     """
     from geometry.render import offscreen_plotter
 
+    from .modeshape import mesh_context
     from .render import check_window_size, screenshot, render_surface, add_triad
 
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise ParameterError("path", str(path), "must end in .png")
+    ctx = mesh_context(mesh)
     v = np.asarray(values, float)
-    if v.shape != (system.n_nodes,) or not np.all(np.isfinite(v)):
-        raise ParameterError("values", v.shape, f"must be ({system.n_nodes},) finite node values")
+    if v.shape != (len(ctx.nodes),) or not np.all(np.isfinite(v)):
+        raise ParameterError("values", v.shape, f"must be ({len(ctx.nodes)},) finite node values")
     w, h = check_window_size(window_size)
-    s = render_surface(system.mesh)
+    s = render_surface(ctx.mesh)
     surf = s.surf.copy()
     surf.point_data["value"] = v[s.ids] * scale
     pl = offscreen_plotter((w, h))

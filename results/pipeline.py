@@ -41,7 +41,6 @@ FE solvers never reaches it. MKL runs in its conditional-reproducibility mode as
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 import time
 from dataclasses import dataclass, field
@@ -372,8 +371,8 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
         f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
     estimated.replay(say)
-    run.stress = stress_stage(*_field_system(m.system, h.wp), run.out, render=st.render, say=say, coarse=run.est,
-                              preload=_field_state(m.system, run.bolt))    # own timing
+    run.stress = stress_stage(m.system, h.wp, run.out, render=st.render, say=say, coarse=run.est,
+                              preload=run.bolt, mesh=m.options.label(m.design))    # own timing
     t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
     from .rotor_stage import pipeline_rotor_stage
 
@@ -434,27 +433,6 @@ def _response_beside_estimate(run: _Run, clock: _Clock) -> "_Lines":
         clock.took("discretisation_error_s", t0)
         job.result()
     return lines
-
-
-def _field_state(system, state):
-    """A static state (:class:`fem.preload.PreloadState`) as a field on the mesh (the sector's
-    field on the sector path, as :func:`_field_system`); None stays None."""
-    from fem.sector_system import SectorSystem
-
-    if state is None or not isinstance(system, SectorSystem):
-        return state
-    return dataclasses.replace(state, x=system.complete(state.x))
-
-
-def _field_system(system, wp):
-    """The system and working point whose solution is the field on the mesh: on the sector path
-    the sector's own system and the sector's field of the ``k = 0`` solution
-    (:meth:`fem.sector_system.SectorSystem.complete`), else the system and ``wp`` themselves."""
-    from fem.sector_system import SectorSystem
-
-    if isinstance(system, SectorSystem):
-        return system.sector, dataclasses.replace(wp, x=system.complete(wp.x))
-    return system, wp
 
 
 def _impact_stages(run: _Run, clock: _Clock, say) -> None:

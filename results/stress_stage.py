@@ -27,43 +27,38 @@ FIXES = {"principal_min": "a local peak of the bolt's static compression plus th
 """What relieves a utilisation above 100 %, per peak quantity (printed with it)."""
 
 
-def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None, preload=None) -> dict:
-    """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its full
-    solution ``wp.x``) of ``system``; writes ``renders/stress_von_mises.png`` and ``stress.vtu``
-    into ``out`` when ``render``. ``coarse``: the discretisation-error estimate
-    (:class:`fem.errors.ErrorEstimate`) run with the hook :func:`coarse_hook` of this state: its
-    coarse mesh's table gives every row its two-mesh estimate (:func:`fem.stress_converged.with_error`;
-    None: the single-mesh estimate, said in the table's note). ``preload``: the bolt's static state
-    (:class:`fem.preload.PreloadState`), added to the dynamic one before the peaks are taken.
+def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None, preload=None,
+                 mesh: str | None = None) -> dict:
+    """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its
+    solution ``wp.x`` on ``system``, the ``k = 0`` sector or the whole drill); writes
+    ``renders/stress_von_mises.png`` and ``stress.vtu`` (the whole drill) into ``out`` when
+    ``render``. ``coarse``: the discretisation-error estimate (:class:`fem.errors.ErrorEstimate`)
+    run with the hook :func:`coarse_hook` of this state: its coarse mesh's table gives every row
+    its two-mesh estimate (None: the single-mesh estimate, said in the table's note).
+    ``preload``: the bolt's static state (:class:`fem.preload.PreloadState` solved on ``system``),
+    added to the dynamic one before the peaks are taken. ``mesh``: the mesh that ran, in words.
+    The table is :func:`fem.stress_state.working_point_stress`'s, as ``fem.harmonic --stress``'s.
     Returns the JSON record (``summary.json["stress"]``)."""
-    from fem.stress import StressRecovery
-    from fem.stress_converged import with_error
-    from fem.stress_output import node_fields, peak_title, render_stress, write_stress_vtu
-    from fem.stress_table import stress_table
+    from fem.stress_state import working_point_stress
 
     t0 = time.perf_counter()
-    rec = StressRecovery(system)
-    fld = rec.field(wp.x)
-    static = preload.field(rec) if preload is not None and preload.force_n > 0 else None
-    preload_n = preload.force_n if static is not None else 0.0
-    table = with_error(stress_table(fld, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=preload_n), coarse)
+    res = working_point_stress(system, wp, preload, coarse, mesh)
+    table = res.table
     files = {"png": None, "vtu": None}
     if render:
-        fields = node_fields(fld, static)
-        title, mark = peak_title(f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz", table)
-        png = render_stress(system, fields["von_mises"], Path(out) / "renders" / "stress_von_mises.png",
-                            title=title, mark=mark)
-        vtu = write_stress_vtu(system, fields, Path(out) / "stress.vtu")
-        files = {"png": str(png.relative_to(out)), "vtu": str(vtu.relative_to(out))}
+        written = res.write_files(Path(out) / "renders" / "stress_von_mises.png", Path(out) / "stress.vtu",
+                                  f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz")
+        files = {k: str(Path(v).relative_to(out)) for k, v in written.items()}
     w = table.worst()
     if say is not None and w is not None:
         say(f"      stress: highest utilisation {100 * w.utilisation:.0f} % ({w.region}, {w.quantity}, "
             f"{w.headline * 1e-6:.1f} ± {w.error_estimate * 1e-6:.2g} {'MPa' if w.quantity != 'efield' else 'kV/mm'}"
             f"{', off a singular edge' if w.singular else ''})"
             + (f"; {FIXES[w.quantity]}" if w.utilisation > 1 and w.quantity in FIXES else ""))
-    return {"utilisation": table.to_dict(), "markdown": table.markdown(), "files": files,
+    return {"utilisation": table.to_dict(), "markdown": table.markdown(), "files": files, "mesh": res.mesh,
             "state": "harmonic working point at the drive voltage, unloaded tip, " + (
-                f"bolt preload {preload_n * 1e-3:.1f} kN on the stack" if static is not None else "no bolt preload"),
+                f"bolt preload {res.preload_n * 1e-3:.1f} kN on the stack" if res.static is not None
+                else "no bolt preload"),
             "seconds": time.perf_counter() - t0}
 
 
