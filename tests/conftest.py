@@ -171,6 +171,7 @@ SLOW: tuple[str, ...] = (
     "tests/test_stress.py::test_preload_in_a_langevin_stack_carries_p_through_the_ceramic",
     "tests/test_stress.py::test_static_preload_gives_p_over_a_in_the_ceramic",
     "tests/test_stress.py::test_table_text_json_and_outputs",
+    "tests/test_stress_sector.py",
     "tests/test_thin_layers.py::test_50um_layer_acts_as_a_constrained_spring",
     "tests/test_thin_layers.py::test_layered_mesh_matches_free_tetrahedra",
     "tests/test_thin_layers.py::test_layers_between_unlike_neighbours_stay_conformal",
