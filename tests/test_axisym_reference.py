@@ -37,6 +37,7 @@ from geometry.materials import EPS0, get_material
 from rpud_common import ParameterError
 
 import axisym_reference as ar
+from reference_designs import reference_default
 
 AXISYM_CONVERGED = (19682.31, 21410.33)
 """f_r, f_a (Hz) of the default design without slots and teeth, converged with the independent (r, z) model."""
@@ -56,10 +57,10 @@ alone: a bound on it (+0.055 % f_r, +0.008 % f_a on that mesh), not an accuracy 
 
 
 def no_slots():
-    """The default drill without slots, teeth, fillets and bolt part: the design the constants
-    here were computed for."""
-    return geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
-                                                                       "stack.bolt_diameter": 0.0})
+    """The default drill without slots, teeth, fillets and bolt part, at the lengths the constants
+    here were computed for (tests/reference_designs.py)."""
+    return geometry.filleted(reference_default(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+                                                                "stack.bolt_diameter": 0.0})
 
 
 # ---------------------------------------------------------------------------- exact checks

@@ -26,6 +26,7 @@ from geometry.design import default_design
 from geometry.design_rpud import filleted
 from geometry.sector import AXIAL_RULE, LATERAL_RULE, check_sectors, replicate, sector_pairs, symmetry_order
 from rpud_common import ParameterError
+from reference_designs import reference_default
 
 N = 6
 TOL_EXACT = 1e-9
@@ -206,7 +207,7 @@ def test_command_line_rules_meet_the_targets_on_the_design_without_slots():
     """The accuracy targets for the meshes ``python -m fem.modal`` uses by default (AXIAL_RULE for
     k = 0, LATERAL_RULE for k = 1): f_r, f_a within 0.05 %, first torsion and bending within
     0.1 % (measured +0.019 / +0.022 / +0.023 / +0.075 %)."""
-    d = filleted(default_design(), 0.0).replace({"stack.bolt_diameter": 0.0})   # PLAIN_REFERENCE's design
+    d = filleted(reference_default(), 0.0).replace({"stack.bolt_diameter": 0.0})   # PLAIN_REFERENCE's design
     d = dataclasses.replace(d, coupler=dataclasses.replace(d.coupler, n_slots=0, n_teeth=0))
     got = {}
     for (refine, meshing), k, near in ((AXIAL_RULE, 0, 17000.0), (LATERAL_RULE, 1, 5000.0)):

@@ -29,6 +29,7 @@ import geometry
 from fem.convergence import Level, working_mode_level
 from fem.errors import ErrorEstimate, annotate, estimate, estimate_from_levels, has_reentrant_edges, plus_minus
 from rpud_common import ParameterError
+from reference_designs import reference_default
 
 F_R, F_A = 19682.31, 21410.33
 """Converged working mode of the default design without slots and teeth (tests/axisym_reference.py), Hz."""
@@ -40,10 +41,10 @@ FACTOR = 5.0
 
 
 def no_slots():
-    """The references' design: the default without slots, teeth, fillets and bolt part (the
-    constants above were computed for it)."""
-    return geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
-                                                                       "stack.bolt_diameter": 0.0})
+    """The references' design: the default without slots, teeth, fillets and bolt part, at the
+    lengths the constants above were computed for (tests/reference_designs.py)."""
+    return geometry.filleted(reference_default(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+                                                                "stack.bolt_diameter": 0.0})
 
 
 @pytest.fixture(scope="module")
@@ -132,7 +133,7 @@ def test_error_estimate_of_the_default_swept_mesh_covers_the_coupler_study():
     against 18.4-22.5 / 14.6-19.3 Hz)."""
     import fem
 
-    d = geometry.filleted(geometry.default_design(), 0.0).replace({"stack.bolt_diameter": 0.0})   # the study's design
+    d = geometry.filleted(reference_default(), 0.0).replace({"stack.bolt_diameter": 0.0})   # the study's design
     tm, _rep = geometry.build(d, mesher="revolve")
     system = fem.assemble(tm)
     res = fem.modal_analysis(system, 20e3, 4)          # the working mode and its neighbours
@@ -161,7 +162,7 @@ def test_teeth_ellipse_ratio_estimate_on_the_sector_covers_the_finer_study():
     study's Richardson limit plus the limit's own error (|limit - finest level|, the size of
     the last extrapolation step: 0.0063 + 0.0024), at most 4x it (measured 0.012: 7.9 % of the
     value; the 5 % asked of it is not met at this cost)."""
-    d = geometry.default_design().replace({"stack.bolt_diameter": 0.0})     # the study's design
+    d = reference_default().replace({"stack.bolt_diameter": 0.0})     # the study's design
     fine = working_mode_level(d, 1.0, path="sector", q_mech=100.0, harmonic_method="modal")
     q = fine.values["teeth_ellipse_ratio"]
     assert q == pytest.approx(TEETH_STUDY[1.0], abs=2e-6)            # the mesh the study measured

@@ -29,6 +29,7 @@ from fem.eigen import block_eigs, bordered_solve, smooth_start
 from fem.modal import modal_analysis
 from fem.solvers import factorize
 from rpud_common import ParameterError
+from reference_designs import reference_default
 
 
 def _cluster_cos2(V1, V2, M, f, rel=1e-3):
@@ -196,8 +197,9 @@ def test_matching_reuse_gives_identical_results():
     the outcome is bit-identical to assembling and factorising again."""
     from fem.matching import MatchSettings, match
 
-    # a coarse plain-coupler drill started near its matched coupler length (3 evaluations)
-    d = geometry.filleted(geometry.default_design(), 0.0).replace(
+    # a coarse plain-coupler drill started near its matched coupler length (3 evaluations; the horn
+    # length of tests/reference_designs.py, for which 41.6 mm is that start)
+    d = geometry.filleted(reference_default(), 0.0).replace(
         {"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006, "coupler.length": 0.0416})
     mesh = geometry.build_mesh(d, mesh_size=0.008)
     runs = [match(d, MatchSettings(tune=("coupler.length",), xtol=5e-4, mesh_size=0.008, reuse=reuse),

@@ -37,9 +37,10 @@ from geometry.design_rpud import filleted
 from geometry.guard import estimate
 from geometry.sizing import graded_edges, region_sizes
 from rpud_common import ParameterError
+from reference_designs import reference_default
 
 F_R_AXISYM, F_A_AXISYM = 19682.31, 21410.33
-"""Converged working mode of default_design() with sharp horn corners and coupler.n_slots =
+"""Converged working mode of reference_default() with sharp horn corners and coupler.n_slots =
 coupler.n_teeth = 0 (tests/axisym_reference.py)."""
 
 
@@ -128,8 +129,8 @@ def test_study_table_and_stop_rules():
 
 
 def test_graded_default_design_without_slots_and_teeth_against_the_axisymmetric_answer():
-    d = filleted(default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
-                                                 "stack.bolt_diameter": 0.0})     # the reference's design
+    d = filleted(reference_default(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+                                                   "stack.bolt_diameter": 0.0})     # the reference's design
     s = assemble(geometry.build_mesh(d, grade=True))
     r = modal_analysis(s, 20e3, 8)
     from fem.modal import working_mode

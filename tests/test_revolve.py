@@ -25,6 +25,7 @@ from geometry.revolve import (prism_tets, _pyramid_tets, jacobian_ratio, orient,
 from rpud_common import ParameterError
 
 import axisym_reference as ar
+from reference_designs import reference_default
 
 AXISYM_CONVERGED = (19682.31, 21410.33)
 """Converged f_r, f_a (Hz) of the default design without slots and teeth (the (r, z) model of
@@ -129,8 +130,8 @@ def test_sectors_scale_with_refine():
 
 @pytest.fixture(scope="module")
 def axisymmetric_build():
-    design = filleted(default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
-                                                      "stack.bolt_diameter": 0.0})    # the references' design
+    design = filleted(reference_default(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+                                                        "stack.bolt_diameter": 0.0})    # the references' design
     return design, *build(design, mesher="revolve")
 
 

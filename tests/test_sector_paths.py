@@ -21,15 +21,17 @@ from geometry.design import default_design
 from geometry.design_rpud import filleted
 from geometry.guard import MAX_DOFS, check_budget, fillet_sector_dofs, sector_estimate
 from rpud_common import ParameterError
+from reference_designs import reference_default
 
 
 def test_guard_sizes_the_sector_that_runs():
-    sharp = filleted(default_design().replace({"stack.bolt_diameter": 0.0}), 0.0)
+    # the measured sizes below are those of the calibration drill (tests/reference_designs.py)
+    sharp = filleted(reference_default().replace({"stack.bolt_diameter": 0.0}), 0.0)
     # the calibration points (sharp horn corners, no bolt part): 78 233 DOFs at refine 1 and 252 683 at 0.6
     # (measured), within the rounding of the whole-drill estimate it scales (+-1 %)
     assert sector_estimate(sharp, 6, refine=1.0).dofs == pytest.approx(78_233, rel=0.01)
     assert sector_estimate(sharp, 6, refine=0.6).dofs == pytest.approx(252_683, rel=0.01)
-    d = default_design().replace({"stack.bolt_diameter": 0.0})
+    d = reference_default().replace({"stack.bolt_diameter": 0.0})
     # the fillet arcs' zones, a model not fitted to it (fillet_sector_dofs): 87 585 DOFs measured
     # (axial_sector at refine 1, no bolt part); the model's triangle density assumes equilateral triangles of
     # the local size and ~2 P2 nodes per triangle, each good to ~10 % on a frontal mesh
@@ -163,9 +165,9 @@ def test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it(ki
     from fem.errors import estimate
     from test_discretisation_error import F_A, F_R, TIP_PER_VOLT
 
-    # the constants were computed without the bolt part
-    d = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
-                                                                    "stack.bolt_diameter": 0.0})
+    # the constants were computed without the bolt part, at the lengths of tests/reference_designs.py
+    d = geometry.filleted(reference_default(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+                                                             "stack.bolt_diameter": 0.0})
     if kind == "default":
         exact = {"f_r_hz": (F_R, 1e-5 * F_R), "f_a_hz": (F_A, 1e-5 * F_A),
                  "tip_per_volt_m": (TIP_PER_VOLT, 1e-5 * TIP_PER_VOLT)}
