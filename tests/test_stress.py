@@ -290,6 +290,38 @@ def test_cli_bad_stress_options_exit_2_before_meshing(tmp_path, capsys, argv, na
     assert not (tmp_path / "OUT").exists()
 
 
+def test_cli_stress_runs_on_the_commands_path(tmp_path, capsys, monkeypatch):
+    """``--stress`` takes the path the rest of ``fem.harmonic`` takes: ``auto`` is the k = 0
+    sector for the sweepable default drill and the whole drill for a stack; ``--path sector``
+    on a design that cannot be swept is one line naming the path, exit 2, before meshing, no
+    folder written."""
+    from types import SimpleNamespace
+
+    import geometry as g
+    from fem.harmonic_cli import main, resolve_path
+    from rpud_common.cli import run_cli
+
+    def args(path):
+        return SimpleNamespace(path=path, mesher="auto", stress=str(tmp_path / "s"))
+
+    assert resolve_path(args("auto"), g.default_design()) == "sector"
+    assert resolve_path(args("sector"), g.default_design()) == "sector"
+    assert resolve_path(args("whole"), g.default_design()) == "whole"
+    assert resolve_path(args("auto"), examples.langevin_sandwich()) == "whole"
+
+    def no_mesh(*a, **k):
+        raise AssertionError("meshed before checking the path")
+
+    design = tmp_path / "langevin.toml"
+    examples.langevin_sandwich().save(design)
+    monkeypatch.setattr(g, "build_mesh", no_mesh)
+    out = tmp_path / "OUT"
+    assert run_cli(main, ["--design", str(design), "--path", "sector", "--stress", str(out)], prog="fem.harmonic") == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "path" in err[0] and "swept" in err[0]
+    assert not out.exists()
+
+
 # --------------------------------------------------------------------------- two-mesh error estimates
 
 
