@@ -108,12 +108,26 @@ def estimator_order(grade: bool, corners: bool = True) -> float:
 
 SECTOR_ORDER = ESTIMATOR_ORDER
 """Order in h assumed by the two-level estimate on the sector path (:mod:`fem.sector_system`):
-the sector's section is graded and its notch edges graded to 0.15 of the slot zone's size
-(:data:`geometry.sector.AXIAL_RULE`); the observed orders on the default design's sector levels
-(refine 1 / 0.8 / 0.64, ``python -m fem.harmonic --converge``) are 3.6 (f_r), 3.1 (f_a), 5.0
-(tip amplitude per volt) and 5.0 (teeth ellipse ratio), and 3.5-5 at refine 2.5 / 2 / 1.6: 2 lies
-below all of them, so the estimate errs on the large side (f_r at refine 1: 15 Hz stated, 5.6 Hz
-from the three levels' extrapolation; teeth ellipse ratio 0.012 stated, 0.006)."""
+the sector's section is graded and its notch edges graded (:data:`geometry.sector.AXIAL_RULE`).
+The observed orders on the default design's sector levels (matched lengths, refine 1.4 / 1 / 0.8
+and 1 / 0.8 / 0.64, ``h = DOFs^(-1/3)``) are 2.6 and 3.5 (f_r), 2.6 and 3.6 (f_a), 1.8 and 3.7
+(tip amplitude per volt), 2.3 and 3.3 (teeth ellipse ratio): 2 lies below all but the tip's
+coarsest triple, so the estimate errs on the large side (f_r at refine 1: 6.8 Hz stated, 4.0 Hz
+from the extrapolation of the finest three; teeth ellipse ratio 0.010 stated, 0.0064 to the
+extrapolation plus 0.0019 its own step). The teeth's phase takes :data:`SECTOR_PHASE_ORDER`."""
+
+SECTOR_PHASE_ORDER = 1.0
+"""Order in h assumed for the teeth's phase (``teeth_phase_deg``) by the two-level estimate on the
+sector path. The phase's level-to-level changes do not fall steadily (default design's sector,
+refine 1.4 / 1 / 0.8 / 0.64: -0.073, -0.093, -0.038 degrees; no order from the first three), and
+part of its error, the sector's element layers (-0.12 degrees from 3 to 6 layers at refine 1),
+does not change between the estimate's two levels (3 layers at refine 1 and 1.4). Order 1, the
+rate of the singular notch edges under uniform refinement (h^1.1) and below every observed one,
+states 0.35 degrees at refine 1 against at most 0.19 from the four levels' extrapolation
+(tests/test_discretisation_error.py); order 2 would state 0.16 and miss it."""
+
+QUANTITY_ORDERS = {"sector": {"teeth_phase_deg": SECTOR_PHASE_ORDER}}
+"""Per path, the quantities whose assumed order differs from the path's (:data:`SECTOR_ORDER`)."""
 
 ESTIMATOR_RATIO = 1.4
 """Refine factor of the extra, coarser solve of the two-level estimator (~1/2.4 of the DOFs on the default design)."""

@@ -52,14 +52,14 @@ REVOLVE_FACTOR = 1.7
 1.63x; the swept section's graded edges cost about the same at every ``refine``)."""
 
 
-SECTOR_FACTOR = 1.175
+SECTOR_FACTOR = 1.207
 """DOFs of the ``k = 0`` swept sector (:data:`geometry.sector.AXIAL_RULE`) over the whole drill's
-swept, graded estimate at the rule's refine divided by the sector count (default design with
-sharp horn corners at ``--refine 1``: 78 233 DOFs against 399 048 / 6)."""
+swept, graded estimate at the rule's refine divided by the sector count (default design at horn
+67.1 mm and coupler 49.9 mm with sharp horn corners at ``--refine 1``: 80 345 DOFs against 399 048 / 6)."""
 
-SECTOR_EXPONENT = 2.3
+SECTOR_EXPONENT = 2.36
 """Growth of the sector's DOFs as ``refine^-SECTOR_EXPONENT`` (default design with sharp horn
-corners: 78 233 DOFs at ``--refine 1``, 252 683 at 0.6; the notch grading and the layer rule grow slower than h^-3)."""
+corners: 80 345 DOFs at ``--refine 1``, 268 106 at 0.6; the notch grading and the layer rule grow slower than h^-3)."""
 
 
 @dataclass(frozen=True)

@@ -13,13 +13,15 @@ corners got: a size ``h_edge`` on the edge that grows by ``growth`` per unit dis
 
 API
 ---
-``add_notch_field(gmsh, design, sizes, region_vols, refine) -> int | None``: the graded size field
-of a synchronised model (``None``: no notches), used by :func:`geometry.sizing.apply_fields`.
+``add_notch_field(gmsh, design, sizes, region_vols, refine, fraction=None, classes=None) -> int | None``:
+the graded size field of a synchronised model (``None``: no notches), used by
+:func:`geometry.sizing.apply_fields`; ``classes`` grades each class of edge (:data:`NOTCH_CLASSES`:
+the slots' floor lines, their end walls, the teeth's roots) to its own size.
 ``notch_cells(design, sizes, refine) -> (float, float)``: the graded wedges' integral of h^-3
 (elements up to the guard's tets-per-cube factor) and the edge size (m), for :mod:`geometry.guard`.
 ``notch_edges(gmsh, design, coupler_vols) -> list[int]``: the curve tags of those edges (after
-fragmenting and synchronising). ``notch_field(gmsh, curves, h_edge, growth, h_max, vols) -> int``:
-the Gmsh field of given curves. ``notch_length(design) -> float``: their total length (m).
+fragmenting and synchronising); ``notch_edge_classes`` the same by class.
+``notch_field(gmsh, curves, h_edge, growth, h_max, vols) -> int``: the Gmsh field of given curves. ``notch_length(design) -> float``: their total length (m).
 
 Opt-in (``grade=True``, CLIs ``--grade``), like the graded edges of the free mesh: on the default
 design's swept mesh it costs 1.22x the DOFs (111.6k -> 136.0k) and ~1.3x the modal time (one run: 9.7 -> 12.4 s).
@@ -33,7 +35,8 @@ import numpy as np
 
 from .design_rpud import RPUDDesign
 
-__all__ = ["add_notch_field", "notch_cells", "notch_edges", "notch_field", "notch_length", "NOTCH_FRACTION",
+__all__ = ["add_notch_field", "notch_cells", "notch_edges", "notch_edge_classes", "notch_field", "notch_length",
+           "NOTCH_CLASSES", "NOTCH_FRACTION",
            "NOTCH_GROWTH", "NOTCH_ANGLE"]
 
 NOTCH_FRACTION = 0.4
@@ -49,6 +52,10 @@ NOTCH_ANGLE = 1.75 * math.pi
 """Material angle (rad) around a notch edge, for the element estimate (a V groove of the default
 design: 316 degrees; a floor edge or a tooth root: 270)."""
 
+NOTCH_CLASSES = ("floors", "ends", "roots")
+"""Classes of notch edges (:func:`notch_edge_classes`) a rule may grade each to its own size: the
+slots' floor lines (a V groove's apex), the slots' end walls, the teeth's roots."""
+
 _SAMPLES = 9
 """Points per curve where its radius and height are read to classify it."""
 
@@ -61,14 +68,7 @@ def _curve_points(gmsh, curve: int) -> np.ndarray:
 
 
 def notch_edges(gmsh, design: RPUDDesign, coupler_vols: list[int]) -> list[int]:
-    """Curve tags of the coupler's re-entrant notch edges.
-
-    Classified by where the curve lies (within ``tol`` = 1e-6 m + 1e-6 x the coupler's length):
-    in the slotted zone, every curve that is not on the outer surface or the bore (the apex or
-    floor lines and the end walls' inner edges; the lips on the outer surface are convex); on the
-    teeth's root plane, every curve that is not an arc of the outer surface or the bore (the roots
-    of the tooth sides). With ``slot_offset = 0`` the slots' lower end walls lie in the root plane
-    and some convex edges there are taken too (a finer mesh than needed, nothing worse).
+    """Curve tags of the coupler's re-entrant notch edges (every class of :func:`notch_edge_classes`).
 
     Parameters
     ----------
@@ -83,6 +83,21 @@ def notch_edges(gmsh, design: RPUDDesign, coupler_vols: list[int]) -> list[int]:
     list of int
         Curve tags.
     """
+    return sorted(c for curves in notch_edge_classes(gmsh, design, coupler_vols).values() for c in curves)
+
+
+def notch_edge_classes(gmsh, design: RPUDDesign, coupler_vols: list[int]) -> dict[str, list[int]]:
+    """The coupler's re-entrant notch edges by class (:data:`NOTCH_CLASSES`), curve tags.
+
+    Classified by where the curve lies (within ``tol`` = 1e-6 m + 1e-6 x the coupler's length):
+    in the slotted zone, every curve that is not on the outer surface or the bore (the lips on
+    the outer surface are convex): ``"floors"`` if it runs along more than half the slot's length
+    (a V groove's apex, a rectangular slot's floor edges), else ``"ends"`` (the end walls' inner
+    edges); on the teeth's root plane, every curve that is not an arc of the outer surface or the
+    bore: ``"roots"`` (the roots of the tooth sides). With ``slot_offset = 0`` the slots' lower end
+    walls lie in the root plane and are counted as roots, with some convex edges there (a finer
+    mesh than needed, nothing worse).
+    """
     c = design.coupler
     R, Ri = c.outer_diameter / 2, design.coupler_bore / 2
     tol = 1e-6 + 1e-6 * c.length
@@ -90,18 +105,16 @@ def notch_edges(gmsh, design: RPUDDesign, coupler_vols: list[int]) -> list[int]:
     z_slot = z_root + c.slot_offset
     surfaces = gmsh.model.getBoundary([(3, v) for v in coupler_vols], combined=False, oriented=False)
     curves = sorted({abs(t) for _d, t in gmsh.model.getBoundary(surfaces, combined=False, oriented=False)})
-    out = []
+    out: dict[str, list[int]] = {k: [] for k in NOTCH_CLASSES}
     for curve in curves:
         p = _curve_points(gmsh, curve)
         r, z = np.hypot(p[:, 0], p[:, 1]), p[:, 2]
-        on_outer = np.all(np.abs(r - R) < tol)
-        on_bore = np.all(np.abs(r - Ri) < tol)
-        if on_outer or on_bore:
+        if np.all(np.abs(r - R) < tol) or np.all(np.abs(r - Ri) < tol):
             continue
-        in_slots = c.n_slots and np.all((z > z_slot - tol) & (z < z_slot + c.slot_length + tol)) and r.max() < R + tol
-        at_root = c.n_teeth and np.all(np.abs(z - z_root) < tol)
-        if in_slots or at_root:
-            out.append(int(curve))
+        if c.n_teeth and np.all(np.abs(z - z_root) < tol):
+            out["roots"].append(int(curve))
+        elif c.n_slots and np.all((z > z_slot - tol) & (z < z_slot + c.slot_length + tol)) and r.max() < R + tol:
+            out["floors" if np.ptp(z) > 0.5 * c.slot_length else "ends"].append(int(curve))
     return out
 
 
@@ -169,14 +182,21 @@ def notch_field(gmsh, curves: list[int], h_edge: float, growth: float, h_max: fl
 def _rule(design, sizes: dict[str, float], refine: float, fraction: float | None = None) -> tuple[float, float] | None:
     """``(h_edge, growth)`` (m, -) of a design's notches, ``None`` without them (``fraction``:
     the edge size over the slot zone's size, default :data:`NOTCH_FRACTION`)."""
-    h_zone = sizes.get("@slots", sizes.get("@teeth"))
-    if not isinstance(design, RPUDDesign) or not h_zone:
+    h_zone = _zone_size(design, sizes)
+    if not h_zone:
         return None
     return (NOTCH_FRACTION if fraction is None else fraction) * h_zone, NOTCH_GROWTH * refine
 
 
+def _zone_size(design, sizes: dict[str, float]) -> float | None:
+    """The size the notch edges' sizes are fractions of (m): the slot zone's (``@slots``), or the
+    teeth zone's without slots; ``None`` for a design without notches."""
+    return sizes.get("@slots", sizes.get("@teeth")) if isinstance(design, RPUDDesign) else None
+
+
 def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str, list[int]],
-                    refine: float, fraction: float | None = None) -> int | None:
+                    refine: float, fraction: float | None = None,
+                    classes: dict[str, float] | None = None) -> int | None:
     """The graded size field toward the coupler's notch edges (``None`` if it has none).
 
     Also lowers Gmsh's ``Mesh.LcIntegrationPrecision`` (every curve of the model) from 1e-9 to 1e-5:
@@ -197,6 +217,9 @@ def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str
         The refinement factor (scales the growth; the sizes carry it already).
     fraction : float, optional
         Edge size over the slot zone's size (default :data:`NOTCH_FRACTION`).
+    classes : dict, optional
+        Class of :data:`NOTCH_CLASSES` -> its own edge size over the slot zone's size (the
+        classes not named take ``fraction``).
 
     Returns
     -------
@@ -204,12 +227,25 @@ def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str
         The field's tag.
     """
     rule = _rule(design, sizes, refine, fraction)
-    curves = notch_edges(gmsh, design, region_vols["coupler"]) if rule and "coupler" in region_vols else []
-    if not curves:
+    if not rule or "coupler" not in region_vols:
         return None
-    h_edge, growth = rule
+    by_class = notch_edge_classes(gmsh, design, region_vols["coupler"])
+    h_zone = _zone_size(design, sizes)
+    by_size: dict[float, list[int]] = {}
+    for name, curves in by_class.items():
+        h_edge = h_zone * classes[name] if classes and name in classes else rule[0]
+        by_size.setdefault(h_edge, []).extend(curves)
+    by_size = {h: sorted(c) for h, c in by_size.items() if c}
+    if not by_size:
+        return None
     gmsh.option.setNumber("Mesh.LcIntegrationPrecision", 1e-5)
-    return notch_field(gmsh, curves, h_edge, growth, sizes["coupler"], region_vols["coupler"])
+    fields = [notch_field(gmsh, curves, h, rule[1], sizes["coupler"], region_vols["coupler"])
+              for h, curves in sorted(by_size.items())]
+    if len(fields) == 1:
+        return fields[0]
+    out = gmsh.model.mesh.field.add("Min")
+    gmsh.model.mesh.field.setNumbers(out, "FieldsList", fields)
+    return out
 
 
 def notch_cells(design, sizes: dict[str, float], refine: float) -> tuple[float, float]:

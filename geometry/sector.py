@@ -21,6 +21,7 @@ Gmsh (``gmsh``) is handed in; this module does not import it.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -57,6 +58,10 @@ class SectorMeshing:
     slot_refine : float
         The slot zone's size cap (``@slots``, :func:`geometry.sizing.feature_caps`), and with it
         the notch edges' size, scaled by this on top of ``coupler_refine``.
+    floor_fraction, root_fraction : float or None
+        The slots' floor lines (a V groove's apex) and the teeth's roots graded to these fractions
+        of the slot zone's size instead of ``notch_fraction`` (:data:`geometry.notches.NOTCH_CLASSES`);
+        None: ``notch_fraction``.
     """
 
     coupler_refine: float = 1.0
@@ -64,27 +69,48 @@ class SectorMeshing:
     layer_deg: float | None = None
     junction_fraction: float | None = None
     slot_refine: float = 1.0
+    floor_fraction: float | None = None
+    root_fraction: float | None = None
+
+    def __post_init__(self):
+        for name in ("notch_fraction", "floor_fraction", "root_fraction"):
+            value = getattr(self, name)
+            if value is not None and not 0.01 <= value <= 1.0:
+                raise ParameterError(name, value, "must lie in [0.01, 1] (a fraction of the slot zone's size)")
 
     def scaled(self, refine: float) -> "SectorMeshing":
         """The same rule at a command line's ``--refine`` (layers narrowed alike)."""
-        return SectorMeshing(self.coupler_refine, self.notch_fraction,
-                             None if self.layer_deg is None else self.layer_deg * refine, self.junction_fraction,
-                             self.slot_refine)
+        return dataclasses.replace(self, layer_deg=None if self.layer_deg is None else self.layer_deg * refine)
+
+    @property
+    def notch_classes(self) -> dict[str, float]:
+        """Class of notch edge -> its own fraction of the slot zone's size (the classes that differ
+        from ``notch_fraction``; :func:`geometry.notches.add_notch_field`)."""
+        own = {"floors": self.floor_fraction, "roots": self.root_fraction}
+        return {k: v for k, v in own.items() if v is not None}
 
 
 AXIAL_RULE = (0.8, SectorMeshing(coupler_refine=1.0, notch_fraction=0.15, layer_deg=20.0, junction_fraction=0.2,
-                                  slot_refine=1.22))
+                                  slot_refine=1.22, floor_fraction=0.08, root_fraction=0.3))
 """``(refine, meshing)`` of the swept sector that solves harmonic 0 (the working mode, its
 anti-resonance, the torsion) at the command line's ``--refine 1``. The coupler's notch edges
 converge slowest (about h^0.7 to h^1 measured): they are graded to 0.15 of the slot zone's size
-(``--grade`` uses 0.4). The section's outer junctions (the electrodes' outer edges, the stack's
-ends) are graded to 0.2 of the ring size: they hold most of the horn-tip amplitude's error
-(:data:`geometry.sizing.JUNCTION_FRACTION`), and the slot zone's cap is 1.22x coarser to pay for
-them (same DOFs as without both). Default design with sharp horn corners: f_r / f_a 19 900.02 /
-21 654.39 Hz, 78 233 DOFs, against best estimates of the converged values 19 893.2 / 21 648.2 Hz
-(README): +0.034 / +0.029 %; filleted default 87 585 DOFs. Without slots and teeth (sharp
-corners, against the (r, z) model of tests/axisym_reference.py): f_r / f_a / tip amplitude per
-volt +0.015 / +0.018 / -0.041 % at 39.7k DOFs (-0.080 % without the junction grading)."""
+(``--grade`` uses 0.4), the slots' floor lines (a V groove's apex) to 0.08 and the teeth's roots
+only to 0.3. The teeth's motion (ellipse ratio) is limited by the floor lines: one class of edge
+or region at a time from the rule without the floor and root classes (all notch edges at 0.15),
+at refine 1 on the default design with matched lengths (86 579 DOFs, ratio 0.17090): floors at
+0.08 +0.00205 for +11.5k DOFs, end walls at 0.08 +0.00091 (+10.3k), roots at 0.08 +0.00045
+(+15.3k), the slot zone 0.8x finer (notch edges kept) +0.00077 (+9.4k), 6 layers instead of 3
++0.00213 (+57.9k); the roots at 0.3 pay for the floors (89 498 DOFs, +3.4 %). The section's outer
+junctions (the electrodes' outer edges, the stack's ends) are graded to 0.2 of the ring size:
+they hold most of the horn-tip amplitude's error (:data:`geometry.sizing.JUNCTION_FRACTION`), and
+the slot zone's cap is 1.22x coarser to pay for them. Default design at horn 67.1 mm and coupler
+49.9 mm (tests/reference_designs.py) with sharp horn corners: f_r / f_a 19 898.93 / 21 653.67 Hz,
+80 345 DOFs, against best estimates of the converged values
+19 893.2 / 21 648.2 Hz (README): +0.029 / +0.025 %; first torsion 15 375.80 Hz (+0.073 %). Without
+slots and teeth (sharp corners, against the (r, z) model of tests/axisym_reference.py): f_r / f_a
+/ tip amplitude per volt +0.015 / +0.018 / -0.041 % at 39.7k DOFs (-0.080 % without the junction
+grading)."""
 
 LATERAL_RULE = (0.8, SectorMeshing(coupler_refine=2.0, notch_fraction=None, layer_deg=15.0))
 """The same for harmonics k >= 1 (the bending pairs): their error lies in the swept parts' layers

@@ -382,7 +382,8 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
     if meshing.slot_refine != 1.0 and "@slots" in sizes:
         sizes = {**sizes, "@slots": sizes["@slots"] * meshing.slot_refine}
     apply_fields(gmsh, d, sizes, {"coupler": vols}, refine, grade=grade, revolve=True, region_faces=section,
-                 notch_fraction=meshing.notch_fraction, junction_fraction=meshing.junction_fraction)
+                 notch_fraction=meshing.notch_fraction, junction_fraction=meshing.junction_fraction,
+                 notch_classes=meshing.notch_classes)
     if coupler_refine != 1.0:
         gmsh.option.setNumber("Mesh.MeshSizeFromCurvature", CURVATURE_ELEMENTS / (refine * coupler_refine))
     gmsh.option.setNumber("Mesh.Algorithm", 6)

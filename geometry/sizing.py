@@ -426,7 +426,8 @@ def fillet_sizes(design: DesignBase, sizes: dict[str, float], refine: float = 1.
 def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols: dict[str, list[int]],
                  refine: float = 1.0, *, layers: dict[str, Layer] | None = None, grade: bool = False,
                  revolve: bool = False, region_faces: dict[str, list[int]] | None = None,
-                 notch_fraction: float | None = None, junction_fraction: float | None = None) -> None:
+                 notch_fraction: float | None = None, junction_fraction: float | None = None,
+                 notch_classes: dict[str, float] | None = None) -> None:
     """Install the size fields and the size options of a synchronised Gmsh model.
 
     Parameters
@@ -456,6 +457,9 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
     junction_fraction : float, optional
         With ``revolve``: grade the section's outer junctions (:func:`junction_edges`) to this
         fraction of the adjacent region size; None: not graded.
+    notch_classes : dict, optional
+        With ``grade``: classes of notch edges graded to their own fractions of the slot zone's
+        size (:func:`geometry.notches.add_notch_field`).
     """
     field = gmsh.model.mesh.field
     fields = []
@@ -494,7 +498,7 @@ def apply_fields(gmsh, design: DesignBase, sizes: dict[str, float], region_vols:
         fid = field.add("MathEval")
         field.setString(fid, "F", f"{h!r} + {g!r} * Max(0, Sqrt((Sqrt(x*x + y*y) - {rc!r})^2 + (z - {zc!r})^2) - {rad!r})")
         fields.append(fid)
-    notch = add_notch_field(gmsh, design, sizes, region_vols, refine, notch_fraction) if grade else None
+    notch = add_notch_field(gmsh, design, sizes, region_vols, refine, notch_fraction, notch_classes) if grade else None
     if notch is not None:
         fields.append(notch)
     fmin = field.add("Min")

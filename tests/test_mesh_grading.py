@@ -162,3 +162,15 @@ def test_study_knobs_add_the_bore_and_minor_edges(monkeypatch):
     s2 = region_sizes(d)
     assert s2["ring_1"] == pytest.approx(d.stack.ring_thickness / 2)
     assert s2["flange_disc"] == pytest.approx(0.5 * d.flange.thickness)
+
+
+def test_sector_rule_grades_the_floor_lines_and_the_roots_by_their_own_fractions():
+    from geometry.sector import AXIAL_RULE, SectorMeshing
+
+    rule = AXIAL_RULE[1]
+    assert rule.notch_classes == {"floors": rule.floor_fraction, "roots": rule.root_fraction}
+    assert rule.floor_fraction < rule.notch_fraction < rule.root_fraction
+    assert rule.scaled(0.5).notch_classes == rule.notch_classes and rule.scaled(0.5).layer_deg == rule.layer_deg / 2
+    assert SectorMeshing(notch_fraction=0.2).notch_classes == {}
+    with pytest.raises(ParameterError, match="floor_fraction"):
+        SectorMeshing(floor_fraction=0.0)

@@ -1,7 +1,8 @@
 """The coupler's re-entrant notch edges (geometry.notches) and the opt-in grading toward them.
 
 * Classification on the default design (6 helical V slots, 6 teeth): per slot its apex line and
-  the four inner edges of its two end walls, per tooth its two roots: 42 curves; and on six
+  the four inner edges of its two end walls, per tooth its two roots: 42 curves, in the classes
+  floors / ends / roots of ``notch_edge_classes``; and on six
   variants (rectangular slots, no teeth, no slots, axial and left-handed slots). Their total
   length measured by OCC against the closed form of ``notch_length`` (helices of the apex or floor
   radius, end-wall edges, radial roots) within 1e-5 (measured 1e-8 on the default design).
@@ -17,7 +18,7 @@ import pytest
 import geometry
 from geometry.design import default_design
 from geometry.guard import estimate
-from geometry.notches import NOTCH_FRACTION, notch_edges, notch_length
+from geometry.notches import NOTCH_CLASSES, NOTCH_FRACTION, notch_edge_classes, notch_edges, notch_length
 from geometry.sizing import region_sizes
 from geometry.tagging import parametric_model
 
@@ -45,10 +46,16 @@ def test_notch_edges_counted_and_measured(name):
         gmsh.option.setNumber("General.Terminal", 0)
         region_vols, _meta, _facets = parametric_model(gmsh, d, {}, 3)
         curves = notch_edges(gmsh, d, region_vols["coupler"])
+        classes = notch_edge_classes(gmsh, d, region_vols["coupler"])
         length = sum(gmsh.model.occ.getMass(1, c) for c in curves)
     finally:
         gmsh.finalize()
     assert len(curves) == expected
+    # the classes partition the edges: per V slot one floor line (its apex), per rectangular slot
+    # two floor edges, two roots per tooth, the end walls' edges the rest
+    assert sorted(c for v in classes.values() for c in v) == sorted(curves) and tuple(classes) == NOTCH_CLASSES
+    floors = (1 if d.coupler.slot_profile == "v" else 2) * d.coupler.n_slots
+    assert (len(classes["floors"]), len(classes["roots"])) == (floors, 2 * d.coupler.n_teeth)
     # OCC's lengths against the closed form (the apex of a helical slot is a B-spline lofted
     # through five sections: measured 1e-8 from the helix's length)
     assert length == pytest.approx(notch_length(d), rel=1e-5)
