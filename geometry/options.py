@@ -10,6 +10,8 @@ lists what ``add_design_options`` offers; each CLI picks the ones it honours).
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from rpud_common import ParameterError, check_range
 
 __all__ = ["add_design_options", "design_from_options", "check_design_options", "design_inputs", "mesh_options",
@@ -40,6 +42,9 @@ GRADE_HELP = ("grade the mesh toward the re-entrant edges (flange/horn, horn ste
 
 _DEFAULT_WORD = "default"
 
+EXAMPLES_FILE = Path(__file__).with_name("examples.toml")
+"""The named example designs (``--design NAME`` picks one of its tables, e.g. ``bolted``)."""
+
 
 def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | None = None,
                        mesh_size_help: str = "base element size, m: replaces the elements-per-wavelength rule of "
@@ -63,11 +68,12 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
     if "design" in include:
         parser.add_argument("--design", metavar=metavar, default=design_default,
                             help="design TOML (default: the built-in RPUD design); it may hold its own "
-                                 "[materials] table")
+                                 "[materials] table. A bare NAME picks that design of geometry/examples.toml "
+                                 "(e.g. bolted: the drill with its M12 bolt part)")
     if "select" in include:
         parser.add_argument("--select", metavar="NAME", help="pick one design from a TOML file holding several "
                             "(e.g. geometry/examples.toml: k33_rod, k31_bar, langevin, slender_rod, "
-                            "bonded_sandwich, rpud)")
+                            "bonded_sandwich, rpud, bolted)")
     if "materials" in include:
         parser.add_argument("--materials", metavar="FILE",
                             help="material library TOML (layout of geometry/materials.toml; stress-charge c_E, e, "
@@ -87,9 +93,24 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
     return parser
 
 
+def named_example(value) -> str | None:
+    """``value`` when it names a design of :data:`EXAMPLES_FILE` (a bare name, no file of that
+    name), else None: ``--design bolted`` reads the ``[bolted]`` table without a path."""
+    if value is None:
+        return None
+    text = str(value)
+    if not text.isidentifier() or Path(text).exists():
+        return None
+    from rpud_common import load_toml
+
+    return text if text in load_toml(EXAMPLES_FILE, "design") else None
+
+
 def _design_path(ns):
     value = getattr(ns, "design", None)
-    return None if value is None or str(value) == _DEFAULT_WORD else value
+    if value is None or str(value) == _DEFAULT_WORD:
+        return None
+    return EXAMPLES_FILE if named_example(value) else value
 
 
 def design_inputs(ns) -> dict:
@@ -110,6 +131,8 @@ def check_design_options(ns) -> None:
         check_refine(ns.refine, "--refine")
     if getattr(ns, "select", None) is not None and _design_path(ns) is None:
         raise ParameterError("--select", ns.select, "needs --design FILE")
+    if getattr(ns, "select", None) is not None and named_example(getattr(ns, "design", None)):
+        raise ParameterError("--select", ns.select, f"needs --design FILE, not the example name {ns.design!r}")
 
 
 def _matching(ns) -> bool:
@@ -166,4 +189,5 @@ def design_from_options(ns):
     if path is None:
         design = default_design()
         return with_records(design, extra, str(ns.materials)) if extra else design
-    return load_design(path, getattr(ns, "select", None), materials=extra)
+    name = named_example(getattr(ns, "design", None))
+    return load_design(path, name or getattr(ns, "select", None), materials=extra)

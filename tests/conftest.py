@@ -36,6 +36,8 @@ SLOW: tuple[str, ...] = (
     "tests/test_bolt.py::test_bolt_shift_of_the_working_resonance_within_the_1d_bounds",
     "tests/test_bolt.py::test_bolt_tension_equals_the_stack_compression",
     "tests/test_bolt.py::test_bolt_is_bonded_at_both_ends_and_free_along_the_rings",
+    "tests/test_bolted_design.py::test_bolted_example_is_matched_and_drives_the_rotor",
+    "tests/test_bolted_design.py::test_default_horn_with_the_bolt_absorbs_the_teeth_torsion",
     "tests/test_bvd.py::test_harmonic_command_takes_its_losses_from_a_measured_sweep",
     "tests/test_preload_errors.py::test_two_level_estimate_bounds_the_true_error_of_the_window_and_the_heat",
     "tests/test_preload_window.py",

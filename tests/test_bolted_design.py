@@ -1,0 +1,82 @@
+"""The bolted example design (geometry/examples.toml ``[bolted]``): the drill with its M12 bolt
+part, matched at 20 kHz with a rotary drive at least as strong as the drill's without the part.
+
+Why the default coupler loses its drive with the bolt part: the match lengthens the horn, and the
+horn's thin tip section becomes a torsional quarter wave at the drive, ``c_T / (4 L_tip)``, a
+tuned absorber that stills the teeth's torsion (benchmarks/study_bolted_coupler.py,
+docs/theory/operating-point.md).
+"""
+
+import argparse
+import math
+
+import pytest
+
+from geometry.examples import bolted_design
+from rpud_common import ParameterError
+
+TARGET_HZ = 20e3
+RATIO_REQUIRED = 0.17
+"""The teeth ellipse ratio the unbolted default drill's working mode had when the bolted design was
+asked for (k = 0 sector, refine 1). On the pipeline's mesh the ratio converges from below (the
+default drill's refine-1 value lies 4.2 % under its Richardson limit: docs/theory/piezo-elastic.md),
+so a refine-1 value at or above the requirement is one for the converged model too."""
+
+
+def _torsion_quarter_wave_hz(design) -> float:
+    # a circular rod's torsional waves are not dispersive: the fixed-free fundamental is exact for a
+    # uniform section rigidly held at the step (the thick section's polar moment is 22.6x the tip's)
+    from geometry.materials import get_material
+
+    m = get_material(design.horn.material)
+    c_t = math.sqrt(m.youngs_modulus / (2 * (1 + m.poisson_ratio)) / m.density)
+    return c_t / (4 * (1 - design.horn.step_fraction) * design.horn.length)
+
+
+def _working_point(design):
+    from fem.losses import default_losses
+    from results.stage_fe import MeshOptions, match_stage, mesh_stage
+    from results.stage_harmonic import harmonic_stage
+
+    m = match_stage(mesh_stage(design, MeshOptions()), match=False)
+    return m, harmonic_stage(m, loss=default_losses().loss_model(), voltage=1.0).wp
+
+
+def test_design_option_names_the_example(tmp_path, monkeypatch):
+    from geometry.options import design_from_options
+
+    monkeypatch.chdir(tmp_path)
+    assert design_from_options(argparse.Namespace(design="bolted")) == bolted_design()
+    with pytest.raises(ParameterError, match="--select"):
+        design_from_options(argparse.Namespace(design="bolted", select="rpud"))
+    with pytest.raises(ParameterError, match="boltd"):
+        design_from_options(argparse.Namespace(design="boltd"))
+    (tmp_path / "bolted").write_text('kind = "stack"\n')      # a file of that name is the file
+    with pytest.raises(ParameterError):
+        design_from_options(argparse.Namespace(design="bolted"))
+
+
+def test_bolted_example_is_matched_and_drives_the_rotor():
+    from fem.matching import MatchSettings
+
+    design = bolted_design()
+    assert design.stack.bolt_diameter == 0.012 and design.name == "bolted"
+    m, wp = _working_point(design)
+    # its lengths are the pipeline's match on this mesh: f_r within the match's own tolerance
+    assert abs(m.f_r_hz - TARGET_HZ) <= MatchSettings().tolerance * TARGET_HZ
+    assert wp.teeth_ellipse_ratio >= RATIO_REQUIRED
+    # the tip section's torsional quarter wave lies well above the drive (no absorber at f_r)
+    assert _torsion_quarter_wave_hz(design) > 1.15 * m.f_r_hz
+
+
+def test_default_horn_with_the_bolt_absorbs_the_teeth_torsion():
+    # the bolted drill matched with the default horn step (horn 78.28 mm, coupler 53.92 mm)
+    design = bolted_design(horn_length=0.07828142, coupler_length=0.05392041, step_fraction=0.5, slot_offset=0.004)
+    m, wp = _working_point(design)
+    assert abs(m.f_r_hz - TARGET_HZ) <= 0.005 * TARGET_HZ
+    # the absorber sits at the drive. The rigid-step quarter wave ignores the step's compliance: the
+    # thick section's torsional impedance Z_b is (24/11)^4 = 22.6x the tip's Z_t, and a base reactance
+    # X of at least Z_b moves the quarter wave by d(kL) = Z_t / X, at most (2/pi) / 22.6 = 2.8 %;
+    # 3 % allowed
+    assert _torsion_quarter_wave_hz(design) == pytest.approx(m.f_r_hz, rel=0.03)
+    assert wp.teeth_ellipse_ratio < 0.1 * RATIO_REQUIRED
