@@ -20,7 +20,8 @@ Stages (each timed, each reported on the terminal through ``progress``):
    :mod:`impact.stats`: ``device`` (restoring spring, steady operation; the headline, because
    it is how the drill runs) and ``article`` (first 50 ms, no spring: the article's Fig. 8),
    with the FE amplitude, next to the article's assumed 15 um;
-6. **renders** of the working mode and its neighbours, VTU with every mode.
+6. **renders** of the working mode and its neighbours, VTU with every mode (drawn in a worker
+   process while stages 4-5 run).
 
 Two pieces of stage 3 run side by side on two cores: the band response (a worker thread) and
 the discretisation-error estimate on the coarser mesh; ``timings``
@@ -315,10 +316,11 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     mesh = run.meshed.mesh
     say(f"      {mesh.n_cells} tetrahedra, {mesh.n_points} nodes ({clock.timings['mesh_s']:.1f} s)")
     _fe_stages(run, clock, tune, say)
-    _impact_stages(run, clock, say)
-    t0 = clock.stage("renders")
-    _render_stage(run)
-    clock.took("renders_s", t0)
+    with _Renders(run) as renders:       # in another process, beside the impact stages
+        _impact_stages(run, clock, say)
+        t0 = clock.stage("renders")
+        renders.collect()
+        clock.took("renders_s", t0)
     t0 = clock.stage("figures and report")
     figs = _figures(run)
     summary = _summary(run, figs)
@@ -516,22 +518,55 @@ def _compliant_stage(run: _Run, base, masses, say) -> dict | None:
                            CompliantSettings(members=st.compliant_members, seed=st.seed), q_mech=st.q_mech, say=say)
 
 
-def _render_stage(run: _Run) -> None:
-    """Mode-shape PNGs of the working mode and its neighbours, and the VTU with every mode."""
-    if not run.settings.render:
-        return
-    from fem.render import around, render_modes, write_modes_vtu
+class _Renders:
+    """Mode-shape PNGs of the working mode and its neighbours and the VTU with every mode, made
+    in a worker process while the impact stages run (``with`` block; :meth:`collect` waits).
 
-    from fem.sector_system import SectorSystem
+    Rendering (VTK) and the VTU's compression are single-threaded and the impact kernels hold the
+    interpreter, so a thread would not overlap them; a process does. It is started fresh
+    (``spawn``: no forked MKL or OpenGL state) and given the whole drill's mesh and shapes; its
+    files are the same whichever finishes first.
+    """
 
-    m = run.matched
-    mesh, shapes = m.mesh, m.modal.shapes
-    if isinstance(m.system, SectorSystem):          # the sector's modes shown on the whole drill
-        mesh, shapes = m.system.whole_mesh()[0], m.system.whole_shapes(m.modal.vectors)
-    idx = around(m.w, m.modal.n_modes, 2)
-    run.renders = render_modes(mesh, shapes, run.out / "renders", modes=idx, frequencies=m.modal.f_r_hz,
-                               labels=m.modal.labels)
-    run.vtu = write_modes_vtu(mesh, shapes, run.out / "modes.vtu", frequencies=m.modal.f_r_hz)
+    def __init__(self, run: _Run):
+        self.run, self.pool, self.job = run, None, None
+
+    def __enter__(self) -> "_Renders":
+        run = self.run
+        if not run.settings.render:
+            return self
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        from fem.render import around
+        from fem.sector_system import SectorSystem
+
+        m = run.matched
+        mesh, shapes = m.mesh, m.modal.shapes
+        if isinstance(m.system, SectorSystem):          # the sector's modes shown on the whole drill
+            mesh, shapes = m.system.whole_mesh()[0], m.system.whole_shapes(m.modal.vectors)
+        idx = around(m.w, m.modal.n_modes, 2)
+        self.pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+        self.job = self.pool.submit(render_files, mesh, shapes, run.out, idx, m.modal.f_r_hz, m.modal.labels)
+        return self
+
+    def collect(self) -> None:
+        """Wait for the files; they go into the run (an error in the worker is raised here)."""
+        if self.job is not None:
+            self.run.renders, self.run.vtu = self.job.result()
+
+    def __exit__(self, *exc) -> None:
+        if self.pool is not None:
+            self.pool.shutdown(wait=True, cancel_futures=True)
+
+
+def render_files(mesh, shapes, out: Path, modes, frequencies, labels) -> tuple[list, Path]:
+    """``(PNG paths, VTU path)``: ``modes`` rendered into ``out/renders`` and every mode written
+    to ``out/modes.vtu`` (the worker of :class:`_Renders`)."""
+    from fem.render import render_modes, write_modes_vtu
+
+    pngs = render_modes(mesh, shapes, out / "renders", modes=modes, frequencies=frequencies, labels=labels)
+    return pngs, write_modes_vtu(mesh, shapes, out / "modes.vtu", frequencies=frequencies)
 
 
 def _figures(run: _Run) -> dict:
