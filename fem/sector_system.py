@@ -47,7 +47,7 @@ from rpud_common import ParameterError, check_choice
 from .assembly import PiezoSystem
 
 __all__ = ["SectorSystem", "sector_system", "axial_sector", "AXIS_MOTIONS", "PATHS", "sweepable", "default_path",
-           "check_path", "path_label", "default_system", "system_label"]
+           "check_path", "path_label", "default_system", "system_label", "whole_grade"]
 
 log = logging.getLogger(__name__)
 
@@ -320,6 +320,14 @@ def path_label(design, path: str, *, refine: float = 1.0, grade: bool = False, m
             + size)
 
 
+def whole_grade(design) -> bool:
+    """Whether the whole-drill path grades ``design`` when not told: toward its re-entrant edges,
+    except on a CAD drawing, whose re-entrant edges are not known (the mesher refuses grading it)."""
+    from geometry.design_cad import CadDesign
+
+    return not isinstance(design, CadDesign)
+
+
 def default_system(design, *, refine: float = 1.0, grade: bool | None = None, mesh_size: float | None = None,
                    order: int = 2, path: str | None = None) -> PiezoSystem:
     """The system of ``design`` on its default path (:func:`default_path`; or ``path``): a
@@ -334,7 +342,7 @@ def default_system(design, *, refine: float = 1.0, grade: bool | None = None, me
     path = check_path(design, path, order)
     if path == "sector":
         return axial_sector(design, refine=refine, grade=bool(grade), mesh_size=mesh_size)
-    grade = True if grade is None else bool(grade)
+    grade = whole_grade(design) if grade is None else bool(grade)
     mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=order, refine=refine, grade=grade,
                                mesher=resolve_mesher(design, "auto"))
     system = assemble(mesh, order=order)

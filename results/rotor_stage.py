@@ -130,14 +130,16 @@ def teeth_report(wp, f_w: float, est, scale: float = 1.0) -> tuple[TeethReport, 
 
 
 def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> dict | None:
-    """The stage as the pipeline runs it, or None for a design without teeth.
+    """The stage as the pipeline runs it, or None for a design without teeth or without the
+    rotor's data (a CAD drawing: its coupler is a solid, not a parametric coupler with a rotor).
 
     ``wp``: the harmonic working point (``teeth_tops`` among its surfaces), ``f_w`` its frequency
     (Hz), ``est`` the discretisation-error estimate (:func:`results.errors.estimate_stage`, or
     None), ``wob`` the weight on bit (N) whose bit friction is the load. The teeth motion and its
     errors: :func:`teeth_report`.
     """
-    if "teeth_tops" not in getattr(wp, "surfaces", {}) or not getattr(design.coupler, "n_teeth", 0):
+    coupler = getattr(design, "coupler", None)
+    if "teeth_tops" not in getattr(wp, "surfaces", {}) or not getattr(coupler, "n_teeth", 0):
         return None
     teeth, notes = teeth_report(wp, f_w, est)
     out = rotor_stage(teeth, rotor_params_from_design(design), bit_friction_torque(wob, *BIT),

@@ -70,14 +70,14 @@ class MeshOptions:
     def resolved(self, design) -> "MeshOptions":
         """These options for ``design``: its path (a ParameterError if it cannot take the one asked,
         refused before any meshing), the mesher and the grading of that path."""
-        from fem.sector_system import check_path
+        from fem.sector_system import check_path, whole_grade
         from geometry.revolve import resolve_mesher
 
         asked = self.path if self.path not in (None, "auto") else ("whole" if self.mesher != "auto" else None)
         path = check_path(design, asked)          # a mesher asked for is a whole-drill mesh
         if path == "sector":
             return dataclasses.replace(self, path=path, grade=bool(self.grade))
-        return dataclasses.replace(self, path=path, grade=True if self.grade is None else self.grade,
+        return dataclasses.replace(self, path=path, grade=whole_grade(design) if self.grade is None else self.grade,
                                    mesher=resolve_mesher(design, self.mesher))
 
     def budget(self, design) -> dict:

@@ -315,3 +315,20 @@ def test_export_command_line(tmp_path, capsys):
     assert run_cli(main, ["--design", str(out / "design.toml"), "--export-step", str(tmp_path / "again")],
                    prog="python -m geometry") == 2
     assert "already a cad design" in capsys.readouterr().err and not (tmp_path / "again").exists()
+
+
+def test_pipeline_and_library_do_not_grade_a_drawing_unasked(exported):
+    """The whole-drill path grades a parametric drill toward its re-entrant edges by default, but
+    a drawing's re-entrant edges are not known and its mesher refuses grading: the pipeline's
+    resolved mesh options (and ``fem.default_system``) leave it ungraded unless asked, so
+    ``python -m results --design drawing.toml`` runs; asking with ``--grade`` stays refused."""
+    from fem.sector_system import whole_grade
+    from results.pipeline import PipelineSettings
+
+    drawing = load_design(exported[2])
+    assert whole_grade(_default()) and not whole_grade(drawing)
+    opt = PipelineSettings().mesh_options().resolved(drawing)
+    assert opt.path == "whole" and opt.grade is False and "ungraded" in opt.label(drawing)
+    assert PipelineSettings(path="whole").mesh_options().resolved(_default()).grade is True
+    with pytest.raises(ParameterError, match="grade"):
+        geometry.build_mesh(drawing, grade=True)
