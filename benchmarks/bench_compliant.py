@@ -8,7 +8,12 @@ spring, 20 ms discarded, 200 ms window).
 
 1. One 20 ms run at 8 g, 70 kHz cut-off: the Python engine (impact.compliant_loop, DOP853 contacts,
    closed-form flights) and the compiled one (impact.kernel_compliant) side by side.
-2. The converged table (impact.compliant_engine.compliant_batch): free masses 1-8 g at the 70 kHz
+2. CPU time per device member (0.22 s simulated) at 8 g and 1 g, 70 kHz cut-off: the compiled
+   engine as first landed (commit BASELINE: Dormand-Prince 5(4) contacts, events located by whole
+   trial steps; loaded from git, so it shares today's impact.compliant.approach_of) against
+   today's (DOP853 contacts, events on the step's interpolant) at rtol 1e-10 and 1e-9, the same
+   members, one thread; with each run's window energy balance and its tool KE (95 % CI).
+3. The converged table (impact.compliant_engine.compliant_batch): free masses 1-8 g at the 70 kHz
    cut-off, every driving quantity's 95 % CI within 3 %, and the convergence study at 1 g and 8 g:
    cut-offs 40 and 100 kHz, contact stiffness x0.5 and x2 (16 cases). Target: 30 s on 2 cores.
 
@@ -17,7 +22,10 @@ included). Run: ``PYTHONPATH=. python benchmarks/bench_compliant.py`` (FE ~1-2 m
 minutes on 2 cores).
 """
 
+import subprocess
 import time
+import types
+from pathlib import Path
 
 import numpy as np
 from _table import best_of, print_table
@@ -25,6 +33,9 @@ from _table import best_of, print_table
 MASSES = (0.001, 0.002, 0.003, 0.004, 0.005, 0.006, 0.007, 0.008)
 CUTOFFS = (40e3, 70e3, 100e3)
 BASE_CUT = 70e3
+#: the compiled compliant engine as first landed (Dormand-Prince 5(4) contact phases)
+BASELINE = "e35e23a"
+N_TIMED = 8
 
 
 def _fe():
@@ -77,6 +88,53 @@ def _side_by_side(f, horns, tip, ball):
     ]
 
 
+def _baseline_kernel():
+    """impact.kernel_compliant at BASELINE, loaded from git as a module of the impact package (None
+    without git or the commit)."""
+    try:
+        src = subprocess.run(["git", "show", f"{BASELINE}:impact/kernel_compliant.py"], capture_output=True, text=True,
+                             check=True, cwd=Path(__file__).resolve().parent).stdout
+    except (OSError, subprocess.CalledProcessError):
+        return None
+    mod = types.ModuleType("impact.kernel_compliant_baseline")
+    mod.__package__ = "impact"
+    exec(compile(src.replace("cache=True", "cache=False"), f"kernel_compliant@{BASELINE}", "exec"), mod.__dict__)
+    return mod
+
+
+def _per_member(f, horns, tip, ball):
+    """CPU time per member of the baseline and today's engine, side by side on the same members."""
+    from impact import kernel_compliant as KC
+    from impact.kernel import pack
+    from impact.params import ImpactParams
+    from impact.stats import StatsSettings, ensemble_members, get_scenario, mean_ci
+
+    old = _baseline_kernel()
+    engines = ([] if old is None else [(f"{BASELINE} (5(4)), rtol 1e-10", old, 1e-10)]) + [
+        ("today (DOP853), rtol 1e-10", KC, 1e-10), ("today (DOP853), rtol 1e-9", KC, 1e-9)]
+    horn, g = horns[BASE_CUT]
+    tab, xs = horn.pack(f)
+    sc = get_scenario("device")
+    rows, cost = [], {}
+    for m in (MASSES[-1], MASSES[0]):
+        base = sc.apply(ImpactParams(m_free=m, freq=f))
+        laws = _laws(m, base, tip, ball)
+        pm = [pack(p) for p in ensemble_members(base, N_TIMED, StatsSettings())]
+        for name, mod, rtol in engines:
+            lw = mod.pack_laws(*laws, g, rtol)
+            mod.run_contacts(pm[0], lw, tab, xs, 0.0, 1e-3, base.max_events)     # compile
+            c0 = time.process_time()
+            out = np.array([mod.run_contacts(p, lw, tab, xs, sc.t_from, sc.t_end, base.max_events)[-1] for p in pm])
+            cpu = (time.process_time() - c0) / len(pm)
+            cost[(m, name)] = cpu
+            led = np.max(np.abs(out[:, KC.K_LEDGER] / out[:, KC.C_DRIVE]))
+            ke = mean_ci(out[:, KC.S_KE_AFTER] / np.maximum(out[:, KC.S_N_TOOL], 1), 0.95)
+            speed = f"; **{cost[(m, engines[0][0])] / cpu:.1f}x** the baseline" if mod is KC and old is not None else ""
+            rows.append((f"{m * 1e3:g} g, {name}", f"{cpu * 1e3:.1f} ms",
+                         f"ledger max {led:.1e} of the drive work; tool KE per contact {ke.scaled(1e3)} mJ{speed}"))
+    return rows, cost, [e[0] for e in engines]
+
+
 def _cases():
     """(label, cut-off, mass, stiffness factor) of the table and the study."""
     out = [(f"{m * 1e3:g} g", BASE_CUT, m, 1.0) for m in MASSES]
@@ -114,10 +172,15 @@ def main():
     rows = [("FE: sector mesh, modes to 100 kHz, three horns", f"{t_fe:.1f} s",
              ", ".join(f"{cut / 1e3:g} kHz: {h.n_modes} modes" for cut, (h, _) in horns.items()))]
     rows += _side_by_side(f, horns, tip, ball)
+    member_rows, cost, names = _per_member(f, horns, tip, ball)
     table, wall, cpu, n = _table(f, horns, tip, ball)
+    ratio = np.mean([cost[(m, names[0])] / cost[(m, names[1])] for m in (MASSES[0], MASSES[-1])])
     rows.append(("converged table + convergence study", f"{wall:.1f} s",
-                 f"{n} cases, CPU {cpu:.1f} s (target 30 s on 2 cores)"))
+                 f"{n} cases, CPU {cpu:.1f} s (target 30 s on 2 cores); with the first column's engine "
+                 f"~{cpu * ratio:.0f} s CPU (x{ratio:.1f}, the mean per-member ratio at 1 and 8 g)"))
     print_table(rows, headers=("case", "time", "notes"))
+    print_table(member_rows, headers=(f"CPU per device member ({N_TIMED} members, 70 kHz, one thread)",
+                                      "CPU time", "notes"))
     print_table(table, headers=("case (device, 95 % CI)", "tool KE after contact", "tool contact rate", "members",
                                 "CI <= 3 %"))
 

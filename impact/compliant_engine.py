@@ -64,10 +64,11 @@ def run_compliant(params: ImpactParams, horn: ModalHorn, *, horn_law: HertzLaw, 
     params, horn, horn_law, tool_law, horn_residual
         As :func:`impact.compliant_loop.simulate_compliant`.
     rtol : float
-        Relative tolerance of the contact phases' Dormand-Prince 5(4) steps (the flights are
-        closed form). The energy balance's error grows in proportion: ~1e-10 of the drive work
-        in the device scenario at 1e-10; a free mass pressed onto a weakly driven horn (long
-        contacts, little drive work) needs 1e-11 for 1e-9. Each decade costs ~1.6x the steps.
+        Relative tolerance of the contact phases' DOP853 steps (the flights are closed form).
+        The energy balance's error grows with it: ~4e-11 of the drive work in the device
+        scenario at 1e-10, ~2e-10 at 1e-9 (8 g and 1 g, 16 modes); a free mass pressed onto a
+        weakly driven horn (long contacts, little drive work) needs a tighter rtol for 1e-9.
+        A decade costs ~1.15x the time.
 
     Returns
     -------

@@ -313,7 +313,7 @@ def simulate_compliant(params: ImpactParams, horn: ModalHorn, *, horn_law: Hertz
         contacts with its event detection (the reference). Python engine only.
     engine : {"kernel", "python"}
         The compiled engine (:func:`impact.compliant_engine.run_compliant`: closed-form flights
-        with the guaranteed touch search, Dormand-Prince 5(4) contacts) or this module's Python
+        with the guaranteed touch search, DOP853 contacts) or this module's Python
         reference (DOP853 contacts).
 
     Returns

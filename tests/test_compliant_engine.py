@@ -125,3 +125,48 @@ def test_window_statistics_count_the_reference_contacts():
     assert row[KC.S_T_ON_HORN] == pytest.approx(on["horn"], rel=1e-5)
     assert row[KC.S_T_ON_TOOL] == pytest.approx(on["tool"], rel=1e-5)
     assert row[KC.K_LOSS] == pytest.approx(ref.ledger["contact_loss_j"], rel=1e-5)
+
+
+def test_event_interpolant_matches_the_steps_it_stands_for():
+    """The contact phase finds its branch events on the DOP853 step's 7th-order interpolant; a
+    second method is the step itself, taken to the same point. From a horn contact just after
+    touch, a step that the error control accepts (its error estimate within atol + rtol |y| in
+    every state component) is interpolated at 0.2 ... 0.9 of its length and compared with direct
+    steps of those lengths. Both are of higher order (7 and 8) than the 5th-order estimate that
+    bounds the accepted error, so they agree within that tolerance; the interpolant's ends are the
+    step's ends (to rounding, 1e-12 relative)."""
+    from impact import kernel_compliant as KC
+    from impact.kernel import P_GAP, pack
+
+    p = ImpactParams(m_free=0.004, freq=20e3)
+    h3 = _horn3()
+    tab, xs = h3.pack(p.freq)
+    mt = KC.rhs_table(tab, xs)
+    pv, n = pack(p), h3.n_modes
+    lw = KC.pack_laws(*_laws(p).values(), 2e-9, 1e-10)
+    m = 4 + 2 * n + KC.N_INT
+    y, cs = np.zeros(m), np.zeros((2, KC.CS_N))
+    KC._start(pv, lw, tab, xs, n, y, cs)
+    ud = KC.approaches(0.0, y, n, tab, xs, pv[P_GAP])[1] + y[1]      # the tip's speed
+    y[0], y[1] = y[0] - 1e-9, ud - 0.8                # 1 nm in, closing at 0.8 m/s
+    KC.touch(cs, 0, lw, 0.0, 0.8, 0.0, 0.0)
+    atol = KC._tolerances(tab, n, 1e-10)
+    wk = np.empty((KC.R8_S + 13, m))
+    st, y8, tmp, F = wk[:KC.R8_S + 4], wk[KC.R8_S + 4], wk[KC.R8_S + 5], wk[KC.R8_S + 6:, :4 + 2 * n]
+    h = 2e-6
+    while True:
+        KC._step(0.0, y, h, n, mt, xs, pv, lw, cs, st, y8, tmp, True)
+        if KC._error(y, y8, st, h, atol, 1e-10) <= 1.0:
+            break
+        h *= 0.5
+    end = y8.copy()
+    KC._dense(0.0, y, end, h, n, mt, xs, pv, lw, cs, st, tmp, F)
+    k = 4 + 2 * n
+    tol = atol + 1e-10 * np.maximum(np.abs(y[:k]), np.abs(end[:k]))
+    got = np.empty(m)
+    KC._interpolate(y, F, 1.0, got)
+    assert np.all(np.abs(got[:k] - end[:k]) <= 1e-12 * np.abs(end[:k]) + 1e-12 * tol)
+    for x in (0.2, 0.5, 0.9):
+        KC._interpolate(y, F, x, got)
+        KC._step(0.0, y, x * h, n, mt, xs, pv, lw, cs, st, y8, tmp, True)
+        assert np.all(np.abs(got[:k] - y8[:k]) <= tol)
