@@ -152,6 +152,8 @@ def _describe(rule) -> str:
     return (f"swept parts at refine {refine:g}, layers <= {m.layer_deg:g} deg, coupler x{m.coupler_refine:g}"
             + (f", slot zone x{m.slot_refine:g}" if m.slot_refine != 1.0 else "")
             + (f", notch edges graded to {m.notch_fraction:g} of the slot zone's size" if m.notch_fraction else "")
+            + (" (" + ", ".join(f"{k} {v:g}" for k, v in m.notch_classes.items()) + ")"
+               if m.notch_fraction and m.notch_classes else "")
             + (f", outer junctions graded to {m.junction_fraction:g}" if m.junction_fraction else ""))
 
 
