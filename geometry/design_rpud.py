@@ -302,7 +302,7 @@ class CouplerDesign:
         Material name (default titanium alloy Ti-6Al-4V).
     length : float
         Overall axial length including the teeth, m (tuned by resonance matching; the default
-        49.714 mm is matched to 20 kHz on the converged k = 0 sector, see :func:`default_design`).
+        49.701 mm is matched to 20 kHz on the converged k = 0 sector, see :func:`default_design`).
     outer_diameter, inner_diameter : float
         Tube diameters, m (the bore is ``max(inner_diameter, RPUDDesign.bore_diameter)``).
     n_slots : int
@@ -330,7 +330,7 @@ class CouplerDesign:
 
     _prefix: ClassVar[str] = "coupler"
     material: str = "ti6al4v"
-    length: float = 0.049714
+    length: float = 0.049701
     outer_diameter: float = 0.035
     inner_diameter: float = 0.015
     n_slots: int = 6
@@ -709,7 +709,7 @@ class RPUDDesign(DesignBase):
 def default_design() -> RPUDDesign:
     """The default RPUD composition (see the README's geometry section for the choices).
 
-    Its horn and coupler lengths (68.04 mm, 49.714 mm) are matched to 20 kHz on the converged
+    Its horn and coupler lengths (68.04 mm, 49.701 mm) are matched to 20 kHz on the converged
     k = 0 sector (:func:`fem.matching.match` as ``python -m results`` runs it, refine 1): the match
     started from them returns them within its 10 um tolerance, so every command and the library
     find the working mode at the target within its stated error. The coupler length keeps 1 um:

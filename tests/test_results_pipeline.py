@@ -353,8 +353,8 @@ def test_four_commands_give_one_f_r_on_the_default_design(tmp_path):
     starting from the default lengths, which are its fixed point: it returns them within its
     length tolerance (xtol), and its f_r is the target within its root finding's residual. Each
     answer lies within its stated error of the converged f_r, so any two lie within the sum of
-    their stated errors of each other: the rule asserted (measured: the commands 19 999.937 Hz,
-    stated 7.8 Hz; the pipeline 19 999.940 Hz, stated 7.7 Hz; matched in 4 eigen solves)."""
+    their stated errors of each other: the rule asserted (measured: the commands 19 999.998 Hz,
+    stated 6.8 Hz; the pipeline 19 999.976 Hz, stated 6.7 Hz; matched in 4 eigen solves)."""
     import fem
     from fem.matching import MatchSettings
 
