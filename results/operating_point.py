@@ -18,8 +18,8 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["operating_point_stage", "losses_bracket", "measured_settings", "preload_stage", "thermal_stage",
-           "report_lines"]
+__all__ = ["operating_point_stage", "losses_bracket", "bracket_bases", "measured_settings", "preload_stage",
+           "thermal_stage", "report_lines"]
 
 
 def _tool_energy(base, ref_m: float, A0: float, stats_settings):
@@ -31,8 +31,31 @@ def _tool_energy(base, ref_m: float, A0: float, stats_settings):
     return {q: row.estimates[q].to_dict() for q in ("mean_tool_ke_after_j", "tool_power_w")}
 
 
+def _bracketed(losses) -> str:
+    """Why the losses have no Q/2, 2Q bracket ("" when they have one)."""
+    if losses.q_mech is None:
+        return "datasheet losses: no single Q to bracket"
+    if losses.origin == "measured":
+        return "measured losses (their CI in the source): no assumption to bracket"
+    return ""
+
+
+def bracket_bases(settings, system, modal, basis, f_w: float) -> dict:
+    """The modal bases (:func:`fem.harmonic.modal_basis`) at the losses of :data:`fem.losses.Q_BRACKET`,
+    factor -> basis, on ``basis``'s factorisation (empty when the losses have no bracket). Only
+    the FE system enters, so the pipeline builds them beside the impact stages."""
+    from fem.harmonic import modal_basis
+    from fem.losses import Q_BRACKET
+
+    losses = settings.losses()
+    if _bracketed(losses):
+        return {}
+    return {factor: modal_basis(system, f_w, loss=losses.scaled(factor).loss_model(), modes=modal, reuse=basis)
+            for factor in Q_BRACKET}
+
+
 def losses_bracket(settings, system, modal, basis, f_w: float, surfaces, base, stats_settings, default: dict,
-                   coupled_fn, say=None) -> dict:
+                   coupled_fn, say=None, bases: dict | None = None) -> dict:
     """The headline at Q/2 and 2Q beside the default losses.
 
     Parameters
@@ -45,6 +68,7 @@ def losses_bracket(settings, system, modal, basis, f_w: float, surfaces, base, s
     stats_settings : impact.stats.StatsSettings
     default : the default's row (``q_mech``, ``tip_amplitude_m``, ``power_w``, ``A0_m``, tool statistics)
     coupled_fn : :func:`results.pipeline.coupled_amplitudes` (the pipeline's A0 <-> impacts loop)
+    bases : :func:`bracket_bases` of these arguments, when already built (else built here)
 
     Returns
     -------
@@ -52,23 +76,17 @@ def losses_bracket(settings, system, modal, basis, f_w: float, surfaces, base, s
         ``losses`` (record of the default losses), ``rows`` (default, Q/2, 2Q) and ``note``.
     """
     from fem.harmonic import working_point
-    from fem.harmonic import modal_basis
-    from fem.losses import Q_BRACKET
 
     t0 = time.perf_counter()
     losses = settings.losses()
-    out = {"losses": losses.record(), "rows": [{"factor": 1.0, **default}], "note": ""}
-    if losses.q_mech is None:
-        out["note"] = "datasheet losses: no single Q to bracket"
+    out = {"losses": losses.record(), "rows": [{"factor": 1.0, **default}], "note": _bracketed(losses)}
+    if out["note"]:
         return out
-    if losses.origin == "measured":
-        out["note"] = "measured losses (their CI in the source): no assumption to bracket"
-        return out
+    bases = bases if bases is not None else bracket_bases(settings, system, modal, basis, f_w)
     ref_m = settings.reference_m_free
     omega = 2 * np.pi * f_w
-    for factor in Q_BRACKET:
-        loss = losses.scaled(factor).loss_model()
-        b = modal_basis(system, f_w, loss=loss, modes=modal, reuse=basis)
+    for factor, b in bases.items():
+        loss = b.loss
         wp = working_point(system, f_w, settings.voltage, loss=loss, surfaces=surfaces, basis=b)
 
         def point(c, b=b, loss=loss):
@@ -94,13 +112,14 @@ def losses_bracket(settings, system, modal, basis, f_w: float, surfaces, base, s
 
 
 def operating_point_stage(settings, system, modal, basis, f_w: float, surfaces, base, stats_settings, wp, ref,
-                          device_sweep, coupled_fn, say=None) -> dict:
+                          device_sweep, coupled_fn, say=None, bases: dict | None = None) -> dict:
     """The operating-point record of the pipeline (``summary.json["operating_point"]``).
 
     ``wp`` is the unloaded working point at the default losses, ``ref`` the impact-loaded
     amplitude at the reference free mass (:class:`results.pipeline.CoupledAmplitude`),
     ``device_sweep`` the headline sweep (its row at the reference mass is the default's energy),
-    ``coupled_fn`` the pipeline's A0 loop (:func:`losses_bracket`).
+    ``coupled_fn`` the pipeline's A0 loop and ``bases`` the bracket's modal bases if built
+    (:func:`losses_bracket`).
     """
     drive = settings.drive()
     losses = settings.losses()
@@ -115,7 +134,7 @@ def operating_point_stage(settings, system, modal, basis, f_w: float, surfaces, 
             "thermal": thermal_stage(settings, system, basis, f_w, surfaces, ref, say),
             "losses_text": losses.text(),
             "losses_bracket": losses_bracket(settings, system, modal, basis, f_w, surfaces, base, stats_settings,
-                                             default, coupled_fn, say=say)}
+                                             default, coupled_fn, say=say, bases=bases)}
 
 
 def thermal_stage(settings, system, basis, f_w: float, surfaces, ref, say=None) -> dict:
