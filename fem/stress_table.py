@@ -386,15 +386,29 @@ def _cycle_fields(dynamic: StressField | None, static: StressField | None, ref: 
         raw_e0=static.efield.real if static is not None else ze.real)
 
 
-def _edge_distances(system, edge: np.ndarray | None) -> np.ndarray | None:
-    """Each node's distance to the nearest singular-edge node (None: no singular edge)."""
+def _edge_distances(system, edge: np.ndarray | None, pairs=None) -> np.ndarray | None:
+    """Each node's distance to the nearest singular-edge node (None: no singular edge).
+
+    On a ``k = 0`` sector (``pairs``: its :class:`geometry.sector.SectorPairs`) the edges are
+    the whole drill's: a far cut-face node is its near partner turned (the whole drill has one
+    node there, flagged as the near one is), and the neighbouring sectors' edges, the sector's
+    own turned by +-360/N degrees, count too (a node near a cut can lie nearer to them)."""
     from scipy.spatial import cKDTree
 
     if edge is None:
         edge = bonded_edge_nodes(system)
+    if pairs is not None:
+        edge = edge.copy()
+        edge[pairs.far] = edge[pairs.near]
     if not edge.any():
         return None
-    return cKDTree(system.nodes[edge]).query(system.nodes)[0]
+    pts = system.nodes[edge]
+    if pairs is not None:
+        from geometry.sector import rotation
+
+        alpha = 2 * np.pi / pairs.sectors
+        pts = np.concatenate([pts, pts @ rotation(alpha).T, pts @ rotation(-alpha).T])
+    return cKDTree(pts).query(system.nodes)[0]
 
 
 def _region_rows(ref: StressField, ri: int, rd, f: _CycleFields, lim: dict, detail: bool, off_edges: bool,
@@ -487,7 +501,7 @@ def stress_table(dynamic: StressField | None, static: StressField | None = None,
     f = _cycle_fields(dynamic, static, ref)
     limits = _region_limits(system)
     off_edges = detail if off_edges is None else off_edges
-    edge_distance = _edge_distances(system, edge) if off_edges else None
+    edge_distance = _edge_distances(system, edge, ref.periodic) if off_edges else None
     rows = []
     for ri, rd in enumerate(system.regions):
         if regions is None or rd.name in regions:

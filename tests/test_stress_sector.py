@@ -110,8 +110,8 @@ def test_sector_node_fields_expand_to_the_whole_drills(states, tmp_path):
 
 def test_harmonic_stress_equals_the_pipelines_table(tmp_path, capsys):
     """``fem.harmonic --stress`` runs the sector path by default (auto) and its table is the
-    pipeline's: every row's peak, two-mesh error, headline and singular mark (module docstring).
-    Both say which mesh ran."""
+    pipeline's: every row's peak, two-mesh error, headline and singular mark, and the rings'
+    preload window (module docstring). Both say which mesh ran."""
     from fem.harmonic_cli import main
     from results.pipeline import PipelineSettings, run_pipeline
 
@@ -136,6 +136,10 @@ def test_harmonic_stress_equals_the_pipelines_table(tmp_path, capsys):
         for key in ("peak", "headline", "error_estimate"):
             assert a[key] == pytest.approx(b[key], rel=1e-9), (a["region"], a["quantity"], key)
         assert a["singular"] == b["singular"]
+    # the rings' preload window: the same function on the same state
+    win, op = rec["stress"]["preload_window"], s["operating_point"]["preload"]
+    for key in ("p_min_n", "p_max_n", "voltage_max_v"):
+        assert win[key] == pytest.approx(op[key], rel=1e-9), key
     import meshio
 
     # the whole drill: about N x the sector's P2 nodes (at most ndof / 3 of them)
