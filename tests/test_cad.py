@@ -21,6 +21,7 @@ from geometry.design_cad import CadDesign
 from geometry.design_stack import ElectrodeSpec, Segment, StackDesign
 from geometry.report import mesh_part_volumes
 from rpud_common import ParameterError, run_cli
+from reference_designs import reference_default
 
 REFINE = 1.5
 ROUND_TRIP_TOL = 5e-4        # the issue's 0.05 % on f_r and f_a
@@ -31,8 +32,10 @@ def _default():
     around the step fillet (one declared band spans both and the fillet between), and the flange
     fillet's metal is split between flange and horn along a slanted line (the flange part reaches
     above the flange's face, to the arc's mid point). Without the bolt part: the STEP export's
-    parametric layout has no bolt region."""
-    return geometry.default_design().replace({"stack.bolt_diameter": 0.0})
+    parametric layout has no bolt region. At the lengths of tests/reference_designs.py, where the
+    round trip's working mode was measured (two free meshes of the same solids differ by mesh
+    noise of that size: +3.5e-4 / +5.1e-4 at horn 68.04 mm, coupler 49.714 mm)."""
+    return reference_default().replace({"stack.bolt_diameter": 0.0})
 
 
 @pytest.fixture(scope="module")
