@@ -64,7 +64,7 @@ from .convergence import (ESTIMATOR_RATIO, QUANTITY_ORDERS, SECTOR_ORDER, Level,
                           two_level_error, wrapped_difference)
 from .losses import ASSEMBLED_Q_MECH
 
-__all__ = ["QUANTITIES", "ErrorEstimate", "estimate", "estimate_from_levels", "has_reentrant_edges",
+__all__ = ["QUANTITIES", "ErrorEstimate", "estimate", "coarse_level", "estimate_from_levels", "has_reentrant_edges",
            "plus_minus", "annotate", "ESTIMATOR_RATIO", "harmonic_quantities"]
 
 QUANTITIES = CONVERGENCE_QUANTITIES
@@ -190,11 +190,29 @@ def estimate_from_levels(fine: Level, coarse: Level, *, grade: bool, corners: bo
                          coarse.seconds, orders={q: float(v) for q, v in orders.items() if q in errors})
 
 
+def coarse_level(design, *, refine: float = 1.0, mesh_size: float | None = None, grade: bool = False,
+                 order: int = 2, near_hz: float | None = None, harmonic: bool = True, loss=None,
+                 q_mech: float | None = ASSEMBLED_Q_MECH, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
+                 select: Callable | None = None, mesher: str = "free", path: str = "whole",
+                 extra: Callable | None = None) -> Level:
+    """The coarse level of :func:`estimate` (the fine mesh's ``refine`` x :data:`ESTIMATOR_RATIO`),
+    its ``seconds`` the whole solve's; the arguments are :func:`estimate`'s."""
+    from .convergence import working_mode_level
+
+    check_range("refine", refine * ESTIMATOR_RATIO, 0.2, 5.0)
+    t0 = time.perf_counter()
+    lev = working_mode_level(design, refine * ESTIMATOR_RATIO, mesh_size=mesh_size, order=order, near_hz=near_hz,
+                             n_modes=n_modes, harmonic=harmonic, q_mech=q_mech, grade=grade, loss=loss,
+                             surfaces=surfaces, select=select, harmonic_method="modal", mesher=mesher, path=path,
+                             extra=extra)
+    return dataclasses.replace(lev, seconds=time.perf_counter() - t0)
+
+
 def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size: float | None = None,
              grade: bool = False, order: int = 2, near_hz: float | None = None, harmonic: bool = True,
              loss=None, q_mech: float | None = ASSEMBLED_Q_MECH, surfaces: tuple[str, ...] | None = None, n_modes: int = 4,
              select: Callable | None = None, mesher: str = "free", path: str = "whole",
-             extra: Callable | None = None) -> ErrorEstimate:
+             extra: Callable | None = None, coarse: "Level | None" = None) -> ErrorEstimate:
     """Estimate the discretisation error of ``values`` (computed on ``design`` meshed at ``refine``
     with ``ndof`` DOFs) from one solve at ``refine`` x :data:`ESTIMATOR_RATIO`.
 
@@ -216,22 +234,18 @@ def estimate(design, values: dict, ndof: int, *, refine: float = 1.0, mesh_size:
         the coarse solve runs on the same
     extra : ``extra(system, wp) -> dict``, more outputs of the coarse mesh's working point (1 V),
         kept in :attr:`ErrorEstimate.extra` (:func:`fem.convergence.working_mode_level`)
+    coarse : the coarse level already computed by :func:`coarse_level` with the same arguments
+        (so a caller can solve it beside the fine one); None computes it here
     """
-    from .convergence import working_mode_level
-
-    check_range("refine", refine * ESTIMATOR_RATIO, 0.2, 5.0)
-    t0 = time.perf_counter()
-    coarse_refine = refine * ESTIMATOR_RATIO
-    lev = working_mode_level(design, coarse_refine, mesh_size=mesh_size, order=order, near_hz=near_hz,
-                             n_modes=n_modes, harmonic=harmonic, q_mech=q_mech, grade=grade, loss=loss,
-                             surfaces=surfaces, select=select, harmonic_method="modal", mesher=mesher, path=path,
-                             extra=extra)
+    lev = coarse if coarse is not None else coarse_level(
+        design, refine=refine, mesh_size=mesh_size, grade=grade, order=order, near_hz=near_hz, harmonic=harmonic,
+        loss=loss, q_mech=q_mech, surfaces=surfaces, n_modes=n_modes, select=select, mesher=mesher, path=path,
+        extra=extra)
     fine = Level(float(refine), int(ndof), {q: float(v) for q, v in values.items() if q in QUANTITIES})
-    coarse = Level(lev.refine, lev.ndof, lev.values, time.perf_counter() - t0)
     from geometry.revolve import resolve_mesher
 
     graded = grade or path == "sector" or resolve_mesher(design, mesher) == "revolve"
-    est = estimate_from_levels(fine, coarse, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine),
+    est = estimate_from_levels(fine, lev, grade=graded, corners=has_reentrant_edges(design, mesh_size, refine),
                                order=SECTOR_ORDER if path == "sector" else None, orders=QUANTITY_ORDERS.get(path))
     return dataclasses.replace(est, extra=lev.extra)
 
