@@ -103,6 +103,18 @@ def write_stress_vtu(mesh, fields: dict[str, np.ndarray], path) -> Path:
     return path
 
 
+def write_stress_files(mesh, fields: dict[str, np.ndarray], png, vtu, title: str = "", mark=None) -> dict:
+    """The von Mises picture ``png`` (:func:`render_stress`, titled, ``mark`` drawn) and the node
+    fields ``vtu`` (:func:`write_stress_vtu`) of ``mesh``; either may be None (not written).
+    Returns ``{"png": path, "vtu": path}``."""
+    out = {"png": None, "vtu": None}
+    if png is not None:
+        out["png"] = render_stress(mesh, fields["von_mises"], png, title=title, mark=mark)
+    if vtu is not None:
+        out["vtu"] = write_stress_vtu(mesh, fields, vtu)
+    return out
+
+
 def peak_title(state: str, table) -> tuple[str, tuple | None]:
     """Title of a stress picture (the state, the metal peak) and the location to mark."""
     metal = [r for r in table.rows if r.quantity == "von_mises"]

@@ -55,16 +55,18 @@ class WorkingPointStress:
         """The von Mises picture ``png`` (titled with ``state`` and the metal peak, marked) and
         the node fields ``vtu`` (von Mises, principal extremes, ``|E|`` over the cycle), on the
         whole drill; either may be None (not written). Returns ``{"png": path, "vtu": path}``."""
-        from .stress_output import node_fields, peak_title, render_stress, whole_drill_fields, write_stress_vtu
+        write, args = self.file_job(png, vtu, state)
+        return write(*args)
+
+    def file_job(self, png: Path | None, vtu: Path | None, state: str) -> tuple:
+        """``(write, args)``: :meth:`write_files` as a picklable function and its arguments (the
+        whole drill's mesh and node fields, made here), so a caller can draw and write the files
+        in a worker process; ``write(*args)`` returns what :meth:`write_files` returns."""
+        from .stress_output import node_fields, peak_title, whole_drill_fields, write_stress_files
 
         mesh, fields = whole_drill_fields(self.system, node_fields(self.dynamic, self.static))
-        out = {"png": None, "vtu": None}
-        if png is not None:
-            title, mark = peak_title(state, self.table)
-            out["png"] = render_stress(mesh, fields["von_mises"], png, title=title, mark=mark)
-        if vtu is not None:
-            out["vtu"] = write_stress_vtu(mesh, fields, vtu)
-        return out
+        title, mark = peak_title(state, self.table)
+        return write_stress_files, (mesh, fields, png, vtu, title, mark)
 
 
 def working_point_stress(system, wp, preload=None, est=None, mesh: str | None = None) -> WorkingPointStress:

@@ -20,8 +20,8 @@ Stages (each timed, each reported on the terminal through ``progress``):
    :mod:`impact.stats`: ``device`` (restoring spring, steady operation; the headline, because
    it is how the drill runs) and ``article`` (first 50 ms, no spring: the article's Fig. 8),
    with the FE amplitude, next to the article's assumed 15 um;
-6. **renders** of the working mode and its neighbours, VTU with every mode (drawn in a worker
-   process while stages 4-5 run).
+6. **renders** of the working mode and its neighbours, VTU with every mode, and the stress
+   picture and VTU (drawn in a worker process while stages 3-5 run).
 
 Two pieces of stage 3 run side by side on two cores: the band response (a worker thread) and
 the discretisation-error estimate on the coarser mesh; ``timings``
@@ -317,8 +317,9 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     clock.took("mesh_s", t0)
     mesh = run.meshed.mesh
     say(f"      {mesh.n_cells} tetrahedra, {mesh.n_points} nodes ({clock.timings['mesh_s']:.1f} s)")
-    _fe_stages(run, clock, tune, say)
-    with _Renders(run) as renders:       # in another process, beside the impact stages
+    with _Renders(run) as renders:       # in another process, beside the later stages
+        _fe_stages(run, clock, tune, say, renders)
+        renders.modes()
         _impact_stages(run, clock, say)
         t0 = clock.stage("renders")
         renders.collect()
@@ -345,8 +346,9 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     return PipelineResult(folder=run.out, summary=summary)
 
 
-def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
-    """Matching, harmonic response, stress and the discretisation error of the FE outputs."""
+def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "_Renders") -> None:
+    """Matching, harmonic response, stress and the discretisation error of the FE outputs (the
+    stress picture and VTU drawn by ``renders``' worker)."""
     from .stage_fe import match_stage
     from .stage_harmonic import harmonic_stage
     from .stress_stage import stress_stage
@@ -376,7 +378,7 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say) -> None:
         f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
     estimated.replay(say)
     run.stress = stress_stage(m.system, h.wp, run.out, render=st.render, say=say, coarse=run.est,
-                              preload=run.bolt, mesh=m.options.label(m.design))    # own timing
+                              preload=run.bolt, mesh=m.options.label(m.design), submit=renders.submit)  # own timing
     t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
     from .rotor_stage import pipeline_rotor_stage
 
@@ -542,25 +544,37 @@ def _compliant_stage(run: _Run, base, masses, say) -> dict | None:
 
 
 class _Renders:
-    """Mode-shape PNGs of the working mode and its neighbours and the VTU with every mode, made
-    in a worker process while the impact stages run (``with`` block; :meth:`collect` waits).
+    """The pictures and VTUs, drawn and written in a worker process while the pipeline goes on
+    (``with`` block; :meth:`collect` waits): the stress picture and VTU (:meth:`submit`, from the
+    stress stage), then the mode-shape PNGs of the working mode and its neighbours and the VTU
+    with every mode (:meth:`modes`).
 
-    Rendering (VTK) and the VTU's compression are single-threaded and the impact kernels hold the
+    Rendering (VTK) and the VTUs' compression are single-threaded and the impact kernels hold the
     interpreter, so a thread would not overlap them; a process does. It is started fresh
-    (``spawn``: no forked MKL or OpenGL state) and given the whole drill's mesh and shapes; its
+    (``spawn``: no forked MKL or OpenGL state) and given the whole drill's meshes and fields; its
     files are the same whichever finishes first.
     """
 
     def __init__(self, run: _Run):
-        self.run, self.pool, self.job = run, None, None
+        self.run, self.pool, self.jobs, self.mode_job = run, None, [], None
 
     def __enter__(self) -> "_Renders":
+        return self
+
+    def submit(self, fn, *args) -> None:
+        """Run ``fn(*args)`` in the worker (started at the first job)."""
+        if self.pool is None:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self.pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
+        self.jobs.append(self.pool.submit(fn, *args))
+
+    def modes(self) -> None:
+        """Submit the mode-shape renders and VTU (the whole drill on the sector path)."""
         run = self.run
         if not run.settings.render:
-            return self
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-
+            return
         from fem.render import around
         from fem.sector_system import SectorSystem
 
@@ -569,14 +583,15 @@ class _Renders:
         if isinstance(m.system, SectorSystem):          # the sector's modes shown on the whole drill
             mesh, shapes = m.system.whole_mesh()[0], m.system.whole_shapes(m.modal.vectors)
         idx = around(m.w, m.modal.n_modes, 2)
-        self.pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
-        self.job = self.pool.submit(render_files, mesh, shapes, run.out, idx, m.modal.f_r_hz, m.modal.labels)
-        return self
+        self.submit(render_files, mesh, shapes, run.out, idx, m.modal.f_r_hz, m.modal.labels)
+        self.mode_job = self.jobs[-1]
 
     def collect(self) -> None:
-        """Wait for the files; they go into the run (an error in the worker is raised here)."""
-        if self.job is not None:
-            self.run.renders, self.run.vtu = self.job.result()
+        """Wait for every file; the mode files go into the run (an error in the worker is raised here)."""
+        for job in self.jobs:
+            job.result()
+        if self.mode_job is not None:
+            self.run.renders, self.run.vtu = self.mode_job.result()
 
     def __exit__(self, *exc) -> None:
         if self.pool is not None:

@@ -28,7 +28,7 @@ FIXES = {"principal_min": "a local peak of the bolt's static compression plus th
 
 
 def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None, preload=None,
-                 mesh: str | None = None) -> dict:
+                 mesh: str | None = None, submit=None) -> dict:
     """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its
     solution ``wp.x`` on ``system``, the ``k = 0`` sector or the whole drill); writes
     ``renders/stress_von_mises.png`` and ``stress.vtu`` (the whole drill) into ``out`` when
@@ -37,6 +37,8 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse
     its two-mesh estimate (None: the single-mesh estimate, said in the table's note).
     ``preload``: the bolt's static state (:class:`fem.preload.PreloadState` solved on ``system``),
     added to the dynamic one before the peaks are taken. ``mesh``: the mesh that ran, in words.
+    ``submit``: ``submit(write, *args)`` runs the files' drawing and writing elsewhere (a worker
+    process; the caller waits for it before the folder is complete), None: here.
     The table is :func:`fem.stress_state.working_point_stress`'s, as ``fem.harmonic --stress``'s.
     Returns the JSON record (``summary.json["stress"]``)."""
     from fem.stress_state import working_point_stress
@@ -46,9 +48,13 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse
     table = res.table
     files = {"png": None, "vtu": None}
     if render:
-        written = res.write_files(Path(out) / "renders" / "stress_von_mises.png", Path(out) / "stress.vtu",
-                                  f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz")
-        files = {k: str(Path(v).relative_to(out)) for k, v in written.items()}
+        paths = {"png": Path(out) / "renders" / "stress_von_mises.png", "vtu": Path(out) / "stress.vtu"}
+        write, args = res.file_job(paths["png"], paths["vtu"], f"{wp.voltage:g} V at {wp.freq_hz:.1f} Hz")
+        if submit is not None:
+            submit(write, *args)
+        else:
+            paths = write(*args)
+        files = {k: str(Path(v).relative_to(out)) for k, v in paths.items()}
     w = table.worst()
     if say is not None and w is not None:
         say(f"      stress: highest utilisation {100 * w.utilisation:.0f} % ({w.region}, {w.quantity}, "
