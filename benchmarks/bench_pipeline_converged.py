@@ -3,16 +3,16 @@ side by side in one run: ``python -m results`` (what ``make run`` does) and ``py
 
 Equal accuracy
 --------------
-The default path solves the ``k = 0`` swept sector (87 585 DOFs at refine 1); its working mode on
+The default path solves the ``k = 0`` swept sector (89 435 DOFs at refine 1); its working mode on
 the default design is within its stated error (about 10 Hz, 0.05 %) of the converged value. The
 baseline is the whole drill meshed freely and graded toward the re-entrant edges. Its accuracy
 was measured once, on the default design as it is (no matching), with ``python -m fem.modal
 --sectors off --mesher free --grade --modes 4 --refine F`` (:data:`FREE_LEVELS`) against the
 converged value :data:`REFERENCE` (Richardson, order 2, from the sector at refine 1 and 0.7):
-+0.166 % / +0.172 % (f_r / f_a) at refine 1 (108 572 DOFs), +0.124 % / +0.127 % at refine 0.8
-(173 385 DOFs), an observed order of 1.3 in h. Reaching 0.05 % takes refine ~0.39
-(:func:`needed_refine`), about 0.77 million DOFs (they grew as refine^-2.1 between the two
-levels, :func:`needed_dofs`) and ~15 GB: more than a 2-core machine shared with other jobs holds. So the baseline runs at refine 1 and 0.8 (as accurate as 3.3x and 2.5x the target error,
++0.173 % / +0.178 % (f_r / f_a) at refine 1 (108 380 DOFs), +0.128 % / +0.130 % at refine 0.8
+(173 515 DOFs), an observed order of 1.35 in h. Reaching 0.05 % takes refine ~0.40
+(:func:`needed_refine`), about 0.75 million DOFs (they grew as refine^-2.1 between the two
+levels, :func:`needed_dofs`) and ~15 GB: more than a 2-core machine shared with other jobs holds. So the baseline runs at refine 1 and 0.8 (as accurate as 3.5x and 2.6x the target error,
 a lower bound on the equally accurate run's cost), and the table adds the equally accurate
 baseline's CPU time extrapolated from those two by the measured growth of CPU time with DOFs
 (marked as such).
@@ -37,15 +37,15 @@ from bench_pipeline import row, run
 
 from results.pipeline import PipelineSettings
 
-REFERENCE = {"f_r_hz": 20096.2, "f_a_hz": 21926.1}
+REFERENCE = {"f_r_hz": 19994.8, "f_a_hz": 21794.4}
 """Converged working mode of the default design as it is, Hz: Richardson (order 2, h ratio 1/0.7)
-of the sector's 20101.3 / 21930.4 Hz at refine 1 (90 024 DOFs) and 20098.7 / 21928.2 Hz at refine
-0.7 (211 960 DOFs); the difference of the two levels bounds its error by ~2.5 Hz (0.013 %)."""
+of the sector's 19998.0 / 21798.8 Hz at refine 1 (89 435 DOFs) and 19997.4 / 21796.6 Hz at refine
+0.7 (223 972 DOFs); the difference of the two levels bounds its error by ~2.6 Hz (0.013 %)."""
 
 FREE_LEVELS = (
     # refine, DOFs, f_r Hz, f_a Hz: python -m fem.modal --sectors off --mesher free --grade --modes 4
-    (1.0, 108_572, 20129.5, 21963.8),
-    (0.8, 173_385, 20121.2, 21954.0),
+    (1.0, 108_380, 20029.4, 21833.1),
+    (0.8, 173_515, 20020.4, 21822.7),
 )
 """The whole drill's free graded mesh on the default design (no matching), as measured."""
 
