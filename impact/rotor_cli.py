@@ -22,7 +22,7 @@ _P = RotorParams()
 FREQ, RATIO, PHASE = 20000.0, 0.173, 171.2
 """Default drive frequency (Hz), teeth ellipse ratio and phase (deg): the default design's
 matched working mode and harmonic response (results/default/summary.json, "working_mode" and
-"harmonic": 20 000 ± 10 Hz, 0.173 ± 0.012, 171.2 ± 0.18 deg)."""
+"harmonic": 20 000 ± 6.7 Hz, 0.1727 ± 0.0098, 171.24 ± 0.33 deg)."""
 WOB, BIT_DIAMETER, MU_ROCK = 7.0, 3e-3, 0.4
 """Default load: the article's 7 N weight on bit, its 3 mm tool, and an assumed rock/steel
 friction coefficient (no measured value at hand)."""
