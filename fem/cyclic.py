@@ -37,7 +37,7 @@ from .eigen import block_eigs, smooth_start
 from .modal import BLOCK_MIN, frequency_hz, own_anti_resonance
 from .solvers import blas_threads, factorize
 
-__all__ = ["cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "multiplicity", "nearest_modes",
+__all__ = ["first_ask", "cyclic_basis", "cyclic_modes", "CyclicModes", "harmonics", "multiplicity", "nearest_modes",
            "harmonic_shares", "harmonic_labels", "expand", "sector_images"]
 
 log = logging.getLogger(__name__)
@@ -293,7 +293,13 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
                        {"short_s": t1 - t0, "open_s": t2 - t1, "total_s": t2 - t0})
 
 
-def nearest_modes(systems, sectors: int, near_hz: float, n_modes: int, **kw):
+def first_ask(ks, n_modes: int) -> dict[int, int]:
+    """Modes :func:`nearest_modes` asks each harmonic of ``ks`` for in its first round (about its
+    share of ``n_modes``), so that a caller can start those solves before every mesh exists."""
+    return {k: min(n_modes, -(-n_modes // (len(ks) + 1)) + 2) for k in ks}
+
+
+def nearest_modes(systems, sectors: int, near_hz: float, n_modes: int, first: dict | None = None, **kw):
     """The whole drill's ``n_modes`` modes nearest ``near_hz`` (in omega^2, as
     :func:`fem.modal.modal_analysis` picks them) from its harmonics, a pair counting twice.
 
@@ -301,11 +307,14 @@ def nearest_modes(systems, sectors: int, near_hz: float, n_modes: int, **kw):
     :func:`cyclic_modes`. Each harmonic is asked for about its share of the modes, and for more
     where it may hold modes nearer than the last one chosen. Returns ``(results, chosen)``:
     harmonic -> :class:`CyclicModes`, and ``(harmonic, index)`` of the chosen modes, nearest first,
-    their multiplicities summing to ``n_modes`` (one more when the last is a pair).
+    their multiplicities summing to ``n_modes`` (one more when the last is a pair). ``first``:
+    harmonic -> the first round's result already solved (``cyclic_modes`` with :func:`first_ask`'s
+    count and the same ``kw``).
     """
     ks = sorted(systems)
-    ask = {k: min(n_modes, -(-n_modes // (len(ks) + 1)) + 2) for k in ks}
-    results, asked = {}, {}
+    ask = first_ask(ks, n_modes)
+    results = dict(first or {})
+    asked = {k: ask[k] for k in results}
     while True:
         todo = [k for k in ks if asked.get(k, 0) < ask[k]]
         solved = _side_by_side(lambda k: cyclic_modes(systems[k], sectors, k, near_hz, ask[k], **kw), todo)

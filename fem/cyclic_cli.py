@@ -116,8 +116,10 @@ def parse_harmonics(text: str | None, sectors: int) -> tuple[int, ...]:
     return tuple(ks)
 
 
-def _meshes(args, design, sectors, ks, single: bool):
-    """``{k: (system, mesh, rule)}``: one assembled sector per mesh rule the harmonics need."""
+def _meshes(args, design, sectors, ks, single: bool, built=None):
+    """``{k: (system, mesh, rule)}``: one assembled sector per mesh rule the harmonics need, the
+    rule of the highest harmonic first (its solve is the longest); ``built(harmonics, system)``
+    is called as each is assembled."""
     import geometry
     from geometry.options import mesher_of
     from geometry.sector import AXIAL_RULE, LATERAL_RULE
@@ -132,8 +134,8 @@ def _meshes(args, design, sectors, ks, single: bool):
         else:
             refine, meshing = AXIAL_RULE if (k == 0 or single) else LATERAL_RULE
             rules[k] = (refine * args.refine, meshing.scaled(args.refine))
-    built = {}
-    for rule in dict.fromkeys(rules.values()):
+    done = {}
+    for rule in dict.fromkeys(rules[k] for k in sorted(ks, reverse=True)):
         kw = {"refine": rule[0], "grade": args.grade, "mesher": "revolve" if swept else "free", "sectors": sectors}
         if swept:
             kw["sector_meshing"] = rule[1]
@@ -145,8 +147,10 @@ def _meshes(args, design, sectors, ks, single: bool):
         users = ", ".join(str(k) for k in ks if rules[k] == rule)
         print(f"sector mesh for k = {users}: {_describe(rule)}, {system.ndof} DOFs, {time.perf_counter() - t0:.1f} s",
               flush=True)
-        built[rule] = (system, mesh)
-    return {k: (*built[rules[k]], rules[k]) for k in ks}
+        done[rule] = (system, mesh)
+        if built is not None:
+            built([k for k in ks if rules[k] == rule], system)
+    return {k: (*done[rules[k]], rules[k]) for k in ks}
 
 
 def _describe(rule) -> str:
@@ -186,20 +190,18 @@ def run(args, design, near: float, sectors: int) -> int:
     from geometry.options import mesher_of
     from rpud_common import atomic_write_text, json_text
 
-    from .cyclic import harmonic_labels, harmonic_shares, multiplicity, nearest_modes
+    from .cyclic import harmonic_labels, harmonic_shares, multiplicity
 
     ks = parse_harmonics(args.harmonics, sectors)
     n_modes = 12 if args.modes is None else args.modes
     backend = None if args.solver in (None, "auto") else args.solver
     t0 = time.perf_counter()
-    meshes = _meshes(args, design, sectors, ks, single=bool(args.render or args.vtu))
     checked = (mesher_of(args, design) == "revolve" and args.refine == 1 and args.mesh_size is None
                and args.order == 2 and not args.clamp and not (args.render or args.vtu) and not args.grade
                and _default_geometry(design))
     estimated = args.error or (not checked and not args.clamp and mesher_of(args, design) == "revolve")
-    (results, chosen), coarse = _beside(lambda: nearest_modes({k: meshes[k][0] for k in ks}, sectors, near, n_modes,
-                                                               clamp=args.clamp, backend=backend),
-                                        (lambda: _coarse(args, design, near)) if estimated and 0 in ks else None)
+    meshes, (results, chosen), coarse = _solved(args, design, sectors, ks, near, n_modes, backend,
+                                                estimated and 0 in ks)
     shares = {k: harmonic_shares(meshes[k][0], results[k].vectors) for k in ks}
     labels = {k: harmonic_labels(shares[k], k) for k in ks}
     rows = []
@@ -264,22 +266,33 @@ def _working_row(rows, near: float):
     return min(axial, key=lambda r: abs(r["f_r_hz"] - near)) if axial else None
 
 
-def _beside(solve, coarse):
-    """``(solve(), coarse())``: the harmonics' solves in a worker thread (their own threads side
-    by side, :func:`fem.cyclic.nearest_modes`) while this thread makes the estimate's coarse level
-    (``coarse`` None: none), since Gmsh is started from here. On two cores the coarse solve fills
-    the core the smaller harmonic leaves idle. OpenBLAS stays on one thread across all of them, as
-    in the solves alone: the same numbers as one after the other."""
-    if coarse is None:
-        return solve(), None
+def _solved(args, design, sectors, ks, near, n_modes, backend, estimate: bool):
+    """``(meshes, (results, chosen), coarse)``: the sector meshes (:func:`_meshes`), the modes
+    nearest ``near`` (:func:`fem.cyclic.nearest_modes`) and, with ``estimate``, the two-level
+    estimate's coarse level (else None).
+
+    Each harmonic's first solve starts in a worker thread as soon as its mesh is assembled, while
+    this thread makes the next mesh and then the coarse level (Gmsh is started from here): on two
+    cores the solves fill the core that meshing leaves idle. OpenBLAS stays on one thread across
+    all of them, as in the solves alone: the same numbers as one after the other."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from .cyclic import cyclic_modes, first_ask, nearest_modes
     from .solvers import blas_threads
 
-    with blas_threads(1), ThreadPoolExecutor(max_workers=1, thread_name_prefix="harmonics") as pool:
-        future = pool.submit(solve)
-        level = coarse()
-        return future.result(), level
+    kw = {"clamp": args.clamp, "backend": backend}
+    ask = first_ask(ks, n_modes)
+    with blas_threads(1), ThreadPoolExecutor(max_workers=len(ks), thread_name_prefix="harmonic") as pool:
+        futures = {}
+
+        def start(users, system):
+            for k in users:
+                futures[k] = pool.submit(cyclic_modes, system, sectors, k, near, ask[k], **kw)
+
+        meshes = _meshes(args, design, sectors, ks, single=bool(args.render or args.vtu), built=start)
+        coarse = _coarse(args, design, near) if estimate else None
+        first = {k: f.result() for k, f in futures.items()}
+    return meshes, nearest_modes({k: meshes[k][0] for k in ks}, sectors, near, n_modes, first=first, **kw), coarse
 
 
 def _coarse(args, design, near):

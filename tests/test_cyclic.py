@@ -297,3 +297,22 @@ def test_rule_error_only_on_the_design_it_was_measured_on():
     assert _default_geometry(filleted(reference_default(), 0.0))
     assert not _default_geometry(filleted(default_design(), 0.0))
     assert not _default_geometry(default_design())
+
+
+def test_nearest_modes_continues_from_a_first_round_solved_elsewhere(sector):
+    """The command line starts each harmonic's first solve as soon as its mesh exists
+    (``first``); the search then picks the same modes, bit for bit, as when it solves them itself."""
+    from fem.cyclic import first_ask, nearest_modes
+
+    system = assemble(sector)
+    systems = {0: system, 1: system}
+    ask = first_ask(systems, 6)
+    first = {k: cyclic_modes(system, N, k, 20000.0, ask[k]) for k in systems}
+    plain, chosen = nearest_modes(systems, N, 20000.0, 6)
+    given, chosen_given = nearest_modes(systems, N, 20000.0, 6, first=first)
+    assert chosen_given == chosen
+    for k in systems:
+        assert np.array_equal(given[k].f_hz, plain[k].f_hz)
+        # the first round is taken as given, not solved again (a harmonic asked for more is)
+        assert given[k] is first[k] or len(given[k].f_hz) > ask[k]
+    assert any(given[k] is first[k] for k in systems)
