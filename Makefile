@@ -22,7 +22,7 @@ $(STAMP): pyproject.toml $(LOCK) $(KERNELS)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m pip check
 	# compile the impact kernel now (numba caches it beside the source): runs start at once
-	$(PY) -c "from impact.kernel import warmup; warmup(); from impact.kernel_modal import warmup as w; w()"
+	$(PY) -c "from impact.kernel import warmup; warmup(); from impact.kernel_modal import warmup as w; w(); from impact.compliant_engine import warmup as c; c()"
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -27,7 +27,7 @@ from .hertz import HertzLaw
 from .horn import ModalHorn
 from .params import ImpactParams
 
-__all__ = ["run_compliant", "compliant_batch", "COMPLIANT_QUANTITIES"]
+__all__ = ["run_compliant", "compliant_batch", "COMPLIANT_QUANTITIES", "warmup"]
 
 log = logging.getLogger(__name__)
 
@@ -199,3 +199,19 @@ def _names() -> list:
     from .stats import QUANTITIES
 
     return [q for q, _, _ in QUANTITIES + COUPLED_QUANTITIES + COMPLIANT_QUANTITIES]
+
+
+def warmup() -> None:
+    """Compile the engine's two entry points (or load them from numba's disk cache) on a tiny
+    case; ``make install`` calls it beside :func:`impact.kernel.warmup`, so the first compliant
+    run does not spend ~10-25 s compiling."""
+    from . import kernel_compliant as KC
+    from .kernel import pack
+
+    horn = ModalHorn([2 * math.pi * 20.5e3], [0.005], [1.0], [3.0], [0.5], [0.0], 1.0)
+    p = ImpactParams(t_end=1e-3)
+    laws = {"horn_law": HertzLaw(1e9, p.e2), "tool_law": HertzLaw(1e9, p.e1)}
+    run_compliant(p, horn, **laws)
+    tab, xs = horn.pack(p.freq)
+    KC.ensemble_rows(pack(p)[None, :], KC.pack_laws(laws["horn_law"], laws["tool_law"], 0.0, 1e-10), tab, xs,
+                     0.0, 1e-3, p.max_events)

@@ -143,7 +143,6 @@ SLOW: tuple[str, ...] = (
     "tests/test_sector_paths.py::test_own_design_gets_its_estimated_error_on_the_sector",
     "tests/test_sector_paths.py::test_energy_shares_of_the_swept_whole_drill_are_the_sectors",
     "tests/test_sector_paths.py::test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it",
-    "tests/test_sector_paths.py::test_modal_harmonic_and_library_give_one_resonance",
     "tests/test_sector_system.py::test_sector_modes_are_the_whole_drills_axisymmetric_modes",
     "tests/test_sector_system.py::test_working_point_equals_the_whole_drill",
     "tests/test_sector_system.py::test_capacitances_equal_the_whole_drill",

@@ -382,6 +382,7 @@ def test_four_commands_give_one_f_r_on_the_default_design(tmp_path):
     assert harm["path"] == "sector" and harm["mesh"].startswith("swept sector 1/6 (k = 0), refine 1")
     assert "mesh: swept sector 1/6" in h.stdout
     f_harm, e_harm = harm["working_mode"]["f_r_hz"], harm["working_mode"]["f_r_hz_error"]
+    assert harm["working_point"]["tip_per_volt_m_error"] > 0        # stated on the sector path without --error
 
     system = fem.default_system(design)
     lib = fem.modal_analysis(system, design.target_frequency, 4)

@@ -84,34 +84,6 @@ def test_own_design_gets_its_estimated_error_on_the_sector(tmp_path):
         assert m["f_a_hz"] is None or m["f_a_hz"] >= m["f_r_hz"]
 
 
-def test_modal_harmonic_and_library_give_one_resonance(tmp_path):
-    """fem.modal, fem.harmonic and the library default (fem.default_system) run the same k = 0
-    sector on the default design, so they print one f_r: equal to the eigen-solver's 1e-9 (fem.eigen:
-    omega^2 to 1e-10), far inside the stated error; each says which mesh ran, and fem.harmonic
-    states its error on the sector path without being asked."""
-    import fem
-
-    r = _modal(tmp_path, "--refine", "2", "--harmonics", "0", "--modes", "4", "--json", "m.json")
-    assert r.returncode == 0, r.stderr
-    modal = json.loads((tmp_path / "m.json").read_text())
-    f_modal = [m for m in modal["modes"] if m["f_r_hz_error"] is not None][0]
-    h = subprocess.run([sys.executable, "-m", "fem.harmonic", "--refine", "2", "--points", "20", "--json", "h.json"],
-                       capture_output=True, text=True, cwd=tmp_path, timeout=900)
-    assert h.returncode == 0, h.stderr
-    harm = json.loads((tmp_path / "h.json").read_text())
-    assert harm["path"] == "sector" and harm["mesh"].startswith("swept sector 1/6 (k = 0)")
-    assert "mesh: swept sector 1/6" in h.stdout
-    work = harm["working_mode"]
-    assert work["f_r_hz_error"] > 0 and harm["working_point"]["tip_per_volt_m_error"] > 0
-    system = fem.default_system(default_design(), refine=2.0)
-    lib = fem.modal_analysis(system, 20e3, 4)
-    f_lib = lib.f_r_hz[lib.working]
-    for f in (f_modal["f_r_hz"], work["f_r_hz"]):
-        assert f == pytest.approx(f_lib, rel=1e-9)
-    assert abs(f_lib - f_modal["f_r_hz"]) <= f_modal["f_r_hz_error"]
-    assert fem.system_label(system).startswith("swept sector 1/6 (k = 0), refine 2")
-
-
 VARIANT = {"horn.length": 0.072, "coupler.length": 0.045, "stack.outer_diameter": 0.038,
            "coupler.outer_diameter": 0.038}
 """A design of the default's kind with other lengths and diameters (and the default's 2 mm horn
