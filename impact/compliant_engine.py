@@ -204,7 +204,7 @@ def _names() -> list:
 def warmup() -> None:
     """Compile the engine's two entry points (or load them from numba's disk cache) on a tiny
     case; ``make install`` calls it beside :func:`impact.kernel.warmup`, so the first compliant
-    run does not spend ~10-25 s compiling."""
+    run does not spend ~40 s compiling."""
     from . import kernel_compliant as KC
     from .kernel import pack
 
