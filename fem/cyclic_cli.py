@@ -295,12 +295,18 @@ def _solved(args, design, sectors, ks, near, n_modes, backend, estimate: bool):
     return meshes, nearest_modes({k: meshes[k][0] for k in ks}, sectors, near, n_modes, first=first, **kw), coarse
 
 
+def _estimate_options(args, near) -> dict:
+    """The options of the two-level estimate on the ``k = 0`` sector (``--refine`` x 1.4): the same
+    for its coarse level and for the estimate made from it."""
+    return {"refine": args.refine, "mesh_size": args.mesh_size, "grade": args.grade, "near_hz": near,
+            "harmonic": False, "n_modes": 8, "path": "sector"}
+
+
 def _coarse(args, design, near):
-    """The coarse level of the two-level estimate on the ``k = 0`` sector (``--refine`` x 1.4)."""
+    """The coarse level of the two-level estimate (:func:`fem.errors.coarse_level`)."""
     from .errors import coarse_level
 
-    return coarse_level(design, refine=args.refine, mesh_size=args.mesh_size, grade=args.grade, near_hz=near,
-                        harmonic=False, n_modes=8, path="sector")
+    return coarse_level(design, **_estimate_options(args, near))
 
 
 def _estimate(args, design, rows, near, meshes, coarse):
@@ -313,8 +319,7 @@ def _estimate(args, design, rows, near, meshes, coarse):
         return None
     values = {"f_r_hz": work["f_r_hz"], "f_a_hz": work["f_a_hz"], "k_eff": work["k_eff"]}
     values = {k: v for k, v in values.items() if v is not None}
-    return estimate(design, values, meshes[0][0].ndof, refine=args.refine, mesh_size=args.mesh_size,
-                    grade=args.grade, near_hz=near, harmonic=False, n_modes=8, path="sector", coarse=coarse)
+    return estimate(design, values, meshes[0][0].ndof, coarse=coarse, **_estimate_options(args, near))
 
 
 def _attach_errors(rows, near: float, checked: bool, est=None) -> None:
