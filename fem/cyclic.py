@@ -14,9 +14,10 @@ the whole drill's eigenproblem restricted to harmonic ``k``, without approximati
 against the replicated mesh to 1e-9). ``k = 0`` holds the working longitudinal mode, the
 torsion and every electrically driven response; the electrodes of a ``k > 0`` harmonic carry no
 net potential (``V_hot = 0``: short and open circuit coincide); ``k = 1`` holds the bending
-pairs. A complex phase (``0 < k alpha < pi``) is solved in real arithmetic: ``T = A + i B``
-gives the real symmetric pencil of ``[[A, -B], [B, A]]``, each mode twice (its ``q`` and
-``i q``), reported once.
+pairs. A complex phase (``0 < k alpha < pi``) gives a complex Hermitian pencil, solved as it is
+(PARDISO's Hermitian factorisation, complex block Lanczos): its real equivalent
+``[[Re H, -Im H], [Im H, Re H]]`` would hold every mode twice (``q`` and ``i q``) and take
+about twice the factorisation and Lanczos work.
 """
 
 from __future__ import annotations
@@ -143,24 +144,21 @@ def cyclic_basis(system: PiezoSystem, pairs: SectorPairs, k: int, electrical: st
     return T
 
 
-def _real_pencil(T: sp.csr_matrix, K: sp.csr_matrix, M: sp.csr_matrix):
-    """``(K_r, M_r, T_r)``: the reduced real pencil and its real basis. A complex ``T = A + i B``
-    gives the Hermitian ``H = T^H K T`` as the real symmetric ``[[Re H, -Im H], [Im H, Re H]]``
-    over ``q = [Re q; Im q]``, with ``T_r = [[A, -B], [B, A]]``."""
+def _pencil(T: sp.csr_matrix, K: sp.csr_matrix, M: sp.csr_matrix):
+    """``(K_r, M_r, T_r)``: the reduced pencil ``T^H K T``, ``T^H M T`` and its basis, real when
+    ``T`` is (``k = 0``, ``k = N / 2``), else complex Hermitian."""
     # copies: scipy's .real / .imag share T's data, and eliminate_zeros would compact it in place
     A, B = T.real.tocsr(copy=True), T.imag.tocsr(copy=True)
     B.eliminate_zeros()
     if B.nnz == 0:
         At = A.T.tocsr()
         return (At @ (K @ A)).tocsr(), (At @ (M @ A)).tocsr(), A
-    At, Bt = A.T.tocsr(), B.T.tocsr()
+    Th = T.conj().T.tocsr()
     out = []
     for X in (K, M):
-        XA, XB = (X @ A).tocsr(), (X @ B).tocsr()
-        Hr = (At @ XA + Bt @ XB).tocsr()
-        Hi = (At @ XB - Bt @ XA).tocsr()
-        out.append(sp.bmat([[Hr, -Hi], [Hi, Hr]], format="csr"))
-    return out[0], out[1], sp.bmat([[A, -B], [B, A]], format="csr")
+        H = (Th @ (X @ T)).tocsr()
+        out.append((0.5 * (H + H.conj().T)).tocsr())    # Hermitian to the last bit
+    return out[0], out[1], T
 
 
 @dataclass
@@ -171,7 +169,7 @@ class CyclicModes:
     open circuit, paired by MAC; ``k > 0``: equal to ``f_hz``), ``vectors``: complex sector
     vectors ``x`` (``(ndof, n)``, the whole drill's mode on sector copy ``s`` is
     ``exp(i k s alpha)`` times it rotated by ``s alpha``), ``ndof``: unknowns of the reduced
-    (real) problem, ``timings`` in s.
+    problem counted in real numbers (a complex unknown twice), ``timings`` in s.
     """
 
     harmonic: int
@@ -197,13 +195,11 @@ def _solve(Kr, Mr, Tr, system, n_modes, sigma, backend, tol, hot: bool = False):
         krow = Kr[-1].toarray().ravel()
         a_hot, alpha = krow[:-1], float(krow[-1])
         Kr, Mr, Tr = Kr[:-1, :-1].tocsr(), Mr[:-1, :-1].tocsr(), Tr[:, :-1]
-    F = factorize((Kr - sigma * Mr).tocsr(), backend=backend, matching=False)
+    F = factorize((Kr - sigma * Mr).tocsr(), backend=backend, matching=False, hermitian=np.iscomplexobj(Kr.data))
     n = Kr.shape[0]
     b = min(max(BLOCK_MIN, n_modes // 2 + 2), max(n - 2, 1))
     x = smooth_start(system.nodes, np.arange(system.ndof), system.ndof, b, n_random=max(2, b // 4))
-    if Tr.shape[0] != system.ndof:            # the doubled pencil: both halves
-        x = np.vstack([x, np.roll(x, 1, axis=1)])
-    start = np.asarray(Tr.T @ x)
+    start = np.asarray(Tr.conj().T @ x)
     border = None
     if hot:
         z = np.asarray(F(a_hot)).ravel()
@@ -214,17 +210,6 @@ def _solve(Kr, Mr, Tr, system, n_modes, sigma, backend, tol, hot: bool = False):
     if hot and res.converged_open and res.lam_open is not None:
         return res.lam, res.vectors, res.lam_open, res.vectors_open
     return res.lam, res.vectors, None, None
-
-
-def _collapse(f, vec, doubled, rel: float = 1e-7):
-    """One of each degenerate pair of a doubled (real) problem (partners within ``rel``)."""
-    if not doubled:
-        return f, vec
-    keep, i = [], 0
-    while i < len(f):
-        keep.append(i)
-        i += 2 if i + 1 < len(f) and abs(f[i + 1] - f[i]) <= rel * max(abs(f[i]), 1.0) else 1
-    return f[keep], vec[:, keep]
 
 
 def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: float, n_modes: int,
@@ -253,10 +238,8 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
 
     def run(electrical, hot=False):
         T = cyclic_basis(system, pairs, harmonic, electrical, clamp)
-        Kr, Mr, Tr = _real_pencil(T, system.K, system.M)
-        doubled = Tr.shape[1] != T.shape[1]
-        want = (n_modes + extra) * (2 if doubled else 1)
-        lam, vec, lam_o, vec_o = _solve(Kr, Mr, Tr, system, want, sigma, backend, tol, hot=hot)
+        Kr, Mr, Tr = _pencil(T, system.K, system.M)
+        lam, vec, lam_o, vec_o = _solve(Kr, Mr, Tr, system, n_modes + extra, sigma, backend, tol, hot=hot)
         nq = T.shape[1] - int(hot)
         out = []
         for lam_, vec_, T_ in ((lam, vec, T[:, :nq]), (lam_o, vec_o, T)):
@@ -264,12 +247,10 @@ def cyclic_modes(system: PiezoSystem, sectors: int, harmonic: int, near_hz: floa
                 out.append(None)
                 continue
             order = np.argsort(lam_)
-            f, v = frequency_hz(lam_[order]), vec_[:, order]
-            m = T_.shape[1]
-            q = v[:m] + 1j * v[m:] if doubled else v.astype(complex)
-            f, q = _collapse(f, q, doubled)
+            f, q = frequency_hz(lam_[order]), vec_[:, order].astype(complex)
             out.append((f, T_ @ q))
-        return out[0], out[1], Kr.shape[0] - int(hot)
+        # real unknowns: a complex one counts twice
+        return out[0], out[1], (Kr.shape[0] - int(hot)) * (2 if np.iscomplexobj(Kr.data) else 1)
 
     (f, x), opened, ndof = run("open" if joint else "short", hot=joint)
     rigid = np.abs(f) < rigid_hz

@@ -23,6 +23,8 @@ thick restart to the wanted Ritz vectors plus one block when the basis reaches `
 the returned eigenvectors are ``S Q c / theta`` (in the range of ``S``, so their potential is
 the statically condensed response of their displacement, as in ARPACK's mode 3).
 
+* A complex Hermitian pencil (a cyclic harmonic ``0 < k < N / 2``) is solved as it is: the
+  same steps with conjugate transposes, real Ritz values, complex vectors.
 * ``locked``: M-orthonormal vectors to deflate (the rigid-body modes of a free body); the
   operator is followed by the M-orthogonal projection away from them.
 * Wanted Ritz pairs: the ``n_wanted`` of largest ``|theta|`` (eigenvalues nearest ``sigma``),
@@ -104,18 +106,18 @@ class BlockEigs:
 class _Basis:
     """M-orthonormal basis ``Q`` (columns ``:m`` of preallocated arrays) with ``M Q`` and ``S Q``."""
 
-    def __init__(self, M, n, cap, locked):
+    def __init__(self, M, n, cap, locked, dtype=float):
         self.M = M
         self.L = locked
         self.ML = None if locked is None else M @ locked
-        self.Q = np.empty((n, cap), order="F")
-        self.MQ = np.empty((n, cap), order="F")
-        self.SQ = np.empty((n, cap), order="F")
+        self.Q = np.empty((n, cap), order="F", dtype=dtype)
+        self.MQ = np.empty((n, cap), order="F", dtype=dtype)
+        self.SQ = np.empty((n, cap), order="F", dtype=dtype)
         self.m = 0
         self.floor = 0.0             # M-norm^2 below which a direction is round-off
 
     def _deflate(self, W):
-        return W if self.L is None else W - self.L @ (self.ML.T @ W)
+        return W if self.L is None else W - self.L @ (_h(self.ML) @ W)
 
     def project(self, W, extra=None, passes=2):
         """Classical Gram-Schmidt passes (twice is enough) against the locked vectors, Q and
@@ -124,9 +126,9 @@ class _Basis:
         for _ in range(passes):
             W = self._deflate(W)
             if m:
-                W = W - self.Q[:, :m] @ (self.MQ[:, :m].T @ W)
+                W = W - self.Q[:, :m] @ (_h(self.MQ[:, :m]) @ W)
             if extra is not None:
-                W = W - extra[0] @ (extra[1].T @ W)
+                W = W - extra[0] @ (_h(extra[1]) @ W)
         return W
 
     def orthonormalise(self, W0):
@@ -144,8 +146,8 @@ class _Basis:
             if level:
                 W = self.project(W, (np.hstack(qs), np.hstack(mqs)))
             MW = self.M @ W
-            G = W.T @ MW
-            w, U = np.linalg.eigh(0.5 * (G + G.T))
+            G = _h(W) @ MW
+            w, U = np.linalg.eigh(0.5 * (G + _h(G)))
             wmax = float(w.max(initial=0.0))
             if wmax <= max(self.floor, 0.0) or wmax <= 0.0:
                 break
@@ -160,7 +162,7 @@ class _Basis:
         if not qs:
             return None, None, None
         Qb, MQb = np.hstack(qs), np.hstack(mqs)
-        return Qb, MQb, MQb.T @ W0
+        return Qb, MQb, _h(MQb) @ W0
 
     def append(self, Qb, MQb):
         k = Qb.shape[1]
@@ -226,11 +228,14 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
     solve : callable
         ``solve(B) = (K - sigma M)^-1 B`` for a block ``B`` of shape ``(n, b)``.
     K, M : sparse (n, n)
-        The pencil (``M`` symmetric positive semi-definite, ``K`` symmetric).
+        The pencil (``M`` symmetric positive semi-definite, ``K`` symmetric), or a complex
+        Hermitian one (a cyclic harmonic's: every transpose is the conjugate one; give a complex
+        ``start`` and a complex ``solve``).
     sigma : float
         Shift, rad^2/s^2 (the ``solve`` must use the same).
     start : (n, b) array
-        Start block; its width is the block size. Only its M-part matters.
+        Start block; its width is the block size. Only its M-part matters. Complex for a
+        Hermitian pencil (the basis and the vectors are then complex).
     n_wanted : int
         Number of eigenpairs nearest ``sigma`` (largest ``|theta|``) wanted.
     targets : (n, p) array, optional
@@ -253,20 +258,22 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
         ``vectors_open`` (``(n + 1, k)``, the last row the border unknown), ``residual_open``,
         ``converged_open`` (False when a thick restart would have dropped ``z``).
     """
-    start = np.asarray(start, dtype=float)
+    start = np.asarray(start, dtype=complex if np.iscomplexobj(start) else float)
     n_want, max_dim = _check_block(start, M, n_wanted, targets, max_dim)
     n, b = start.shape
     gap_floor = _GAP_FLOOR if targets is not None else np.inf
-    basis = _Basis(M, n, max_dim + b, locked)
-    tnorm2 = None if targets is None else np.abs(np.einsum("ij,ij->j", targets, M @ targets))
+    basis = _Basis(M, n, max_dim + b, locked, start.dtype)
+    tnorm2 = None if targets is None else np.abs(np.einsum("ij,ij->j", targets.conj(), M @ targets))
     if border is not None:
+        if np.iscomplexobj(start):
+            raise ParameterError("border", "complex start", "the joint open-circuit solve is real only")
         if targets is not None:
             raise ParameterError("border", "targets", "the joint open-circuit solve needs n_wanted")
         border = _Border(M, *border)
         # the basis must not be restarted (z would leave it): room for the whole run
         max_dim = max(max_dim, min(n, b * 12 + 2 * n_want))
     n_solves = n_vectors = restarts = 0
-    T = np.zeros((0, 0))
+    T = np.zeros((0, 0), dtype=start.dtype)
     Qb, MQb, _ = basis.orthonormalise(basis.project(start))
     if Qb is None:
         raise ParameterError("start", "block", "has no part outside the locked vectors")
@@ -318,6 +325,11 @@ def block_eigs(solve: Callable[[np.ndarray], np.ndarray], K, M, sigma: float, st
                      n_vectors=n_vectors, dim=basis.m, converged=converged, restarts=restarts, **out)
 
 
+def _h(X):
+    """The conjugate transpose (a real array's transpose, the same view)."""
+    return X.conj().T
+
+
 def _check_block(start, M, n_wanted, targets, max_dim) -> tuple[int, int]:
     """``(n_want, max_dim)`` of a :func:`block_eigs` call, its arguments checked."""
     if start.ndim != 2 or start.shape[0] != M.shape[0]:
@@ -338,20 +350,20 @@ def _wanted(theta_all, C_all, n_want, MQ, targets, tnorm2) -> np.ndarray:
     target by the mass-weighted MAC (``MQ``: ``M Q``; ``tnorm2``: the targets' M-norms^2)."""
     if targets is None:
         return np.argsort(-np.abs(theta_all))[:n_want]
-    G = MQ.T @ targets                                 # Q^T M t
-    return _hungarian_pick((G.T @ C_all) ** 2 / tnorm2[:, None])
+    G = _h(MQ) @ targets                               # Q^H M t
+    return _hungarian_pick(np.abs(_h(G) @ C_all) ** 2 / tnorm2[:, None])
 
 
 def _extend(T, MQ, Y):
     """The projected operator ``Q^T M S Q`` grown by the new block's images ``Y``, and its new
     columns (``MQ``: ``M Q`` of the grown basis)."""
     m, m_old = MQ.shape[1], T.shape[0]
-    col = MQ.T @ Y                                     # T[:, new]
-    Tn = np.empty((m, m))
+    col = _h(MQ) @ Y                                   # T[:, new]
+    Tn = np.empty((m, m), dtype=col.dtype)
     Tn[:m_old, :m_old] = T
     Tn[:, m_old:] = col
-    Tn[m_old:, :m_old] = col[:m_old].T
-    return 0.5 * (Tn + Tn.T), col
+    Tn[m_old:, :m_old] = _h(col[:m_old])
+    return 0.5 * (Tn + _h(Tn)), col
 
 
 def _thick_restart(basis, theta_all, C_all, pick, keep_n):
@@ -368,9 +380,9 @@ def _ritz_vectors(SQC, theta, K, M):
     and the order of increasing ``lam``."""
     V = SQC / theta
     MV = M @ V
-    mn = np.sqrt(np.abs(np.einsum("ij,ij->j", V, MV)))
+    mn = np.sqrt(np.abs(np.einsum("ij,ij->j", V.conj(), MV)))
     V = V / mn
-    lam = np.einsum("ij,ij->j", V, K @ V)            # Rayleigh quotients (V^T M V = 1)
+    lam = np.einsum("ij,ij->j", V.conj(), K @ V).real  # Rayleigh quotients (V^H M V = 1)
     return lam, V, np.argsort(lam)
 
 
