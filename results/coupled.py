@@ -18,7 +18,7 @@ from impact.horn import ModalHorn
 log = logging.getLogger(__name__)
 
 __all__ = ["horn_from_reduced", "build_transducer", "FeTransducer", "rounded", "tip_body", "wideband_modes",
-           "wideband_horn", "truncated_horn"]
+           "wideband_horn", "truncated_horn", "static_residual"]
 
 
 def horn_from_reduced(reduced, voltage: float, start: str = "rest", series_resistance: float = 0.0) -> ModalHorn:
@@ -342,17 +342,14 @@ def contact_from_design(design, m_free: float, restitution: float, free_mass_mat
     return HuntCrossley(k, restitution)
 
 
-def tip_body(system, cutoff_hz: float, *, tip_surface: str = "horn_tip", modes=None, say=None):
+def tip_body(system, cutoff_hz: float, *, tip_surface: str = "horn_tip", modes=None, factor=None, say=None):
     """The transducer seen from its tip by an impact: every mode up to ``cutoff_hz`` plus the
     static residual of the rest (:class:`impact.compliant.ModalBody`).
 
     The short-circuit modes of the driven free set (hot electrode grounded) from 0 to the cut-off
-    (one shift-invert window centred on ``lambda_cut / 2``, widened until it reaches 0 and the
-    cut-off), the axial rigid-body translation (``omega = 0``, the whole drill's mass), and the tip
-    compliance of everything above: with ``T`` the solve of ``K - sigma0 M`` deflated of the kept
-    modes (``sigma0 = -(2 pi 0.01 f_cut)^2``, below every elastic mode), ``g = a^T T a - sigma0
-    |T a|_M^2`` (``a`` the tip's mean axial displacement row): the first two terms of
-    ``sum s_i^2 / lambda_i`` over the modes left out, the third is ``(sigma0/lambda)^2 <= 1e-8`` of it.
+    (:func:`wideband_modes`), the axial rigid-body translation (``omega = 0``, the whole drill's
+    mass), and the tip compliance ``g = sum s_i^2 / lambda_i`` of every mode above the cut-off
+    (:func:`static_residual`: solves of ``K - sigma M`` deflated of the modes below it).
 
     Parameters
     ----------
@@ -366,6 +363,11 @@ def tip_body(system, cutoff_hz: float, *, tip_surface: str = "horn_tip", modes=N
     modes : fem.modal.ModalResult, optional
         A wide-band short-circuit modal analysis of ``system`` reaching 0 and ``cutoff_hz``
         (reused; computed otherwise).
+    factor : (callable, float), optional
+        ``(F, sigma)``: an existing factorisation ``F`` of ``K - sigma M`` on the short-circuit
+        free set (e.g. a working-band basis's, :attr:`fem.harmonic.ModalBasis.factor`), used when
+        ``sigma <= lambda_cut / 5`` (rad^2/s^2; at most ~11 solves); otherwise a new one at
+        ``sigma0 = -(2 pi 0.01 f_cut)^2``, below every elastic mode.
 
     Returns
     -------
@@ -397,12 +399,15 @@ def tip_body(system, cutoff_hz: float, *, tip_surface: str = "horn_tip", modes=N
     lam_all = np.concatenate(([0.0], lam))
     s_all = B.T @ a
     sign = np.where(s_all < 0, -1.0, 1.0)             # tip participation >= 0: the same numbers every run
-    sigma0 = -(2 * np.pi * 0.01 * cutoff_hz) ** 2
-    F = factorize((split.K - sigma0 * split.M).tocsr())
-    # the solve deflated of the kept modes (M-orthonormal): the modes left out only; the other
-    # rigid motion (rotation about the axis) has no axial tip displacement
-    y = F(a) - B @ (s_all / (lam_all - sigma0))
-    g = float(a @ y - sigma0 * (y @ (split.M @ y)))
+    lam_cut = (2 * np.pi * cutoff_hz) ** 2
+    if factor is None or factor[0] is None or not factor[1] <= lam_cut / 5:
+        # a shift near the cut-off would need many solves (the series falls as sigma / (lambda - sigma))
+        sigma = -(2 * np.pi * 0.01 * cutoff_hz) ** 2
+        factor = (factorize((split.K - sigma * split.M).tocsr()), sigma)
+    # every rigid motion is deflated with the kept modes (the rotation about the axis has no
+    # axial tip displacement, but the series below needs every mode below the cut-off out)
+    kept = (np.column_stack([R, Phi]), np.concatenate((np.zeros(R.shape[1]), lam)))
+    g = static_residual(factor, split.M, a, kept, lam_cut=lam_cut)
     drill_mass = float(1.0 / s_all[0] ** 2)
     body = ModalBody(np.sqrt(lam_all), np.zeros(lam_all.size), np.ones(lam_all.size), sign * s_all, g)
     info = {"cutoff_hz": float(cutoff_hz), "modes_hz": [float(x) for x in np.sqrt(lam_all) / (2 * np.pi)],
@@ -413,10 +418,62 @@ def tip_body(system, cutoff_hz: float, *, tip_surface: str = "horn_tip", modes=N
     return body, info
 
 
+def static_residual(factor, M, a, kept, *, lam_cut: float, rtol: float = 1e-13, max_solves: int = 20) -> float:
+    """The static compliance ``g = sum s_i^2 / lambda_i`` (m/N) of the modes NOT in ``kept``, for
+    the load ``a`` (``s_i = phi_i^T a``), from solves at a shift.
+
+    ``T = (K - sigma M)^-1`` deflated of the kept (M-orthonormal) modes holds the modes left out
+    with ``1 / (lambda - sigma)``; ``1 / lambda = sum_k (-sigma)^k / (lambda - sigma)^(k+1)`` gives
+    ``g = sum_k (-sigma)^k a^T (T M)^k T a``, two terms per solve (``y_j = (T M)^j T a``:
+    ``a^T (T M)^(2j+1) T a = y_j^T M y_j``, ``a^T (T M)^(2j) T a = (M y_(j-1))^T y_j``). The terms
+    fall as ``|sigma / (lambda - sigma)|`` of the lowest mode left out (< 1 when ``sigma <
+    lambda_cut / 2``): summed until a term is below ``rtol`` of the sum.
+
+    Parameters
+    ----------
+    factor : (callable, float)
+        ``(F, sigma)``: ``F(v) = (K - sigma M)^-1 v`` on the free set of ``M``, ``sigma`` in rad^2/s^2.
+    M : sparse matrix
+        Mass on that free set.
+    a : ndarray
+        The load (the tip's mean axial displacement row).
+    kept : (ndarray, ndarray)
+        The modes not counted (M-orthonormal columns, every mode below ``lam_cut``) and their
+        eigenvalues, rad^2/s^2.
+    lam_cut : float
+        The cut-off's eigenvalue, rad^2/s^2: every mode above it is counted.
+    """
+    from rpud_common import ParameterError
+
+    F, sigma = factor
+    B, lam = kept
+    if not sigma < lam_cut / 2:
+        raise ParameterError("factor", f"shift {sigma:.4g} rad^2/s^2", f"must lie below lambda_cut / 2 = {lam_cut / 2:.4g}")
+
+    def solve(v):
+        return np.asarray(F(v)).ravel() - B @ ((B.T @ v) / (lam - sigma))
+
+    y = solve(a)
+    My = M @ y
+    g = float(a @ y) - sigma * float(y @ My)
+    for j in range(1, max_solves):
+        y = solve(My)
+        even = sigma ** (2 * j) * float(My @ y)
+        My = M @ y
+        odd = -sigma ** (2 * j + 1) * float(y @ My)
+        g += even + odd
+        if abs(odd) <= rtol * abs(g):
+            return g
+    raise ParameterError("factor", f"shift {sigma:.4g} rad^2/s^2",
+                         f"leaves the residual series unconverged after {max_solves} solves")
+
+
 def wideband_modes(system, cutoff_hz: float):
     """Every short-circuit mode of ``system`` from 0 to ``cutoff_hz`` (Hz): one shift-invert
-    window centred on ``lambda_cut / 2``, doubled until it reaches both ends
-    (:class:`fem.modal.ModalResult`; rigid-body modes deflated)."""
+    window centred on ``lambda_cut / 2``, widened until it reaches both ends on the same
+    factorisation (:class:`fem.modal.ModalResult`, without it; rigid-body modes deflated)."""
+    import dataclasses
+
     from fem.modal import modal_analysis
     from rpud_common import ParameterError, check_range
 
@@ -426,11 +483,12 @@ def wideband_modes(system, cutoff_hz: float):
     while modes is None or not _window_covers(modes, lam_cut):
         if n_req > 400:
             raise ParameterError("cutoff_hz", cutoff_hz, "needs more than 400 modes (lower the cut-off)")
-        modes = modal_analysis(system, cutoff_hz / np.sqrt(2), n_req, open_circuit=False, sigma=lam_cut / 2)
+        modes = modal_analysis(system, cutoff_hz / np.sqrt(2), n_req, open_circuit=False, sigma=lam_cut / 2,
+                               factor=None if modes is None else modes.factor, keep_factor=True)
         # the next window from the density of the one found (+25 %): one more solve, not a doubling series
         reach = float(np.max(np.abs((2 * np.pi * np.asarray(modes.f_r_hz)) ** 2 - modes.sigma)))
         n_req = max(2 * n_req, int(np.ceil(1.25 * n_req * lam_cut / (2.0 * reach))) + 4)
-    return modes
+    return dataclasses.replace(modes, factor=None)
 
 
 def _window_covers(modes, lam_cut: float) -> bool:
@@ -441,15 +499,68 @@ def _window_covers(modes, lam_cut: float) -> bool:
     return bool(modes.sigma - reach <= 0.0 and modes.sigma + reach >= lam_cut)
 
 
+@dataclass(frozen=True)
+class _DriveView:
+    """The wide band's modes as :func:`fem.reduced.reduce_transducer` reads a basis (modes, losses,
+    couplings), with the full response at the drive taken from a working-band basis ``drive`` of
+    the same system: the response does not depend on which modes a basis expands it in, and the
+    working-band basis is the one the run's working point comes from."""
+
+    free: np.ndarray
+    Phi: np.ndarray
+    lam: np.ndarray
+    eta: np.ndarray
+    gamma: np.ndarray
+    drive: object
+
+    @property
+    def L(self):
+        return self.drive.L
+
+    @property
+    def loss(self):
+        return self.drive.loss
+
+    def solution_free(self, freq_hz: float, voltage: float = 1.0, damper=None) -> np.ndarray:
+        return self.drive.solution_free(freq_hz, voltage, damper)
+
+
+def _drive_view(system, modes, keep, drive) -> _DriveView:
+    """:class:`_DriveView` of the modes ``keep`` of ``modes`` (their loss factors and couplings
+    as :func:`fem.harmonic.modal_basis` computes them, under ``drive``'s losses)."""
+    from fem.harmonic import loss_matrix
+
+    free = drive.free
+    Phi = modes.vectors[free][:, keep]
+    lam = (2 * np.pi * modes.f_r_hz[keep]) ** 2
+    L = drive.L if drive.L is not None else loss_matrix(system, drive.loss)
+    eta = np.einsum("ij,ij->j", Phi, L[free][:, free] @ Phi) / lam
+    return _DriveView(free, Phi, lam, eta, Phi.T @ drive.b1, drive)
+
+
 def wideband_horn(system, freq_hz: float, cutoff_hz: float, voltage: float, *, q_mech: float | None = 100.0,
-                  modes=None, tip_surface: str = "horn_tip", say=None):
+                  modes=None, tip_surface: str = "horn_tip", drive=None, say=None):
     """The driven horn with every k = 0 mode up to ``cutoff_hz`` and the impact residual of the rest.
 
-    The drive side is :func:`fem.reduced.reduce_transducer` on a modal basis of all the modes below
-    the cut-off (their couplings, losses at the drive and the drive residual); the impact side adds
-    :func:`tip_body`'s static tip compliance of the modes above the cut-off. The axial rigid
-    translation is left out: the housing holds the drill (its recoil under the impacts is the
-    drill's mass, ~0.4 kg, against a tip of a few grams).
+    The drive side is :func:`fem.reduced.reduce_transducer` on the modes below the cut-off (their
+    couplings, losses at the drive, and the drive residual: the full response at the drive minus
+    theirs); the impact side adds :func:`tip_body`'s static tip compliance of the modes above the
+    cut-off. The axial rigid translation is left out: the housing holds the drill (its recoil
+    under the impacts is the drill's mass, ~0.4 kg, against a tip of a few grams).
+
+    Parameters
+    ----------
+    system, freq_hz, cutoff_hz, voltage
+        The k = 0 system, drive frequency (Hz), cut-off (Hz) and drive amplitude (V).
+    q_mech : float or None
+        Assembled-transducer quality factor, without ``drive``.
+    modes : fem.modal.ModalResult, optional
+        :func:`wideband_modes` of ``system`` reaching the cut-off (computed otherwise).
+    drive : fem.harmonic.ModalBasis, optional
+        A working-band basis of ``system`` that kept its factorisation (the run's harmonic basis,
+        :func:`fem.harmonic.modal_basis`): its losses (in place of ``q_mech``), its response at
+        the drive and its factorisation (the tip residual's solves) are reused. Default: a basis
+        of every mode below the cut-off with its own factorisation at the drive.
 
     Returns
     -------
@@ -462,14 +573,17 @@ def wideband_horn(system, freq_hz: float, cutoff_hz: float, voltage: float, *, q
     from fem.reduced import reduce_transducer
 
     modes = modes if modes is not None else wideband_modes(system, cutoff_hz)
-    body, info = tip_body(system, cutoff_hz, tip_surface=tip_surface, modes=modes, say=say)
     keep = np.flatnonzero(modes.f_r_hz <= cutoff_hz)
-    # the drive residual is expanded about the modal shift: put it at the drive (as a working-band
-    # basis has it), away from the first modes left out that sit next to the wide window's shift
-    sub = dataclasses.replace(modes, f_r_hz=modes.f_r_hz[keep], vectors=modes.vectors[:, keep],
-                              sigma=(2 * np.pi * freq_hz) ** 2 * (1 - 2e-3))
-    basis = modal_basis(system, freq_hz, loss=LossModel(q_mech=q_mech), modes=sub)
-    red = rounded(reduce_transducer(system, basis, freq_hz, n_modes=len(keep), tip_surface=tip_surface))
+    if drive is None:
+        # the drive residual is expanded about the modal shift: put it at the drive (as a working-band
+        # basis has it), away from the first modes left out that sit next to the wide window's shift
+        sub = dataclasses.replace(modes, f_r_hz=modes.f_r_hz[keep], vectors=modes.vectors[:, keep],
+                                  sigma=(2 * np.pi * freq_hz) ** 2 * (1 - 2e-3))
+        drive = modal_basis(system, freq_hz, loss=LossModel(q_mech=q_mech), modes=sub)
+    body, info = tip_body(system, cutoff_hz, tip_surface=tip_surface, modes=modes,
+                          factor=(drive.factor, drive.sigma), say=say)
+    view = _drive_view(system, modes, keep, drive)
+    red = rounded(reduce_transducer(system, view, freq_hz, n_modes=len(keep), tip_surface=tip_surface))
     return horn_from_reduced(red, voltage, start="steady"), body.residual, info
 
 

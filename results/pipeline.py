@@ -540,7 +540,8 @@ def _compliant_stage(run: _Run, base, masses, say) -> dict | None:
     from .stage_compliant import CompliantSettings, compliant_stage
 
     return compliant_stage(m.system, m.design, base.freq, st.voltage, base, masses,
-                           CompliantSettings(members=st.compliant_members, seed=st.seed), q_mech=st.q_mech, say=say)
+                           CompliantSettings(members=st.compliant_members, seed=st.seed), q_mech=st.q_mech,
+                           drive=run.harm.basis, say=say)
 
 
 class _Renders:

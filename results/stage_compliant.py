@@ -220,7 +220,7 @@ def _json(est: dict) -> dict:
 
 
 def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses, settings: CompliantSettings, *,
-                    q_mech: float | None = 100.0, engine=None, say=None) -> dict:
+                    q_mech: float | None = 100.0, drive=None, engine=None, say=None) -> dict:
     """The pipeline's compliant stage: the headline tool KE per free mass on the compliant model at
     the headline cut-off, and the convergence study at the lightest and heaviest free mass.
 
@@ -233,7 +233,9 @@ def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses
     base : impact.params.ImpactParams of the run (gap, tool, restitutions, launch speed)
     masses : free masses of the headline table, kg
     settings : CompliantSettings
-    q_mech : assembled-transducer quality factor of the modes
+    q_mech : assembled-transducer quality factor of the modes (without ``drive``)
+    drive : the run's working-band fem.harmonic.ModalBasis on ``system`` (its losses, its response at
+        the drive and its factorisation are reused: :func:`results.coupled.wideband_horn`)
     engine : the compliant batch (:func:`impact.compliant_engine.compliant_batch`'s signature)
 
     Returns
@@ -248,7 +250,7 @@ def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses
     t_c = shortest_contact_time(design, ends, base, settings)
     cutoffs = [round(f / t_c, -2) for f in settings.cutoff_factors]
     top = wideband_horn(system, freq_hz, cutoffs[-1], voltage, q_mech=q_mech, modes=wideband_modes(system, cutoffs[-1]),
-                        say=say)
+                        drive=drive, say=say)
     horns = {c: truncated_horn(top[0], top[1], c, freq_hz) + (top[2],) for c in cutoffs[:-1]} | {cutoffs[-1]: top}
     study, headline = _runs(base, design, masses, horns, settings, engine)
     mf = {m: {q: model_form(study[m], q) for q in QUANTITIES} for m in ends}
