@@ -39,6 +39,7 @@ import glob
 import logging
 import os
 import sys
+import threading
 import time
 
 import numpy as np
@@ -109,7 +110,13 @@ def blas_threads(n: int = 1):
 
 
 class Factor:
-    """A factorised sparse matrix; call it with a right-hand side."""
+    """A factorised sparse matrix; call it with a right-hand side.
+
+    Calls from several threads are safe: a factor's solves are taken one at a time (PARDISO's
+    handle keeps its solve's work arrays, so two concurrent solves on one handle would share
+    them; the pipeline's compliant stage solves with the harmonic basis's factor in its worker
+    thread while the main thread may use the same basis).
+    """
 
     backend: str
     seconds: float
@@ -126,8 +133,13 @@ class _SuperLU(Factor):
         t = time.perf_counter()
         self.lu = spla.splu(sp.csc_matrix(A), permc_spec="COLAMD")
         self.seconds = time.perf_counter() - t
+        self._lock = threading.Lock()
 
     def __call__(self, b):
+        with self._lock:
+            return self._solve(b)
+
+    def _solve(self, b):
         b = np.asarray(b)
         if np.iscomplexobj(b) and not np.iscomplexobj(self.lu.L.data[:1]):
             return self.lu.solve(np.ascontiguousarray(b.real)) + 1j * self.lu.solve(np.ascontiguousarray(b.imag))
@@ -140,6 +152,7 @@ class _Pardiso(Factor):
     def __init__(self, A, symmetric=True, matching=True, hermitian=False):
         self.backend = "pardiso(hermitian)" if hermitian else "pardiso"
         self.n = A.shape[0]
+        self._lock = threading.Lock()
         self.symmetric = symmetric
         # complex Hermitian indefinite: half the factor entries of the real equivalent
         self.mtype = -4 if hermitian else (-2 if symmetric else 11)
@@ -205,6 +218,10 @@ class _Pardiso(Factor):
         """One PARDISO call (``pypardiso.PyPardisoSolver._call_pardiso`` with the index arrays
         kept): ``b`` (n,) or (n, k) of the matrix's dtype, Fortran order; returns ``x`` in C
         order (the data pointers are passed as ``double *``: PARDISO reads complex ones as pairs)."""
+        with self._lock:
+            return self._call_locked(phase, b)
+
+    def _call_locked(self, phase, b):
         s = self.solver
         x = np.zeros_like(b)
         err = ctypes.c_int32(0)

@@ -19,6 +19,22 @@ from rpud_common.cli import check_given, check_usual, check_zero_or_range, echo_
 WOB = 7.0
 """Default weight on bit of the drilling stage, N (the article's)."""
 
+COMPLIANT_OPTIONS = (
+    ("--compliant-members", int, "N", "it and its convergence study start with N ensemble members per case "
+                                      "(default 16; 0 skips the stage; it runs on the k = 0 sector path)"),
+    ("--compliant-max-members", int, "N", "members are doubled until every driving 95 %% CI is within 5 %% of its "
+                                          "mean or N are reached (default 32)"),
+    ("--face-radius", float, "M", "the free mass's crown radius, m (default: a steel sphere of each free mass's own "
+                                  "mass); with --edge-radius the radius of its flat face, m; in [1e-4, 1] m"),
+    ("--edge-radius", float, "M", "a flat face whose rim is rounded with this radius, m (needs --face-radius and "
+                                  "--face-tilt; at most the face radius)"),
+    ("--face-tilt", float, "DEG", "tilt of the flat face against the horn tip and tool, degrees, in (0, 90) (with "
+                                  "--edge-radius)"),
+    ("--contact", str, "TOML", "the contact faces from a [contact] table (face_radius, edge_radius, face_tilt_deg in "
+                               "m and degrees, free_mass_material, tool_material); the options above override it"),
+)
+"""The compliant model's options: name, type, metavar, help."""
+
 
 def build_parser() -> CliParser:
     p = CliParser(prog="python -m results",
@@ -56,9 +72,8 @@ def build_parser() -> CliParser:
                    help="skip the coupled model (FE transducer in the impact loop); kinematic-horn results only")
     p.add_argument("--coupled-modes", type=int, default=None, metavar="N",
                    help="modes of the reduced transducer in the coupled model (default: tip-participation rule)")
-    p.add_argument("--compliant-members", type=int, default=None, metavar="N",
-                   help="run the compliant-contact model and its convergence study with N members per case "
-                        "(results.stage_compliant; the k = 0 sector path)")
+    for opt, kind, meta, text in COMPLIANT_OPTIONS:
+        p.add_argument(opt, type=kind, default=None, metavar=meta, help="compliant model (the headline): " + text)
     p.add_argument("--load", choices=["rock"], default=None,
                    help="also predict drilling under load: bit on sandstone, depth vs free mass (impact.drilling)")
     p.add_argument("--wob", type=float, default=None, metavar="N",
@@ -101,10 +116,49 @@ def check_options(args) -> None:
     check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
     if args.coupled_modes is not None:
         check_integer("--coupled-modes", args.coupled_modes, 1, 12)
-    if args.compliant_members is not None:
+    if args.compliant_members is not None and args.compliant_members != 0:
         check_integer("--compliant-members", args.compliant_members, 2, 100_000)
+    if args.compliant_max_members is not None:
+        if args.compliant_members == 0:
+            raise ParameterError("--compliant-max-members", args.compliant_max_members,
+                                 "cannot be used with --compliant-members 0 (it caps the stage that is skipped)")
+        low = 16 if args.compliant_members is None else args.compliant_members
+        check_integer("--compliant-max-members", args.compliant_max_members, low, 1_000_000)
     if args.wob is not None:
         check_range("--wob", args.wob, 0.0, 1e4, "N")
+    args.faces = _faces(args)
+
+
+FACE_OPTIONS = (("--face-radius", "face_radius"), ("--edge-radius", "edge_radius"), ("--face-tilt", "face_tilt_deg"))
+"""The contact-face options and the :class:`results.contact_faces.ContactFaces` fields they set."""
+
+
+def _faces(args):
+    """The contact faces of ``--contact`` with the face options over them, checked (one line naming
+    the option when an option is wrong, the field when the file is)."""
+    from dataclasses import replace
+
+    from .contact_faces import ContactFaces
+
+    given = [(opt, field, getattr(args, field.replace("_deg", ""))) for opt, field in FACE_OPTIONS]
+    given = [(opt, field, v) for opt, field, v in given if v is not None]
+    if args.compliant_members == 0:
+        for opt, _, v in given + ([("--contact", "", args.contact)] if args.contact is not None else []):
+            raise ParameterError(opt, v, "cannot be used with --compliant-members 0 (it sets the contact of the "
+                                         "compliant model that is skipped)")
+    faces = ContactFaces.from_toml(args.contact) if args.contact is not None else ContactFaces()
+    limits = {"face_radius": (1e-4, 1.0, "m"), "edge_radius": (1e-6, 1.0, "m"), "face_tilt_deg": (0.0, 90.0, "degrees")}
+    for opt, field, v in given:
+        lo, hi, unit = limits[field]
+        check_range(opt, v, lo, hi, unit, lo_open=field == "face_tilt_deg", hi_open=field == "face_tilt_deg")
+    try:
+        return replace(faces, **{field: v for _, field, v in given})
+    except ParameterError as err:           # a combination of options: name the option
+        opt = next((o for o, f, _ in given if f == err.name), None)
+        if opt is None:
+            raise
+        raise ParameterError(opt, err.value, err.allowed.replace("face_radius", "--face-radius")
+                             .replace("face_tilt_deg", "--face-tilt").replace("edge_radius", "--edge-radius")) from None
 
 
 def _inputs(design, settings, out) -> dict:
@@ -116,8 +170,8 @@ def _inputs(design, settings, out) -> dict:
              "matching": on[settings.match], "impact load on the tip": on[settings.couple_impacts],
              "coupled model": (f"{settings.coupled_modes} modes" if settings.coupled_model and settings.coupled_modes
                                else on[settings.coupled_model]),
-             "compliant model": (f"{settings.compliant_members} members per case" if settings.compliant_members
-                                 else "off"),
+             "compliant model": (f"{settings.compliant_members}-{settings.compliant_max_members} members per case, "
+                                 f"{settings.faces.text()}" if settings.compliant_members else "off"),
              "statistics": f"95 % CI within {settings.impact_rel_tol:g}, at most {settings.impact_max_members} "
                            f"members, seed {settings.seed}"}
     if settings.load:
@@ -143,7 +197,9 @@ def _settings(args):
                             impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
                             coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes,
                             **({} if args.compliant_members is None else {"compliant_members": args.compliant_members}),
-                            load=args.load, wob=WOB if args.wob is None else args.wob)
+                            **({} if args.compliant_max_members is None else
+                               {"compliant_max_members": args.compliant_max_members}),
+                            faces=args.faces, load=args.load, wob=WOB if args.wob is None else args.wob)
 
 
 def _out_folder(args, design) -> Path:

@@ -9,7 +9,7 @@ import numpy as np
 
 from rpud_common.figures import axes_or_new
 
-__all__ = ["tip_envelope", "ke_three_models", "drive_power"]
+__all__ = ["tip_envelope", "ke_three_models", "drive_power", "compliant_energy_power"]
 
 
 def tip_envelope(res, unloaded_m: float | None = None, *, ax=None):
@@ -46,14 +46,15 @@ def _errorbar(ax, stats_list, key, scale, fmt, label):
                                  lw=2.4 if label.startswith("headline:") else 1.2))
 
 
-def ke_three_models(kinematic, damper, coupled, *, ax=None):
+def ke_three_models(kinematic, damper, coupled, *, damper_is_headline: bool = False, ax=None):
     """Mean tool KE after impact (mJ) vs free mass (g), 95 % CI error bars: kinematic horn at the
-    unloaded FE amplitude, kinematic horn at the damper-corrected amplitude, coupled model.
-    Each argument: list of :class:`impact.stats.EnsembleStats`, one per free mass."""
+    unloaded FE amplitude, kinematic horn at the damper-corrected amplitude (``headline:`` in its
+    label when ``damper_is_headline``: the report's headline when the compliant model did not run),
+    coupled model. Each argument: list of :class:`impact.stats.EnsembleStats`, one per free mass."""
     ax = axes_or_new(ax, figsize=(8, 5), dpi=120)
     _errorbar(ax, kinematic, "mean_tool_ke_after_j", 1e3, "k^:", "kinematic horn, unloaded FE amplitude")
-    _errorbar(ax, damper, "mean_tool_ke_after_j", 1e3, "s--", "headline: kinematic horn, damper-corrected amplitude "
-              "(the report's device scenario)")
+    _errorbar(ax, damper, "mean_tool_ke_after_j", 1e3, "s--", ("headline: " if damper_is_headline else "") +
+              "kinematic horn, damper-corrected amplitude (the report's device scenario)")
     _errorbar(ax, coupled, "mean_tool_ke_after_j", 1e3, "o-", "coupled model (FE modes in the loop)")
     ax.set_xlabel("free mass (g)")
     ax.set_ylabel("mean tool kinetic energy after impact (mJ)")

@@ -21,13 +21,22 @@ Stages (each timed, each reported on the terminal through ``progress``):
    it is how the drill runs) and ``article`` (first 50 ms, no spring: the article's Fig. 8),
    with the FE amplitude, next to the article's assumed 15 um;
 6. **renders** of the working mode and its neighbours, VTU with every mode, and the stress
-   picture and VTU (drawn in a worker process while stages 3-5 run).
+   picture and VTU (drawn in a worker process while stages 3-5 run);
+7. **compliant contacts** (the headline, on the k = 0 sector path): the FE transducer's axial
+   modes to a cut-off chosen from the contact time drive the free mass through Hertz contacts
+   at the horn and the tool; tool kinetic energy, impact rate and power per free mass with a
+   95 % CI and a model-form estimate from a convergence study (mode cut-off, contact stiffness)
+   run every time (:mod:`results.stage_compliant`). The stages 1-5 models above become its
+   comparison rows.
 
 Two pieces of stage 3 run side by side on two cores: the band response (a worker thread) and
 the discretisation-error estimate on the coarser mesh; ``timings``
 therefore holds overlapping intervals (``discretisation_error_s`` lies inside ``harmonic_s``).
 Beside stages 4-5 run the operating point's modal bases at Q/2 and 2Q (a worker thread) and the
 renders (a worker process); ``operating_point_s`` and ``renders_s`` count what is left after them.
+The compliant stage runs in a worker thread from the end of the harmonic solve to the end of
+stage 5 (``compliant_s`` its own time, ``compliant_wait_s`` what the run waited for it after
+stage 5).
 
 Assumption stated loudly: with datasheet losses (PZT-8 Qm 1000, Ti-6Al-4V Q 10 000) the
 matched transducer at 225 V and exact resonance would reach ~0.5 mm at the tip and draw
@@ -59,6 +68,7 @@ from rpud_common.result import Result
 
 from fem.losses import ASSEMBLED_Q_MECH
 
+from .contact_faces import ContactFaces
 from .stage_impacts import CoupledAmplitude, coupled_amplitudes
 
 log = logging.getLogger(__name__)
@@ -106,7 +116,12 @@ class PipelineSettings:
     coupled_modes : modes of the reduced transducer (None: the tip-participation rule of fem.reduced)
     coupled_history_s : length of the coupled ring-up history with the reference free mass, s
     compliant_members : ensemble members per case of the compliant-contact model and its convergence
-        study (:mod:`results.stage_compliant`; 0: the stage is skipped; it runs on the k = 0 sector path)
+        study to start with (:mod:`results.stage_compliant`, the report's headline; 0: the stage is
+        skipped; it runs on the k = 0 sector path)
+    compliant_max_members : members per case are doubled until every driving 95 % CI is within
+        ``compliant_rel_tol`` of its mean or this cap is reached (reported)
+    compliant_rel_tol : the compliant model's CI target, relative to the mean
+    faces : the free mass's contact faces of the compliant model (:class:`results.contact_faces.ContactFaces`)
     load : None, or "rock": also predict drilling under load (results.drilling)
     wob : weight on bit of the drilling stage, N
     """
@@ -137,7 +152,10 @@ class PipelineSettings:
     coupled_model: bool = True
     coupled_modes: int | None = None
     coupled_history_s: float = 0.05
-    compliant_members: int = 0
+    compliant_members: int = 16
+    compliant_max_members: int = 32
+    compliant_rel_tol: float = 0.05
+    faces: ContactFaces = ContactFaces()
     load: str | None = None
     wob: float = 7.0
 
@@ -164,6 +182,10 @@ class PipelineSettings:
         check_range("coupled_history_s", self.coupled_history_s, 1e-3, 1.0, "s")
         if self.compliant_members:
             check_integer("compliant_members", self.compliant_members, 2, 100_000)
+            check_integer("compliant_max_members", self.compliant_max_members, self.compliant_members, 1_000_000)
+        check_range("compliant_rel_tol", self.compliant_rel_tol, 0.0, 1.0, lo_open=True)
+        if not isinstance(self.faces, ContactFaces):
+            raise ParameterError("faces", self.faces, "must be a results.contact_faces.ContactFaces")
         if self.load not in (None, "rock"):
             raise ParameterError("load", self.load, "must be None or 'rock'")
         check_range("wob", self.wob, 0.0, 1e4, "N")
@@ -218,7 +240,11 @@ class PipelineResult(Result):
             return Estimate(mean, hw, d.get("members", 0))
 
         s = self.summary
-        wm, a0 = s["working_mode"], s["A0"]
+        wm, a0, head = s["working_mode"], s["A0"], s.get("headline")
+        if head and head["model"] == "compliant_model":
+            ke, mf = head["mean_tool_ke_after_j"], head["mean_tool_ke_after_j"]["model_form"]
+            return (f"{self.folder}: f_r {wm['f_r_hz']:.1f} Hz ({wm['label']}); compliant model: tool KE "
+                    f"{est(ke, 1e3)} ± {mf * 1e3:.2g} mJ at {head['m_free_kg'] * 1e3:g} g (95 % CI ± model form)")
         key = s["impacts"]["headline"]
         last = s["kinetic_energy_table"][-1]
         fit = s["impacts"][key]["fit_ke_vs_mass"]
@@ -284,6 +310,7 @@ class _Run:
     sweeps: dict = field(default_factory=dict)
     coupled_model: dict | None = None
     compliant: dict | None = None
+    compliant_note: str = ""
     operating: dict | None = None
     bolt: object = None
     preload: dict | None = None
@@ -317,10 +344,18 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     clock.took("mesh_s", t0)
     mesh = run.meshed.mesh
     say(f"      {mesh.n_cells} tetrahedra, {mesh.n_points} nodes ({clock.timings['mesh_s']:.1f} s)")
-    with _Renders(run) as renders:       # in another process, beside the later stages
-        _fe_stages(run, clock, tune, say, renders)
+    from .renders import Renders
+    from .stage_compliant import CompliantWorker
+
+    with Renders(run) as renders, CompliantWorker() as compliant:     # beside the later stages
+        _fe_stages(run, clock, tune, say, renders, compliant)
         renders.modes()
         _impact_stages(run, clock, say)
+        t0 = time.perf_counter()
+        run.compliant, seconds = compliant.collect(say)
+        if seconds is not None:
+            clock.timings["compliant_s"] = seconds
+            clock.took("compliant_wait_s", t0)
         t0 = clock.stage("renders")
         renders.collect()
         clock.took("renders_s", t0)
@@ -346,9 +381,10 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     return PipelineResult(folder=run.out, summary=summary)
 
 
-def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "_Renders") -> None:
+def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", compliant) -> None:
     """Matching, harmonic response, stress and the discretisation error of the FE outputs (the
-    stress picture and VTU drawn by ``renders``' worker)."""
+    stress picture and VTU drawn by ``renders``' worker; the compliant stage started in
+    ``compliant``'s as soon as the working frequency is known)."""
     from .stage_fe import match_stage
     from .stage_harmonic import harmonic_stage
     from .stress_stage import stress_stage
@@ -368,6 +404,7 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "_Renders") -> None
 
         st = run.settings = measured_settings(st, m.system, m.modal, m.w, say)
     h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
+    _start_compliant(run, compliant)
     from .operating_point import preload_stage
 
     run.bolt, run.preload = preload_stage(m.design, m.system, h.wp, say=say)   # the design's bolt, the window
@@ -480,8 +517,8 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> None:
 
 
 def _loaded_impacts(run: _Run, clock: _Clock, say):
-    """A0 under the impact load, the impact statistics, the coupled and compliant models; returns
-    the impact parameters handed over (at the reference free mass) and the free masses."""
+    """A0 under the impact load, the impact statistics and the coupled model; returns the impact
+    parameters handed over (at the reference free mass) and the free masses."""
     from impact.model import simulate
     from impact.stats import SCENARIOS
 
@@ -521,91 +558,31 @@ def _loaded_impacts(run: _Run, clock: _Clock, say):
             m.f_r_hz, m.f_a_hz, n_modes=st.coupled_modes, history_s=st.coupled_history_s,
             reference_m_free=st.reference_m_free, say=say)
     clock.took("coupled_s", t0)
-    t0 = time.perf_counter()
-    run.compliant = _compliant_stage(run, base, masses, say)
-    clock.took("compliant_s", t0)
     return base, masses
 
 
-def _compliant_stage(run: _Run, base, masses, say) -> dict | None:
-    """The compliant-contact model and its convergence study (:mod:`results.stage_compliant`), on
-    the k = 0 sector (the axial modes an impact excites); None when skipped."""
+def _start_compliant(run: _Run, worker) -> None:
+    """Start the compliant stage in ``worker`` (:class:`results.stage_compliant.CompliantWorker`),
+    or note why it is skipped. It needs only the matched k = 0 system, the drive and the impact
+    parameters of the hand-off: its horn is driven from the voltage through the FE modes, so the
+    damper-loaded A0 of stage 4 does not enter it."""
     from fem.sector_system import SectorSystem
 
+    from .stage_compliant import CompliantSettings
+    from .stage_impacts import handoff
+
     st, m = run.settings, run.matched
-    if not st.compliant_members or not isinstance(m.system, SectorSystem):
-        if st.compliant_members:
-            say("      compliant model skipped: it runs on the k = 0 sector path")
-        return None
-    from .stage_compliant import CompliantSettings, compliant_stage
-
-    return compliant_stage(m.system, m.design, base.freq, st.voltage, base, masses,
-                           CompliantSettings(members=st.compliant_members, seed=st.seed), q_mech=st.q_mech,
-                           drive=run.harm.basis, say=say)
-
-
-class _Renders:
-    """The pictures and VTUs, drawn and written in a worker process while the pipeline goes on
-    (``with`` block; :meth:`collect` waits): the stress picture and VTU (:meth:`submit`, from the
-    stress stage), then the mode-shape PNGs of the working mode and its neighbours and the VTU
-    with every mode (:meth:`modes`).
-
-    Rendering (VTK) and the VTUs' compression are single-threaded and the impact kernels hold the
-    interpreter, so a thread would not overlap them; a process does. It is started fresh
-    (``spawn``: no forked MKL or OpenGL state) and given the whole drill's meshes and fields; its
-    files are the same whichever finishes first.
-    """
-
-    def __init__(self, run: _Run):
-        self.run, self.pool, self.jobs, self.mode_job = run, None, [], None
-
-    def __enter__(self) -> "_Renders":
-        return self
-
-    def submit(self, fn, *args) -> None:
-        """Run ``fn(*args)`` in the worker (started at the first job)."""
-        if self.pool is None:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            self.pool = ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context("spawn"))
-        self.jobs.append(self.pool.submit(fn, *args))
-
-    def modes(self) -> None:
-        """Submit the mode-shape renders and VTU (the whole drill on the sector path)."""
-        run = self.run
-        if not run.settings.render:
-            return
-        from fem.render import around
-        from fem.sector_system import SectorSystem
-
-        m = run.matched
-        mesh, shapes = m.mesh, m.modal.shapes
-        if isinstance(m.system, SectorSystem):          # the sector's modes shown on the whole drill
-            mesh, shapes = m.system.whole_mesh()[0], m.system.whole_shapes(m.modal.vectors)
-        idx = around(m.w, m.modal.n_modes, 2)
-        self.submit(render_files, mesh, shapes, run.out, idx, m.modal.f_r_hz, m.modal.labels)
-        self.mode_job = self.jobs[-1]
-
-    def collect(self) -> None:
-        """Wait for every file; the mode files go into the run (an error in the worker is raised here)."""
-        for job in self.jobs:
-            job.result()
-        if self.mode_job is not None:
-            self.run.renders, self.run.vtu = self.mode_job.result()
-
-    def __exit__(self, *exc) -> None:
-        if self.pool is not None:
-            self.pool.shutdown(wait=True, cancel_futures=True)
-
-
-def render_files(mesh, shapes, out: Path, modes, frequencies, labels) -> tuple[list, Path]:
-    """``(PNG paths, VTU path)``: ``modes`` rendered into ``out/renders`` and every mode written
-    to ``out/modes.vtu`` (the worker of :class:`_Renders`)."""
-    from fem.render import render_modes, write_modes_vtu
-
-    pngs = render_modes(mesh, shapes, out / "renders", modes=modes, frequencies=frequencies, labels=labels)
-    return pngs, write_modes_vtu(mesh, shapes, out / "modes.vtu", frequencies=frequencies)
+    if not st.compliant_members:
+        run.compliant_note = "the compliant stage was not asked for (compliant_members 0)"
+    elif not isinstance(m.system, SectorSystem):
+        run.compliant_note = ("the compliant stage runs on the k = 0 sector path only (the whole drill's wide-band "
+                              "axial modes would cost several times the sector's)")
+        worker.lines.append(f"      compliant model skipped: {run.compliant_note}")
+    else:
+        settings = CompliantSettings(members=st.compliant_members, max_members=st.compliant_max_members,
+                                     rel_tol=st.compliant_rel_tol, seed=st.seed, faces=st.faces)
+        worker.start(m.system, m.design, handoff(run.harm, st.handoff_digits), [x for x in st.m_free_values if x > 0],
+                     settings, st.voltage, st.q_mech, drive=run.harm.basis)
 
 
 def _figures(run: _Run) -> dict:
@@ -614,12 +591,20 @@ def _figures(run: _Run) -> dict:
 
     m, h, r, sw = run.matched, run.harm, run.resp, run.sweeps
     with_zero = 0.0 in run.settings.m_free_values
-    drawn = {
+    kinematic_head = None if run.compliant is not None else "device_fe"      # else comparison rows
+    drawn = {}
+    if run.compliant is not None:            # the headline figure first
+        from .coupled_figures import compliant_energy_power
+
+        drawn["compliant_energy_power"] = (compliant_energy_power(run.compliant["json"]),
+                                           "compliant_tool_energy_and_power.png")
+    drawn |= {
         "admittance": (figures.admittance(r.sweep, m.f_r_hz, m.f_a_hz), "admittance.png"),
         "tip_response": (figures.tip_response(r.sweep, m.f_r_hz), "tip_response.png"),
         "ring_up": (figures.ring_up(r.ring, h.wp.tip_amplitude_m), "ring_up.png"),
         "impact_history": (figures.impact_history(run.hist_ref), "impact_history_50ms.png"),
-        "kinetic_energy": (figures.kinetic_energy(sw, with_zero), "kinetic_energy_vs_free_mass.png"),
+        "kinetic_energy": (figures.kinetic_energy(sw, with_zero, headline=kinematic_head),
+                           "kinetic_energy_vs_free_mass.png"),
         "a0_coupling": (figures.a0_coupling(run.amps, run.est.relative("tip_per_volt_m") if run.est else None),
                         "a0_vs_free_mass.png"),
     }
@@ -629,14 +614,10 @@ def _figures(run: _Run) -> dict:
         cm = run.coupled_model
         drawn["coupled_tip_envelope"] = (cf.tip_envelope(cm["history"]["result"], h.wp.tip_amplitude_m),
                                          "coupled_tip_envelope.png")
-        drawn["ke_three_horn_models"] = (cf.ke_three_models(cm["kinematic"], sw["device_fe"].rows, cm["stats"]),
+        drawn["ke_three_horn_models"] = (cf.ke_three_models(cm["kinematic"], sw["device_fe"].rows, cm["stats"],
+                                                            damper_is_headline=kinematic_head is not None),
                                          "ke_vs_free_mass_three_horn_models.png")
         drawn["coupled_drive_power"] = (cf.drive_power(cm["stats"], h.wp.power_w), "drive_power_vs_free_mass.png")
-    if run.compliant is not None:
-        from .coupled_figures import compliant_energy_power
-
-        drawn["compliant_energy_power"] = (compliant_energy_power(run.compliant["json"]),
-                                           "compliant_tool_energy_and_power.png")
     if run.drilling is not None:
         from impact.drilling_plots import plot_depth_vs_mass
 
@@ -681,10 +662,11 @@ def _a0_record(run: _Run) -> dict:
 
 def _summary(run: _Run, figs: dict) -> dict:
     """``summary.json`` without the timings, error annotations and provenance (added by the caller)."""
+    from .headline import headline_record
     from .report import ke_rows
 
     st, m, out = run.settings, run.matched, run.out
-    return {
+    doc = {
         "design": m.design.to_mapping(),
         "settings": {k: getattr(st, k) for k in st.__dataclass_fields__},
         "mesh": {"tetrahedra": m.mesh.n_cells, "nodes": m.mesh.n_points, "order": m.mesh.order,
@@ -715,3 +697,4 @@ def _summary(run: _Run, figs: dict) -> dict:
                   "vtu": str(Path(run.vtu).relative_to(out)) if run.vtu else None},
         "timings": {},
     }
+    return {"headline": headline_record(doc, run.compliant_note), **doc}

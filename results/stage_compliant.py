@@ -23,10 +23,11 @@ stiffness is known to about a factor of two, the face radius and the surface fin
 assumed). Both differences carry the sampling noise of the two ensembles they compare; the table
 gives each with its 95 % CI.
 
-Contact geometry (design data of this stage, :class:`CompliantSettings`): the free mass's faces
-are crowned with the radius of a sphere of its own mass and material (unless a face radius is
-given), striking the flat horn tip (the design's horn material) and the flat tool face (the
-tool's material). The restitutions are the impact parameters' ``e2`` (horn) and ``e1`` (tool).
+Contact geometry (design data of this stage, :class:`results.contact_faces.ContactFaces`): the
+free mass's faces, crowned (by default with the radius of a sphere of its own mass and material)
+or flat with a rounded rim, strike the flat horn tip (the design's horn material) and the flat
+tool face (the tool's material). The restitutions are the impact parameters' ``e2`` (horn) and
+``e1`` (tool).
 """
 
 from __future__ import annotations
@@ -39,13 +40,15 @@ import numpy as np
 
 from rpud_common import ParameterError, check_integer, check_range
 
+from .contact_faces import ContactFaces
+
 log = logging.getLogger(__name__)
 
 #: the quantities with a model-form estimate: tool KE after impact, tool impact rate, tool power
 QUANTITIES = ("mean_tool_ke_after_j", "tool_impact_rate_hz", "tool_power_w")
 
 __all__ = ["QUANTITIES", "CompliantSettings", "contact_laws", "shortest_contact_time", "compliant_ensembles",
-           "compliant_stage", "model_form"]
+           "compliant_stage", "model_form", "CompliantWorker"]
 
 
 @dataclass(frozen=True)
@@ -62,9 +65,8 @@ class CompliantSettings:
     max_members : ... or this cap is reached (reported)
     seed : seed of the members' launch speeds
     v0_spread : relative half-range of the launch speeds
-    free_mass_material, tool_material : materials of the free mass and of the tool face
-    face_radius : crown radius of the free mass's faces, m (None: the radius of a sphere of the
-        free mass's own mass and material)
+    faces : the free mass's contact faces and the materials of the contact
+        (:class:`results.contact_faces.ContactFaces`)
     t_from, t_end : the statistics window, s (the device scenario's: 20 ms discarded, 200 ms kept)
     spring_force : restoring spring on the free mass, N (the device scenario's)
     """
@@ -76,9 +78,7 @@ class CompliantSettings:
     max_members: int = 64
     seed: int = 20260
     v0_spread: float = 0.05
-    free_mass_material: str = "steel_45"
-    tool_material: str = "steel_45"
-    face_radius: float | None = None
+    faces: ContactFaces = ContactFaces()
     t_from: float = 0.02
     t_end: float = 0.22
     spring_force: float = 5.0
@@ -94,8 +94,8 @@ class CompliantSettings:
         check_integer("max_members", self.max_members, self.members, 1_000_000)
         check_integer("seed", self.seed, 0)
         check_range("v0_spread", self.v0_spread, 0.0, 0.5)
-        if self.face_radius is not None:
-            check_range("face_radius", self.face_radius, 1e-4, 1.0, "m")
+        if not isinstance(self.faces, ContactFaces):
+            raise ParameterError("faces", self.faces, "must be a results.contact_faces.ContactFaces")
         check_range("t_from", self.t_from, 0.0, 10.0, "s")
         check_range("t_end", self.t_end, self.t_from, 10.0, "s", lo_open=True)
         check_range("spring_force", self.spring_force, 0.0, 1e4, "N")
@@ -111,20 +111,24 @@ def contact_laws(design, m_free: float, e_horn: float, e_tool: float, settings: 
         Horn law, tool law, and their description (stiffnesses in N/m^1.5, face radius in m).
     """
     from geometry.materials import get_material
-    from impact.hertz import ContactGeometry, HertzLaw, effective_modulus, hertz_stiffness
+    from impact.hertz import HertzLaw, effective_modulus, hertz_stiffness
 
     def mat(name):
         return get_material(name, design.library)
 
-    ball = mat(settings.free_mass_material)
-    radius = settings.face_radius or (3.0 * m_free / (4.0 * math.pi * ball.density)) ** (1.0 / 3.0)
-    geom = ContactGeometry.crowned(radius)
+    faces = settings.faces
+    ball = mat(faces.free_mass_material)
+    geom = faces.geometry(m_free, ball.density)
     k = {}
-    for side, other in (("horn", mat(design.part_material("horn"))), ("tool", mat(settings.tool_material))):
+    for side, other in (("horn", mat(design.part_material("horn"))), ("tool", mat(faces.tool_material))):
         e_star = effective_modulus(other.youngs_modulus, other.poisson_ratio, ball.youngs_modulus, ball.poisson_ratio)
         k[side] = stiffness_factor * hertz_stiffness(e_star, geom)
-    info = {"face_radius_m": radius, "face_radius_from": "given" if settings.face_radius else
-            f"a {settings.free_mass_material} sphere of the free mass", "horn_stiffness_n_per_m1_5": k["horn"],
+    info = {"face": "flat" if faces.flat else "crowned", "geometry": geom.description,
+            "face_radius_m": geom.radius_2 if not faces.flat else faces.face_radius,
+            "edge_radius_m": faces.edge_radius, "face_tilt_deg": faces.face_tilt_deg,
+            "radii_m": [geom.radius_1, geom.radius_2],
+            "face_radius_from": "given" if faces.face_radius is not None else
+            f"a {faces.free_mass_material} sphere of the free mass", "horn_stiffness_n_per_m1_5": k["horn"],
             "tool_stiffness_n_per_m1_5": k["tool"], "stiffness_factor": stiffness_factor,
             "e_horn": e_horn, "e_tool": e_tool}
     return HertzLaw(k["horn"], e_horn), HertzLaw(k["tool"], e_tool), info
@@ -272,10 +276,10 @@ def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses
     doc = {
         "contact_time_s": t_c, "cutoffs_hz": cutoffs, "cutoff_factors": list(settings.cutoff_factors),
         "modes_hz": info["modes_hz"], "residual_m_per_n": g, "tip_end_mass_kg": info["end_mass_kg"],
-        "settings": {k: getattr(settings, k) for k in settings.__dataclass_fields__},
+        "settings": {k: getattr(settings, k) for k in settings.__dataclass_fields__} | {"faces": settings.faces.to_dict()},
         "contact": contact_laws(design, masses[-1], base.e2, base.e1, settings)[2],
         "scenario": {"spring_force_n": settings.spring_force, "t_from_s": settings.t_from, "t_end_s": settings.t_end},
-        "assumed": ["contact face radius (a sphere of the free mass)", "restitutions e1, e2 (article Table 1)",
+        "assumed": [f"the free mass's contact faces ({settings.faces.text()})", "restitutions e1, e2 (article Table 1)",
                     "q_mech of the assembled transducer", "contact stiffness within x0.5-x2 (the study's range)"],
         "calibrated": ["gap, tool stiffness k0 and damping c, launch speed v0: inherited from the fit of the "
                        "article scenario's 520 Hz tool-impact rate on the kinematic horn at 15 um; refitted under "
@@ -288,3 +292,64 @@ def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses
     }
     return {"json": doc, "rows": rows}
 
+
+
+class CompliantWorker:
+    """:func:`compliant_stage` in a worker thread beside the caller's own work (``with`` block):
+    :meth:`start`, then :meth:`collect`.
+
+    Its eigen solves (PARDISO) release the interpreter and its ensembles run on numba's threads, so
+    on two cores it overlaps the caller's stages. OpenBLAS is held at one thread from its start to
+    the end of the ``with`` block (the pipeline's stages beside it run at one thread already), so no
+    thread count changes under its dense products: its numbers do not depend on what runs beside
+    it. Its progress lines are kept (:attr:`lines`) and shown at :meth:`collect`. The thread is a
+    daemon: a run ended by a signal or an error does not wait for it (its answer would be dropped).
+    """
+
+    def __init__(self):
+        self.lines: list[str] = []
+        self.thread, self.box, self.limit = None, {}, None
+
+    def __enter__(self) -> "CompliantWorker":
+        return self
+
+    def start(self, system, design, base, masses, settings: CompliantSettings, voltage: float,
+              q_mech: float | None, drive=None) -> None:
+        """Start :func:`compliant_stage` (same arguments; ``base.freq`` the drive frequency). The
+        ``drive`` basis may be used by the caller meanwhile: its factor's solves are serialised
+        (:class:`fem.solvers.Factor`)."""
+        import threading
+        import time
+
+        from fem.solvers import blas_threads
+
+        self.limit = blas_threads(1)
+
+        def work():
+            try:
+                t0 = time.perf_counter()
+                out = compliant_stage(system, design, base.freq, voltage, base, masses, settings, q_mech=q_mech,
+                                      drive=drive, say=self.lines.append)
+                self.box["out"] = (out, time.perf_counter() - t0)
+            except BaseException as exc:          # handed to the caller at collect
+                self.box["error"] = exc
+
+        self.thread = threading.Thread(target=work, name="compliant", daemon=True)
+        self.thread.start()
+
+    def collect(self, say) -> tuple[dict | None, float | None]:
+        """Wait for the stage (an error in it is raised here) and pass its progress lines to ``say``.
+        Returns ``(answer, its wall time in s)``, or ``(None, None)`` when it was not started."""
+        out = (None, None)
+        if self.thread is not None:
+            self.thread.join()
+            if "error" in self.box:
+                raise self.box["error"]
+            out = self.box["out"]
+        for line in self.lines:
+            say(line)
+        return out
+
+    def __exit__(self, *exc) -> None:
+        if self.limit is not None:
+            self.limit.restore_original_limits()

@@ -299,7 +299,7 @@ def sector_run(tmp_path_factory):
     is (no matching), a short impact stage."""
     design = geometry.filleted(reference_default(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
     settings = PipelineSettings(match=False, m_free_values=(0.008,), impact_rel_tol=0.1, impact_max_members=256,
-                                n_points=30, coupled_model=False)
+                                n_points=30, coupled_model=False, compliant_members=0)
     out = tmp_path_factory.mktemp("sector")
     return out, run_pipeline(design, settings, out).summary
 
@@ -359,7 +359,7 @@ def test_four_commands_give_one_f_r_on_the_default_design(tmp_path):
     from fem.matching import MatchSettings
 
     settings = PipelineSettings(m_free_values=(0.008,), impact_rel_tol=0.1, impact_max_members=128, n_points=20,
-                                render=False, coupled_model=False)
+                                render=False, coupled_model=False, compliant_members=0)
     design = geometry.default_design()
     s = run_pipeline(design, settings, tmp_path / "run").summary
     match, wm = s["matching"], s["working_mode"]

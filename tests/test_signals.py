@@ -203,13 +203,16 @@ def coarse_design(tmp_path_factory) -> Path:
     return path
 
 
-@pytest.mark.parametrize("sig, code, word, marker, after", [
-    (signal.SIGTERM, 143, "terminated", "harmonic response", 1.0),
-    (signal.SIGINT, 130, "interrupted", "impact statistics", 0.1),
-    (signal.SIGTERM, 143, "terminated", "figures and report", 1.0),
+@pytest.mark.parametrize("sig, code, word, marker, after, compliant", [
+    (signal.SIGTERM, 143, "terminated", "harmonic response", 1.0, "0"),
+    (signal.SIGINT, 130, "interrupted", "impact statistics", 0.1, "0"),
+    (signal.SIGTERM, 143, "terminated", "figures and report", 1.0, "0"),
+    (signal.SIGINT, 130, "interrupted", "A0 coupled with the impacts", 0.1, "16"),
 ])
-def test_later_pipeline_stages_end_cleanly(tmp_path, coarse_design, sig, code, word, marker, after):
-    """Harmonic, impact statistics and figures/report stages of a fast coarse run.
+def test_later_pipeline_stages_end_cleanly(tmp_path, coarse_design, sig, code, word, marker, after, compliant):
+    """Harmonic, impact statistics and figures/report stages of a fast coarse run (the compliant
+    stage skipped), and a signal while the compliant stage runs in its worker thread beside the
+    impact stages: the run ends at once, without waiting for it.
 
     The previous results folder survives untouched, and no temporary folder or ``.part`` file
     is left beside it or in the temporary directory (``TMPDIR`` points into ``tmp_path``).
@@ -224,7 +227,8 @@ def test_later_pipeline_stages_end_cleanly(tmp_path, coarse_design, sig, code, w
     before = _tree(tmp_path)
     rc, err = _run_and_signal(["results", "--design", "coarse.toml", "--out", "res", "--mesh-size", "0.008",
                                "--no-match", "--no-render", "--no-couple", "--rel-tol", "0.3",
-                               "--max-members", "32"], sig, tmp_path, marker=marker, after=after,
+                               "--max-members", "32", "--compliant-members", compliant], sig, tmp_path,
+                              marker=marker, after=after,
                               env={"TMPDIR": str(tmpdir)})
     _assert_clean_end(rc, err, code, word)
     assert _tree(tmp_path) == before

@@ -70,6 +70,27 @@ def test_stage_chooses_the_cutoff_from_the_contact_time(drill):
     for r in doc["rows"]:
         assert r["members"] == 2 and r["model_form"]["mean_tool_ke_after_j"] >= 0
     assert set(doc["study"]) == {"1 g", "8 g"}
+    _report_shows_the_stage(doc)
+
+
+def _report_shows_the_stage(doc):
+    """The stage's own JSON in the committed summary: the headline record is its 8 g row with both
+    uncertainties finite, and the report's headline sentence carries those numbers."""
+    import json
+    from pathlib import Path
+
+    from results.headline import headline_record
+    from results.report import report_lines
+
+    s = json.loads((Path(__file__).resolve().parent.parent / "results" / "default" / "summary.json").read_text())
+    s["compliant_model"] = json.loads(json.dumps(doc))
+    s["headline"] = rec = headline_record(s)
+    top = s["compliant_model"]["rows"][-1]
+    ke = rec["mean_tool_ke_after_j"]
+    assert rec["model"] == "compliant_model" and ke["mean"] == top["mean_tool_ke_after_j"]["mean"]
+    assert math.isfinite(ke["ci95_half_width"]) and math.isfinite(ke["model_form"])
+    head = report_lines(s)[2]
+    assert f"{ke['mean'] * 1e3:.3g} ± {ke['ci95_half_width'] * 1e3:.2g} ± {ke['model_form'] * 1e3:.2g} mJ" in head
 
 
 def _est(mean, hw):
@@ -88,7 +109,7 @@ def test_model_form_is_the_last_cutoff_step_plus_half_the_stiffness_spread():
 
 
 @pytest.mark.parametrize("field, value", [("cutoff_factors", (1.0,)), ("cutoff_factors", (2.0, 1.0)),
-                                          ("stiffness_factors", (0.5,)), ("members", 1), ("face_radius", 0.0),
+                                          ("stiffness_factors", (0.5,)), ("members", 1), ("faces", "crowned"),
                                           ("t_end", 0.01)])
 def test_settings_refuse_bad_values(field, value):
     with pytest.raises(ParameterError, match=field):
@@ -138,21 +159,30 @@ def test_headline_and_comparison_use_the_compliant_model():
 
 
 def test_whole_report_with_the_compliant_stage():
-    """The committed run's summary with a compliant block: its section, the comparison paragraph, and
-    the kinematic table announced as comparison rows (without the block: the device scenario's
-    headline, unchanged)."""
+    """The committed run's summary with a compliant block: the headline section first (its table and
+    figure), then the comparison paragraph, then the kinematic and Newton tables announced as
+    comparison rows; the figure is shown once. Without the block (and no ``headline`` record): the
+    device scenario's headline, saying that its model form is not estimated."""
     import json
     from pathlib import Path
 
     from results.report import report_lines
 
     s = json.loads((Path(__file__).resolve().parent.parent / "results" / "default" / "summary.json").read_text())
+    s.pop("headline", None)
+    s["compliant_model"] = None
     plain = "\n".join(report_lines(s))
-    assert "**Headline: the device scenario**" in plain and "Compliant contacts" not in plain
+    assert "**Headline: the device scenario**" in plain and "compliant contacts" not in plain
+    assert "not estimated: the compliant stage did not run" in plain
     s["compliant_model"] = _doc()
+    s["files"]["figures"] = {"compliant_energy_power": "figures/c.png", **s["files"]["figures"]}
     text = "\n".join(report_lines(s))
-    assert "Kinematic horn (comparison rows" in text and "## Compliant contacts" in text
-    assert "**Comparison at 8 g**" in text and "**Headline (compliant contacts" in text
+    order = ["**Headline (compliant contacts", "## Headline: drill-tool kinetic energy vs free mass (compliant",
+             "![compliant_energy_power](figures/c.png)", "**Comparison at 8 g**",
+             "## Comparison rows: the kinematic horn", "## Comparison rows: the transducer in the impact loop"]
+    at = [text.index(x) for x in order]
+    assert at == sorted(at) and text.count("figures/c.png") == 1
+    assert "| tool kinetic energy (headline: compliant contacts, 8 g) | 10 ± 1 ± 2 mJ" in text
 
 
 def test_compliant_model_cannot_reach_the_article_rate(drill):
