@@ -13,7 +13,8 @@ UV     := uv==0.13.9
 
 # the compiled engines' sources (impact/kernel_cache.py COMPILED_SOURCES): a change recompiles them
 KERNELS := $(addprefix impact/,event_rules.py columns.py horn.py kernel_blocks.py kernel.py kernel_energy.py \
-             kernel_contact.py kernel_modal.py rock.py drill_kernel.py compliant.py kernel_compliant.py kernel_cache.py)
+             kernel_contact.py kernel_modal.py rock.py drill_kernel.py compliant.py kernel_compliant.py kernel_drill_compliant.py \
+             kernel_cache.py)
 
 $(STAMP): pyproject.toml $(LOCK) $(KERNELS)
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -22,7 +23,7 @@ $(STAMP): pyproject.toml $(LOCK) $(KERNELS)
 	$(PY) -m pip install --quiet --no-deps --no-build-isolation -e .
 	$(PY) -m pip check
 	# compile the impact kernel now (numba caches it beside the source): runs start at once
-	$(PY) -c "from impact.kernel import warmup; warmup(); from impact.kernel_modal import warmup as w; w(); from impact.compliant_engine import warmup as c; c()"
+	$(PY) -c "from impact.kernel import warmup; warmup(); from impact.kernel_modal import warmup as w; w(); from impact.compliant_engine import warmup as c; c(); from impact.kernel_drill_compliant import warmup as d; d()"
 	touch $(STAMP)
 
 install: $(STAMP)

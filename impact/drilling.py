@@ -49,12 +49,14 @@ from .rock import RockLaw
 from .rod import ToolRod
 from .stats import Estimate, StatsSettings, ensemble_uniforms, mean_ci, ratio_ci
 
-__all__ = ["DrillParams", "DrillSettings", "DrillStats", "DrillSweep", "drilling_statistics", "drilling_sweep",
-           "pack", "DRILL_QUANTITIES", "MODEL_STATUS", "STATUS_LINE"]
+__all__ = ["DrillParams", "DrillSettings", "DrillStats", "DrillSweep", "CompliantHorn", "drilling_statistics",
+           "drilling_sweep", "pack", "DRILL_QUANTITIES", "MODEL_STATUS", "COMPLIANT_STATUS", "STATUS_LINE",
+           "model_status", "status_line"]
 
 log = logging.getLogger(__name__)
 
 MODEL_STATUS = {
+    "model": "kinematic horn, Newton impacts, rigid collar on an elastic tool rod",
     "calibration": "uncalibrated: the rock law (k_load, k_unload, crushing threshold) is assumed from textbook "
                    "sandstone values, not fitted to the article's rock or bit; only the impact contact gap is "
                    "calibrated (to the article's ~520 Hz tool-impact rate)",
@@ -67,7 +69,33 @@ MODEL_STATUS = {
 """The drilling model's assumptions and calibration status, printed, written and drawn beside
 every number it gives (the depths rest on an assumed rock law)."""
 
-STATUS_LINE = ("model status: " + MODEL_STATUS["calibration"].split(":")[0] + " rock law; " + MODEL_STATUS["use"])
+COMPLIANT_STATUS = {
+    "model": "FE transducer (k = 0 modes + static residual) with Hertz contacts at horn tip and tool, rigid tool",
+    "calibration": "uncalibrated: the rock law (k_load, k_unload, crushing threshold) is assumed from textbook "
+                   "sandstone values, not fitted to the article's rock or bit; the gap, tool stiffness and damping "
+                   "and launch speed are inherited from the kinematic horn's fit (not refitted under this model); "
+                   "the contact stiffness follows an assumed face radius",
+    "assumptions": "the horn's modes ride on the housing (their inertial load from its acceleration left out); "
+                   "Hertz contacts with restitution unloading; a rigid tool (no rod waves: the kinematic model's "
+                   "elastic rod is the comparison); Lundberg's bilinear bit-rock law with a crushing threshold; every "
+                   "blow meets fresh rock; depth = stationary drilling rate x drilling time",
+    "use": MODEL_STATUS["use"],
+}
+"""The compliant drilling model's assumptions and calibration status (:func:`model_status`)."""
+
+
+def model_status(model: str) -> dict:
+    """The status block of ``model`` ("kinematic" or "compliant")."""
+    return dict(COMPLIANT_STATUS if model == "compliant" else MODEL_STATUS)
+
+
+def status_line(model: str = "kinematic") -> str:
+    """One line of the status of ``model`` for terminals and figures."""
+    st = model_status(model)
+    return f"model status ({model}): " + st["calibration"].split(":")[0] + " rock law; " + st["use"]
+
+
+STATUS_LINE = status_line("kinematic")
 """One line of :data:`MODEL_STATUS` for terminals and figures."""
 
 #: (name, unit, description)
@@ -216,6 +244,7 @@ class DrillStats(Result):
     note: str
     params: DrillParams
     raw: np.ndarray | None = field(default=None, repr=False)
+    model: str = "kinematic"
 
     def __getitem__(self, name) -> Estimate:
         return self.estimates[name]
@@ -224,13 +253,13 @@ class DrillStats(Result):
         return (f"{self.m_free * 1e3:g} g, A0 {self.A0 * 1e6:.3g} um, WOB {self.params.wob:g} N: drilling rate "
                 f"{self['drilling_rate_m_s'].scaled(6e4)} mm/min, depth after {self.params.drill_time:g} s "
                 f"{self.depth_m.scaled(1e3)} mm, blows {self['blow_rate_hz']} Hz; {self.members} members (95 % CI); "
-                f"{STATUS_LINE}")
+                f"{status_line(self.model)}")
 
     def _arrays(self) -> dict:
         return {"members": self.raw} if self.raw is not None else {}
 
     def _record(self) -> dict:
-        return {"m_free_kg": self.m_free, "A0_m": self.A0, "members": self.members, "converged": self.converged,
+        return {"m_free_kg": self.m_free, "A0_m": self.A0, "model": self.model, "members": self.members, "converged": self.converged,
                 "note": self.note, "depth_after_drill_time_m": self.depth_m.to_dict(),
                 "drilling_rate_mm_per_min": self["drilling_rate_m_s"].scaled(6e4).to_dict(),
                 **{k: v.to_dict() for k, v in self.estimates.items()}}
@@ -255,17 +284,100 @@ def _estimates(raw, T, level: float):
     }
 
 
+@dataclass(frozen=True)
+class CompliantHorn:
+    """The FE horn and the contacts of the compliant drilling model (:mod:`impact.kernel_drill_compliant`).
+
+    Parameters
+    ----------
+    horn : impact.horn.ModalHorn
+        The driven transducer's modes (e.g. :func:`results.coupled.wideband_horn`); its drive
+        frequency is ``DrillParams.impact.freq``.
+    residual : float
+        Static tip compliance of the modes left out, m/N.
+    laws : tuple
+        ``(horn_law, tool_law)`` (:class:`impact.hertz.HertzLaw`) for every free mass, or one such
+        pair per mass of the sweep (the stiffness follows the free mass's face radius).
+    rtol : float
+        Relative tolerance of the DOP853 steps, in [1e-12, 1e-6]. The window's energy balance
+        follows it: ~2e-10 of the drive work at 1e-10, ~1.7e-9 at 1e-9 (the default FE horn, 16
+        modes to 70 kHz, 2 and 8 g), for about the same time.
+    housing_fixed : bool
+        An infinitely heavy housing (the limit the kinematic model's check runs in).
+    """
+
+    horn: object
+    residual: float
+    laws: tuple
+    rtol: float = 1e-10
+    housing_fixed: bool = False
+
+    def __post_init__(self):
+        from .compliant_engine import check_compliant
+
+        for hl, tl in self.pairs(1 if self.single else len(self.laws)):
+            check_compliant(self.horn, hl, tl, self.residual, self.rtol)
+        check_range("rtol", self.rtol, 1e-12, 1e-6)
+
+    @property
+    def single(self) -> bool:
+        return len(self.laws) == 2 and not isinstance(self.laws[0], (tuple, list))
+
+    def pairs(self, n: int) -> list:
+        """The (horn_law, tool_law) pair of each of n masses."""
+        if self.single:
+            return [tuple(self.laws)] * n
+        if len(self.laws) != n:
+            raise ParameterError("laws", f"{len(self.laws)} pairs", f"must be one (horn, tool) pair or one per mass ({n})")
+        return [tuple(x) for x in self.laws]
+
+    def tip_amplitude(self, freq: float) -> float:
+        """The free-running tip amplitude at the drive, m."""
+        return float(abs(self.horn.steady_tip(freq)))
+
+
 def _members(p: DrillParams, m_free: float, start: int, n: int, st: DrillSettings, A0: float | None):
     pp = p if A0 is None else p.with_(impact=p.impact.with_(A0=A0))
     u = ensemble_uniforms(st, start, n)
     return np.array([pack(pp, m_free, pp.impact.v0 * (1.0 + st.v0_spread * (2.0 * ui - 1.0))) for ui in u])
 
 
-def _summary(p, m_free, A0, raw, st) -> DrillStats:
+def _compliant_members(p: DrillParams, m_free: float, start: int, n: int, st: DrillSettings, ch: CompliantHorn,
+                       laws) -> np.ndarray:
+    """The members' packed rows of the compliant kernel: impact parameters, laws, drilling (one block)."""
+    from . import kernel_compliant as KC
+    from . import kernel_drill_compliant as KD
+    from .kernel import pack as pack_impact
+
+    u = ensemble_uniforms(st, start, n)
+    ip = p.impact.with_(m_free=m_free)
+    lw = KC.pack_laws(laws[0], laws[1], float(ch.residual), float(ch.rtol))
+    dv = KD.pack_drill(p.wob, math.inf if ch.housing_fixed else p.housing_mass(m_free), p.rock)
+    rows = [np.concatenate([pack_impact(ip.with_(v0=ip.v0 * (1.0 + st.v0_spread * (2.0 * ui - 1.0)))), lw, dv])
+            for ui in u]
+    return np.array(rows).reshape(n, -1)
+
+
+def _run_compliant(block: np.ndarray, ch: CompliantHorn, p: DrillParams) -> np.ndarray:
+    from . import kernel_compliant as KC
+    from . import kernel_drill_compliant as KD
+    from .kernel import N_PARAMS
+
+    tab, xs = ch.horn.pack(p.impact.freq)
+    a, b = N_PARAMS, N_PARAMS + KC.LAW_N
+    return KD.ensemble_drill(block[:, :a], block[:, a:b], block[:, b:], tab, xs, p.t_from, p.t_end)
+
+
+def _summary(p, m_free, A0, raw, st, model="kinematic") -> DrillStats:
     from . import drill_kernel as K
 
     T = p.window_s
     est = _estimates(raw, T, st.level)
+    if model == "compliant":
+        from . import kernel_drill_compliant as KD
+
+        est["ledger_rel"] = mean_ci(raw[:, KD.K_LEDGER] / raw[:, KD.K_DRIVE], st.level)
+        est["drive_power_w"] = mean_ci(raw[:, KD.K_ELEC] / T, st.level)
     rel = [est[q].rel_half_width for q in DRIVING]
     det = bool(np.all(raw[:, K.S_PEN] == raw[0, K.S_PEN]) and np.all(raw[:, K.S_BLOWS] == raw[0, K.S_BLOWS]))
     converged = det or all(math.isfinite(r) and r <= st.rel_tol for r in rel)
@@ -274,48 +386,78 @@ def _summary(p, m_free, A0, raw, st) -> DrillStats:
         note = "every member identical (no free mass, or no blow crushes the rock): deterministic, CI 0"
     elif not converged and raw.shape[0] >= st.n_max:
         note = f"member cap {st.n_max} reached before the {st.rel_tol:.0%} target"
-    plastic = int(np.sum(raw[:, K.S_STATUS] != 0))
-    if plastic:
-        note += (("; " if note else "") + f"{plastic} member(s) closed a chattering step plastically")
+    bad = int(np.sum(raw[:, K.S_STATUS] != 0))
+    if bad:
+        why = "closed a chattering step plastically" if model == "kinematic" else "ran out of integration steps"
+        note += (("; " if note else "") + f"{bad} member(s) {why}")
     rate = est["drilling_rate_m_s"]
     return DrillStats(m_free=m_free, A0=p.impact.A0 if A0 is None else A0, estimates=est,
                       depth_m=rate.scaled(p.drill_time), members=int(raw.shape[0]), converged=converged,
-                      note=note, params=p, raw=raw)
+                      note=note, params=p, raw=raw, model=model)
+
+
+def _check_masses(p: DrillParams, masses, compliant: bool) -> None:
+    for m in masses:
+        if m != 0.0 or compliant:
+            p.impact.with_(m_free=m)               # bounds, before any work
+            if p.housing_mass(m) <= 0:
+                raise ParameterError("m_free", m, "must leave a positive housing mass")
 
 
 def drilling_sweep(p: DrillParams, masses, settings: DrillSettings | None = None, A0_values=None,
-                   progress=None) -> list[DrillStats]:
-    """Converged drilling statistics for every free mass (kg; 0 = no free mass), all masses'
-    members run together, one parallel kernel call per round. ``A0_values``: one horn amplitude
-    per mass (e.g. the pipeline's loaded amplitudes), else ``p.impact.A0``."""
+                   progress=None, horn: CompliantHorn | None = None) -> list[DrillStats]:
+    """Converged drilling statistics for every free mass (kg), all masses' members run together,
+    one parallel kernel call per round.
+
+    Parameters
+    ----------
+    p : DrillParams
+    masses : free masses, kg (0 = no free mass, kinematic model only)
+    settings : DrillSettings
+    A0_values : one horn amplitude per mass, m (e.g. the pipeline's loaded amplitudes), else
+        ``p.impact.A0`` (kinematic model only: the FE horn's amplitude follows from its drive)
+    progress : callable taking one message, optional
+    horn : CompliantHorn, optional
+        Drill on the compliant model (the FE horn with Hertz contacts and a rigid tool,
+        :mod:`impact.kernel_drill_compliant`) instead of the kinematic horn with Newton impacts
+        and the elastic tool rod (:mod:`impact.drill_kernel`).
+    """
     from . import drill_kernel as K
 
     st = settings or DrillSettings()
     masses = [float(m) for m in masses]
-    for m in masses:
-        if m != 0.0:
-            p.impact.with_(m_free=m)               # bounds, before any work
-            if p.housing_mass(m) <= 0:
-                raise ParameterError("m_free", m, "must leave a positive housing mass")
+    _check_masses(p, masses, horn is not None)
+    laws = horn.pairs(len(masses)) if horn is not None else None
+    if horn is not None and A0_values is not None:
+        raise ParameterError("A0_values", "given", "applies to the kinematic horn only (the FE horn has its drive)")
     amps = [None] * len(masses) if A0_values is None else list(A0_values)
-    raws = [np.empty((0, K.N_DSTATS)) for _ in masses]
+    if horn is not None:
+        amps = [horn.tip_amplitude(p.impact.freq)] * len(masses)
+    model = "kinematic" if horn is None else "compliant"
+    raws = [None] * len(masses)
     target = [st.n_start] * len(masses)
     done = [False] * len(masses)
     out: list = [None] * len(masses)
     while not all(done):
         todo = [i for i in range(len(masses)) if not done[i]]
-        blocks = [_members(p, masses[i], raws[i].shape[0], target[i] - raws[i].shape[0], st, amps[i]) for i in todo]
-        res = K.ensemble(np.vstack(blocks), p.t_from, p.t_end)
+        have = [0 if raws[i] is None else raws[i].shape[0] for i in range(len(masses))]
+        if horn is None:
+            blocks = [_members(p, masses[i], have[i], target[i] - have[i], st, amps[i]) for i in todo]
+            res = K.ensemble(np.vstack(blocks), p.t_from, p.t_end)
+        else:
+            blocks = [_compliant_members(p, masses[i], have[i], target[i] - have[i], st, horn, laws[i]) for i in todo]
+            res = _run_compliant(np.vstack(blocks), horn, p)
         k = 0
         for i, b in zip(todo, blocks):
-            raws[i] = np.vstack([raws[i], res[k:k + b.shape[0]]])
+            new = res[k:k + b.shape[0]]
+            raws[i] = new if raws[i] is None else np.vstack([raws[i], new])
             k += b.shape[0]
-            out[i] = _summary(p, masses[i], amps[i], raws[i], st)
+            out[i] = _summary(p, masses[i], amps[i], raws[i], st, model)
             if out[i].converged or raws[i].shape[0] >= st.n_max:
                 done[i] = True
             else:
                 target[i] = min(2 * raws[i].shape[0], st.n_max)
-        msg = f"drilling: round of {res.shape[0]} members, {sum(done)}/{len(done)} mass(es) finished"
+        msg = f"drilling ({model}): round of {res.shape[0]} members, {sum(done)}/{len(done)} mass(es) finished"
         log.info("%s", msg)
         if progress is not None:
             progress(msg)
@@ -331,19 +473,27 @@ def drilling_statistics(p: DrillParams | None = None, settings: DrillSettings | 
 
 @dataclass(repr=False)
 class DrillSweep(Result):
-    """Predicted drilling against free mass, beside the no-load tool kinetic energy."""
+    """Predicted drilling against free mass, beside the no-load tool kinetic energy; with the
+    compliant model, the kinematic model's sweep as its stated comparison (``comparison``)."""
 
     rows: list
     no_load: object | None = None
     params: DrillParams | None = None
+    comparison: "DrillSweep | None" = None
+
+    @property
+    def model(self) -> str:
+        return self.rows[0].model if self.rows else "kinematic"
 
     def _headline(self) -> str:
         return ("; ".join(f"{r.m_free * 1e3:g} g: {r.depth_m.scaled(1e3)} mm" for r in self.rows)
-                + f" ({STATUS_LINE})")
+                + f" ({status_line(self.model)})")
 
     def _record(self) -> dict:
-        out = {"params": self.params.to_dict() if self.params else None, "model_status": dict(MODEL_STATUS),
-               "rows": [r._record() for r in self.rows]}
+        out = {"params": self.params.to_dict() if self.params else None, "model": self.model,
+               "model_status": model_status(self.model), "rows": [r._record() for r in self.rows]}
         if self.no_load is not None:
             out["no_load_device"] = self.no_load.to_dict()
+        if self.comparison is not None:
+            out["comparison"] = self.comparison._record()
         return out

@@ -2,7 +2,10 @@
 
 Prints per free mass: blow rate, penetration per blow, drilling rate (mm/min), depth after the
 drilling time, energy transfer efficiency (95 % CIs over seeded members), and the no-load tool
-KE (device scenario) beside it. SI options; bad input is one line on stderr, exit 2, no file.
+KE (device scenario) beside it, with the model's assumptions and calibration status. ``--horn
+fem`` drills on the compliant model (the default design's FE horn, Hertz contacts, a rigid tool;
+built by :func:`results.drilling.fe_drill_horn`) with the kinematic model as its comparison.
+SI options; bad input is one line on stderr, exit 2, no file.
 """
 
 from __future__ import annotations
@@ -37,6 +40,12 @@ def build_parser() -> CliParser:
                                "the tool a rigid collar on an elastic rod, a bilinear bit-rock law with a crushing "
                                "threshold. Means with 95 %% CIs over seeded members; depth = rate x drilling time.")
     ap.add_argument("--load", choices=["rock"], required=True, help="load scenario (rock: bit on rock)")
+    ap.add_argument("--horn", choices=["kinematic", "fem"], default="kinematic",
+                    help="kinematic: the tip at A0, Newton impacts, elastic tool rod (default); fem: the default "
+                         "design's FE horn with Hertz contacts and a rigid tool (~0.4 s CPU per member and mass, "
+                         "plus ~30 s for the FE horn), the kinematic model beside it as the comparison")
+    ap.add_argument("--members", type=int, default=16, metavar="N",
+                    help="members per mass of the --horn fem model (a fixed count, default 16; its CIs as they come)")
     ap.add_argument("--wob", type=real_number, default=None, metavar="N",
                     help=f"weight on bit, N (default {WOB:g}, the article's)")
     ap.add_argument("--m-free", default="0,0.001,0.002,0.003,0.004,0.005,0.006,0.007,0.008", metavar="M1,M2,..",
@@ -95,7 +104,7 @@ def print_table(rows, no_load=None) -> None:
               + ("" if r.converged else "  (NOT converged)"))
 
 
-def _inputs(p: DrillParams, masses, settings) -> dict:
+def _inputs(p: DrillParams, masses, settings, ns) -> dict:
     """The run's inputs for the inputs line."""
     return {"load": "rock", "WOB": quantity(p.wob, "N"), "free masses": masses_text(masses),
             "A0": quantity(p.impact.A0, "m"), "f": quantity(p.impact.freq, "Hz"),
@@ -104,6 +113,8 @@ def _inputs(p: DrillParams, masses, settings) -> dict:
             "rod": f"{quantity(p.rod.length, 'm')} x {quantity(p.rod.diameter, 'm')} diameter, {p.rod.cells} cells",
             "window": f"{p.t_from * 1e3:g}-{p.t_end * 1e3:g} ms", "drilling time": f"{p.drill_time:g} s",
             "members": f"95 % CI within {settings.rel_tol:.3g}, at most {settings.n_max} per mass",
+            "horn": "kinematic (A0 cos 2 pi f t)" if ns.horn == "kinematic" else
+            f"FE (default design, Hertz contacts, rigid tool, {ns.members} members per mass) beside the kinematic",
             "seed": settings.seed}
 
 
@@ -113,6 +124,21 @@ def _warn_unusual(prog: str, p: DrillParams, masses) -> None:
     check_usual(prog, "--a0", p.impact.A0, "A0")
     check_usual(prog, "--freq", p.impact.freq, "freq")
     warn_first(prog, "--m-free", [m for m in masses if m > 0], "m_free")
+
+
+def _fem_sweep(p: DrillParams, masses, ns, say) -> DrillSweep:
+    """The compliant model on the default design's FE horn (a command sits on top of every
+    package: the FE horn is built by results)."""
+    import geometry
+    from results.drilling import fe_drill_horn
+
+    pos = [m for m in masses if m > 0]
+    f, cut, ch = fe_drill_horn(geometry.default_design(), pos)
+    if say is not None:
+        say(f"FE horn: {ch.horn.n_modes} k = 0 modes to {cut / 1e3:.0f} kHz, drive {f:.1f} Hz")
+    pf = p.with_(impact=p.impact.with_(freq=f))
+    st = DrillSettings(n_start=ns.members, n_max=ns.members, seed=ns.seed)
+    return DrillSweep(rows=drilling_sweep(pf, pos, st, progress=say, horn=ch), params=pf)
 
 
 def main(argv) -> int:
@@ -127,11 +153,16 @@ def main(argv) -> int:
         if m > 0 and p.housing_mass(m) <= 0:      # drilling_sweep's own check, before the inputs line
             raise ParameterError("m_free", m, f"must leave a positive housing mass (m_drill {p.m_drill:g} kg)")
     settings = DrillSettings(rel_tol=ns.rel_tol, n_start=min(16, ns.max_members), n_max=ns.max_members, seed=ns.seed)
+    if ns.horn == "fem":
+        check_range("--members", ns.members, 2, 4096)
+        if not any(m > 0 for m in masses):
+            raise ParameterError("m_free", ns.m_free, "must list a positive mass with --horn fem")
     check_output_paths(folders=("plots",), json=ns.json, plots=ns.plots)
     set_threads(ns.threads)
     _warn_unusual(ap.prog, p, masses)
-    echo_inputs(_inputs(p, masses, settings), ns.quiet)
+    echo_inputs(_inputs(p, masses, settings, ns), ns.quiet)
     say = None if ns.no_progress or ns.quiet else (lambda m: print(m, flush=True))
+    fem = _fem_sweep(p, masses, ns, say) if ns.horn == "fem" else None
     rows = drilling_sweep(p, masses, settings, progress=say)
     no_load = None
     pos = [m for m in masses if m > 0]
@@ -140,13 +171,21 @@ def main(argv) -> int:
         from .sweeps import sweep
 
         no_load = sweep(p.impact, pos, scenario="device", settings=StatsSettings(seed=ns.seed))
-    print(f"WOB {p.wob:g} N, A0 {p.impact.A0 * 1e6:.3g} um, {p.impact.freq:g} Hz; window "
+    from .drilling import status_line
+
+    res = DrillSweep(rows=rows, no_load=no_load, params=p)
+    if fem is not None:
+        print(f"compliant model (FE horn, f {fem.params.impact.freq:g} Hz, free tip {fem.rows[0].A0 * 1e6:.3g} um), "
+              f"WOB {p.wob:g} N; window {p.t_from * 1e3:g}-{p.t_end * 1e3:g} ms, depth = rate x {p.drill_time:g} s; "
+              "means ± 95 % CI")
+        print_table(fem.rows)
+        print(status_line("compliant"))
+        print("comparison: ", end="")
+        res = DrillSweep(rows=fem.rows, no_load=no_load, params=fem.params, comparison=res)
+    print(f"kinematic model: WOB {p.wob:g} N, A0 {p.impact.A0 * 1e6:.3g} um, {p.impact.freq:g} Hz; window "
           f"{p.t_from * 1e3:g}-{p.t_end * 1e3:g} ms, depth = rate x {p.drill_time:g} s; means ± 95 % CI")
     print_table(rows, no_load)
-    from .drilling import STATUS_LINE
-
-    print(STATUS_LINE)
-    res = DrillSweep(rows=rows, no_load=no_load, params=p)
+    print(status_line("kinematic"))
     if ns.json:
         write_json(ns.json, res.to_dict())
     if ns.plots:

@@ -1,5 +1,6 @@
 """Figure of the drilling prediction: depth after the drilling time against free mass (mm vs g,
-95 % CI error bars), beside the no-load tool kinetic energy (device scenario) on a second axis:
+95 % CI error bars; the kinematic model's beside the compliant one's as its comparison), beside
+the no-load tool kinetic energy (device scenario) on a second axis:
 the article's Fig. 14 against its Fig. 13 trend. matplotlib on first use."""
 
 from __future__ import annotations
@@ -21,7 +22,12 @@ def plot_depth_vs_mass(sweep, *, ax=None):
     hw = np.nan_to_num(np.array([r.depth_m.half_width for r in rows])) * 1e3
     p = sweep.params
     ax.errorbar(m, d, yerr=hw, fmt="o-", color="tab:blue", capsize=3,
-                label=f"predicted depth after {p.drill_time:g} s (WOB {p.wob:g} N, 95 % CI)")
+                label=f"predicted depth after {p.drill_time:g} s, {sweep.model} model (WOB {p.wob:g} N, 95 % CI)")
+    cmp = sweep.comparison
+    if cmp is not None:
+        ax.errorbar([r.m_free * 1e3 for r in cmp.rows], [r.depth_m.mean * 1e3 for r in cmp.rows],
+                    yerr=np.nan_to_num([r.depth_m.half_width * 1e3 for r in cmp.rows]), fmt="^:", color="tab:gray",
+                    capsize=3, label=f"comparison: {cmp.model} model (kinematic horn, elastic tool rod)")
     ax.set_xlabel("free mass (g)")
     ax.set_ylabel("predicted drilling depth (mm)", color="tab:blue")
     ax.grid(alpha=0.3)
@@ -38,8 +44,8 @@ def plot_depth_vs_mass(sweep, *, ax=None):
     ax.set_title("Drilling under load vs free mass (article Fig. 14 case)")
     import textwrap
 
-    from .drilling import STATUS_LINE
+    from .drilling import status_line
 
-    ax.text(0.99, 0.02, textwrap.fill(STATUS_LINE, 90), transform=ax.transAxes, ha="right", va="bottom", fontsize=6,
+    ax.text(0.99, 0.02, textwrap.fill(status_line(sweep.model), 90), transform=ax.transAxes, ha="right", va="bottom", fontsize=6,
             color="0.3")
     return ax

@@ -23,7 +23,7 @@ log = logging.getLogger(__name__)
 #: the package's files whose code or constants numba compiles
 COMPILED_SOURCES = ("event_rules.py", "columns.py", "horn.py", "kernel_blocks.py", "kernel.py", "kernel_energy.py",
                     "kernel_contact.py", "kernel_modal.py", "rock.py", "drill_kernel.py", "compliant.py",
-                    "kernel_compliant.py")
+                    "kernel_compliant.py", "kernel_drill_compliant.py")
 
 _HERE = Path(__file__).resolve().parent
 _STAMP = "compiled-sources.sha256"

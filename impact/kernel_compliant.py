@@ -729,3 +729,7 @@ def ensemble_rows(pmat: np.ndarray, laws: np.ndarray, tab: np.ndarray, xs: np.nd
     out = np.zeros((pmat.shape[0], N_KSTATS))
     _ensemble(pmat, laws, np.ascontiguousarray(tab), xs, float(t_from), float(t_end), int(max_events), out)
     return out
+
+
+#: the DOP853 pieces :mod:`impact.kernel_drill_compliant` builds its steps and events from
+combine, step_error, law_branch, tip_modal, tolerances = _combine, _error, _law_branch, _tip_modal, _tolerances

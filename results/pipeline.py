@@ -505,11 +505,12 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> None:
     run.operating["preload"] = run.preload
     clock.took("operating_point_s", t0)
     if st.load == "rock":                # opt-in: drilling under load
-        from .drilling import drilling_stage
+        from .drilling import drill_horn, drilling_stage
 
         t0 = time.perf_counter()
         run.drilling = drilling_stage(base, list(st.m_free_values), {k: run.amps[k].A0 for k in masses},
-                                      st.wob, st.seed, say=say)
+                                      st.wob, st.seed, say=say, horn_members=st.compliant_members or 16,
+                                      horn=drill_horn(run.compliant, run.matched.design, base, st.m_free_values))
         clock.took("drilling_s", t0)
     top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in run.sweeps.items()}
     say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']}, "

@@ -244,7 +244,8 @@ def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses
 
     Returns
     -------
-    dict with ``json`` (summary part) and ``rows`` (per mass: the estimates and the model-form).
+    dict with ``json`` (summary part), ``rows`` (per mass: the estimates and the model-form) and
+    ``drill_horn`` (the headline horn, its residual and the settings of its contact laws).
     """
     from .coupled import truncated_horn, wideband_horn, wideband_modes
 
@@ -290,7 +291,8 @@ def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses
                                      "model_form": mf[m]} for m in ends},
         "rows": rows,
     }
-    return {"json": doc, "rows": rows}
+    # the drilling stage drills on the same horn and contacts (results.drilling.drill_horn)
+    return {"json": doc, "rows": rows, "drill_horn": (horn, g, settings)}
 
 
 

@@ -215,7 +215,8 @@ def test_pipeline_stage_uses_the_amplitude_per_mass():
     from impact.drilling_plots import plot_depth_vs_mass
 
     assert out["json"]["model_status"] == MODEL_STATUS and "uncalibrated" in MODEL_STATUS["calibration"]
-    assert any(ln.startswith("**Model status:** uncalibrated") for ln in report_lines(out["json"]))
+    assert any(ln.startswith("**Model (kinematic):**") and "**Status:** uncalibrated" in ln
+               for ln in report_lines(out["json"]))
     assert "NOT credible" in STATUS_LINE and "NOT credible" in repr(out["result"])
     ax = plot_depth_vs_mass(out["result"])
     assert any("NOT credible" in t.get_text().replace("\n", " ") for t in ax.texts)
