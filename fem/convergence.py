@@ -112,7 +112,10 @@ the sector's section is graded and its notch edges graded (:data:`geometry.secto
 The observed orders on the default design's sector levels (matched lengths, refine 1.4 / 1 / 0.8
 and 1 / 0.8 / 0.64, ``h = DOFs^(-1/3)``) are 2.6 and 3.5 (f_r), 2.6 and 3.6 (f_a), 1.8 and 3.7
 (tip amplitude per volt), 2.3 and 3.3 (teeth ellipse ratio): 2 lies below all but the tip's
-coarsest triple, so the estimate errs on the large side (f_r at refine 1: 6.8 Hz stated, 4.0 Hz
+coarsest triple, so the estimate errs on the large side (the 1.4 / 1 / 0.8 triple's lower orders
+come partly from the sector's element layers, 3 at refine 1.4 and 1 and 4 at 0.8: the layers' gain
+falls on its last step only; the two-level estimate, both levels at 3 layers, does not see it and
+covers it through the order-2 margin on the coupler's part, docs/theory/piezo-elastic.md) (f_r at refine 1: 6.8 Hz stated, 4.0 Hz
 from the extrapolation of the finest three; teeth ellipse ratio 0.010 stated, 0.0064 to the
 extrapolation plus 0.0019 its own step). The teeth's phase takes :data:`SECTOR_PHASE_ORDER`."""
 

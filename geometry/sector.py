@@ -101,7 +101,13 @@ or region at a time from the rule without the floor and root classes (all notch 
 at refine 1 on the default design with matched lengths (86 579 DOFs, ratio 0.17090): floors at
 0.08 +0.00205 for +11.5k DOFs, end walls at 0.08 +0.00091 (+10.3k), roots at 0.08 +0.00045
 (+15.3k), the slot zone 0.8x finer (notch edges kept) +0.00077 (+9.4k), 6 layers instead of 3
-+0.00213 (+57.9k); the roots at 0.3 pay for the floors (89 498 DOFs, +3.4 %). The section's outer
++0.00213 (+57.9k); the roots at 0.3 pay for the floors (89 498 DOFs, +3.4 %). Past that first
+step every refinement measured gains about 0.5e-4 of the ratio per 1k DOFs (same design, refine
+1, DOFs and ratio against the rule's 89 498 and 0.17266): floors at 0.05 105 885, 0.17351; floors
+growing at 0.45 instead of 0.64 103 679, 0.17351; floors at 0.04 within 30 % of the slot's length
+from either end 93.1k-93.7k, 0.17287; floors 0.06 with roots 0.5 95 795, 0.17289; floors 0.06 with
+roots 1.0 94 016, 0.17278; the coupler outside the slot zone 0.8x finer 89 865, 0.17267
+(docs/theory/piezo-elastic.md: none gains the ratio faster per DOF). The section's outer
 junctions (the electrodes' outer edges, the stack's ends) are graded to 0.2 of the ring size:
 they hold most of the horn-tip amplitude's error (:data:`geometry.sizing.JUNCTION_FRACTION`), and
 the slot zone's cap is 1.22x coarser to pay for them. Default design at horn 67.1 mm and coupler
