@@ -100,11 +100,12 @@ def run_compliant(params: ImpactParams, horn: ModalHorn, *, horn_law: HertzLaw, 
     return CompliantRun(contacts=contacts, t_end=t, state=y[:4 + 2 * n].copy(), ledger=ledger)
 
 
-def _laws_per_case(name: str, law, n: int) -> list:
-    laws = list(law) if isinstance(law, (list, tuple)) else [law] * n
-    if len(laws) != n:
-        raise ParameterError(name, f"{len(laws)} laws", f"must be one HertzLaw or one per case ({n})")
-    return laws
+def _per_case(name: str, value, n: int, kind) -> list:
+    """``value`` for every case: one ``kind`` for all, or a list with one per case."""
+    values = list(value) if isinstance(value, (list, tuple)) else [value] * n
+    if len(values) != n or not all(isinstance(v, kind) for v in values):
+        raise ParameterError(name, f"{len(values)} values", f"must be one {kind.__name__} or one per case ({n})")
+    return values
 
 
 def _estimates(r: np.ndarray, T: float, level: float) -> dict:
@@ -128,6 +129,15 @@ def compliant_batch(cases: list[ImpactParams], horn: ModalHorn, *, horn_law, too
                     scenario="device", settings=None, progress=None, rtol: float = 1e-10) -> list:
     """Converged ensemble statistics of compliant runs (one horn, several cases).
 
+    Every case starts with ``n_start`` members. A case whose widest driving 95 % CI (impact.stats'
+    ``DRIVING``) is above its ``rel_tol`` grows to the members that CI asks for (a half-width
+    falls as ``1 / sqrt(n)``: ``n (h / rel_tol)^2``, plus 20 %, at least 1.25 n, in steps of 8)
+    up to ``n_max``. Each round runs the new members of every growing case in one parallel call,
+    handed to the threads one member at a time, so both cores stay busy whatever the cases cost.
+    Member ``i`` of a case is the same run however the rounds and threads fall (the ``i``-th
+    launch speed of the seeded ensemble, :func:`impact.stats.ensemble_members`): the numbers
+    do not depend on the scheduling.
+
     Parameters
     ----------
     cases : list of ImpactParams
@@ -138,8 +148,10 @@ def compliant_batch(cases: list[ImpactParams], horn: ModalHorn, *, horn_law, too
         face radius).
     horn_residual : float
         Static compliance of the horn's modes left out, at the tip, m/N.
-    scenario, settings, progress
+    scenario, progress
         As :func:`impact.stats.ensemble_batch`.
+    settings : impact.stats.StatsSettings or list of them
+        One for every case, or one per case (e.g. a looser ``rel_tol`` for a study's cases).
     rtol : float
         Relative tolerance of the contact phases.
 
@@ -150,48 +162,86 @@ def compliant_batch(cases: list[ImpactParams], horn: ModalHorn, *, horn_law, too
         and :data:`COMPLIANT_QUANTITIES`, 95 % Student-t intervals over the members.
     """
     from . import kernel_compliant as KC
-    from .kernel import pack
-    from .stats import DRIVING, EnsembleStats, Estimate, StatsSettings, ensemble_members, get_scenario
+    from .stats import StatsSettings, get_scenario
 
     sc = get_scenario(scenario)
-    st = settings or StatsSettings()
-    h_laws = _laws_per_case("horn_law", horn_law, len(cases))
-    t_laws = _laws_per_case("tool_law", tool_law, len(cases))
+    n = len(cases)
+    h_laws = _per_case("horn_law", horn_law, n, HertzLaw)
+    t_laws = _per_case("tool_law", tool_law, n, HertzLaw)
+    sts = _per_case("settings", settings or StatsSettings(), n, StatsSettings)
     for hl, tl in zip(h_laws, t_laws):
         check_compliant(horn, hl, tl, horn_residual, rtol)
     bases = [sc.apply(p) for p in cases]
     if len({p.freq for p in bases}) > 1:
         raise ParameterError("freq", sorted({p.freq for p in bases}), "every case must share the drive frequency")
     tab, xs = horn.pack(bases[0].freq) if bases else (None, None)
-    out = []
-    for i, base in enumerate(bases):
-        lw = KC.pack_laws(h_laws[i], t_laws[i], float(horn_residual), float(rtol))
-        raw = np.empty((0, KC.N_KSTATS))
-        while True:
-            new = ensemble_members(base, (st.n_start if raw.shape[0] == 0 else raw.shape[0]), st, start=raw.shape[0])
-            pmat = np.array([pack(p) for p in new])
-            raw = np.vstack([raw, KC.ensemble_rows(pmat, lw, tab, xs, sc.t_from, sc.t_end, base.max_events)])
-            n = raw.shape[0]
-            failed = int(np.sum(raw[:, KC.S_STATUS] != 0))
-            if failed:
-                why = f"{failed} of {n} members failed (too many contacts or an unresolved contact phase)"
-                est = {q: Estimate(math.nan, math.nan, n, st.level, why) for q in _names()}
-                out.append(EnsembleStats(params=base, scenario=sc, estimates=est, members=n, failed=failed,
-                                         converged=False, settings=st, note=why, raw=raw))
-                break
-            est = _estimates(raw, sc.window_s, st.level)
-            rel = [est[q].rel_half_width for q in DRIVING]
-            conv = bool(n >= 2 and all(math.isfinite(x) and x <= st.rel_tol for x in rel))
-            if conv or 2 * n > st.n_max:
-                note = "" if conv else f"member cap n_max = {st.n_max} reached before the {st.rel_tol:.0%} target"
-                out.append(EnsembleStats(params=base, scenario=sc, estimates=est, members=n, failed=0, converged=conv,
-                                         settings=st, note=note, events=int(raw[:, KC.S_N_EVENTS].sum()), raw=raw))
-                break
-        msg = f"{sc.name} (compliant, {horn.n_modes} modes): case {i + 1}/{len(bases)} done, {n} members"
-        log.info("%s", msg)
-        if progress is not None:
-            progress(msg)
+    laws = [KC.pack_laws(h, t, float(horn_residual), float(rtol)) for h, t in zip(h_laws, t_laws)]
+    raws = [np.empty((0, KC.N_KSTATS)) for _ in bases]
+    want = [st.n_start for st in sts]
+    out = [None] * n
+    while any(r is None for r in out):
+        grow = [i for i in range(n) if out[i] is None]
+        _run_round(grow, bases, sts, laws, raws, want, tab, xs, sc)
+        for i in grow:
+            out[i], want[i] = _judge(bases[i], sc, sts[i], raws[i])
+            if out[i] is not None:
+                msg = f"{sc.name} (compliant, {horn.n_modes} modes): case {i + 1}/{n} done, {out[i].members} members"
+                log.info("%s", msg)
+                if progress is not None:
+                    progress(msg)
     return out
+
+
+def _run_round(grow, bases, sts, laws, raws, want, tab, xs, sc) -> None:
+    """The new members of the cases ``grow`` (up to ``want`` each) in one parallel call, appended to ``raws``."""
+    from . import kernel_compliant as KC
+    from .kernel import pack
+    from .stats import ensemble_members
+
+    rows, lw, owner = [], [], []
+    for i in grow:
+        have = raws[i].shape[0]
+        for p in ensemble_members(bases[i], want[i] - have, sts[i], start=have):
+            rows.append(pack(p))
+            lw.append(laws[i])
+            owner.append(i)
+    max_events = max(bases[i].max_events for i in grow)
+    new = KC.ensemble_rows(np.array(rows), np.array(lw), tab, xs, sc.t_from, sc.t_end, max_events)
+    owner = np.array(owner)
+    for i in grow:
+        raws[i] = np.vstack([raws[i], new[owner == i]])
+
+
+def _judge(base, sc, st, raw) -> tuple:
+    """``(EnsembleStats, members wanted)``: the case's statistics when it is done (converged, failed
+    or at ``n_max``), else ``(None, the members its widest driving CI asks for)``."""
+    from . import kernel_compliant as KC
+    from .stats import DRIVING, EnsembleStats, Estimate
+
+    n = raw.shape[0]
+    failed = int(np.sum(raw[:, KC.S_STATUS] != 0))
+    if failed:
+        why = f"{failed} of {n} members failed (too many contacts or an unresolved contact phase)"
+        est = {q: Estimate(math.nan, math.nan, n, st.level, why) for q in _names()}
+        return EnsembleStats(params=base, scenario=sc, estimates=est, members=n, failed=failed, converged=False,
+                             settings=st, note=why, raw=raw), n
+    est = _estimates(raw, sc.window_s, st.level)
+    rel = [est[q].rel_half_width for q in DRIVING]
+    worst = max((x if math.isfinite(x) else math.inf) for x in rel)
+    conv = bool(n >= 2 and worst <= st.rel_tol)
+    if conv or n >= st.n_max:
+        note = "" if conv else f"member cap n_max = {st.n_max} reached before the {st.rel_tol:.0%} target"
+        return EnsembleStats(params=base, scenario=sc, estimates=est, members=n, failed=0, converged=conv,
+                             settings=st, note=note, events=int(raw[:, KC.S_N_EVENTS].sum()), raw=raw), n
+    return None, _members_wanted(n, worst, st)
+
+
+def _members_wanted(n: int, worst: float, st) -> int:
+    """Members for a widest relative half-width ``worst`` at ``n`` to reach ``st.rel_tol`` (it falls
+    as ``1 / sqrt(n)``; +20 % for the noise of that estimate), at least ``1.25 n``, in steps of 8, at
+    most ``st.n_max``."""
+    need = 1.2 * n * (worst / st.rel_tol) ** 2 if math.isfinite(worst) else 2.0 * n
+    return int(min(st.n_max, 8 * math.ceil(max(need, 1.25 * n) / 8)))
 
 
 def _names() -> list:

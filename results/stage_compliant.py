@@ -146,7 +146,7 @@ def shortest_contact_time(design, masses, base, settings: CompliantSettings) -> 
 
 
 def compliant_ensembles(cases, horn, laws: list, residual: float, settings: CompliantSettings, *,
-                        engine=None) -> list[dict]:
+                        rel_tols=None, engine=None) -> list[dict]:
     """Ensemble statistics of several cases of the compliant model on one horn (95 % CIs).
 
     Parameters
@@ -158,6 +158,10 @@ def compliant_ensembles(cases, horn, laws: list, residual: float, settings: Comp
         Horn and tool laws of each case.
     residual : float
         The horn's static tip compliance of the modes left out, m/N.
+    rel_tols : list of float, optional
+        Each case's CI target (relative 95 % half-width of every driving quantity); default
+        ``settings.rel_tol`` for every case. A study's cases, whose job is a model-form estimate
+        that carries the CI of each difference, may take a looser one than the headline's.
     engine : callable, optional
         :func:`impact.compliant_engine.compliant_batch`'s signature (default: that batch).
 
@@ -171,8 +175,11 @@ def compliant_ensembles(cases, horn, laws: list, residual: float, settings: Comp
 
     engine = engine or compliant_batch
     sc = Scenario("device", settings.spring_force, settings.t_from, settings.t_end, "the compliant stage's window")
-    st = StatsSettings(rel_tol=settings.rel_tol, n_start=settings.members, n_max=settings.max_members,
-                       seed=settings.seed, v0_spread=settings.v0_spread)
+    rel_tols = [settings.rel_tol] * len(cases) if rel_tols is None else list(rel_tols)
+    if len(rel_tols) != len(cases):
+        raise ParameterError("rel_tols", f"{len(rel_tols)} values", f"must be one per case ({len(cases)})")
+    st = [StatsSettings(rel_tol=r, n_start=settings.members, n_max=settings.max_members, seed=settings.seed,
+                        v0_spread=settings.v0_spread) for r in rel_tols]
     res = engine(list(cases), horn, horn_law=[lw[0] for lw in laws], tool_law=[lw[1] for lw in laws],
                  horn_residual=residual, scenario=sc, settings=st)
     return [{**{q: r.estimates[q] for q in QUANTITIES}, "members": r.members, "converged": bool(r.converged)}

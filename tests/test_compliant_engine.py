@@ -170,3 +170,59 @@ def test_event_interpolant_matches_the_steps_it_stands_for():
         KC._interpolate(y, F, x, got)
         KC._step(0.0, y, x * h, n, mt, xs, pv, lw, cs, st, y8, tmp, True)
         assert np.all(np.abs(got[:k] - y8[:k]) <= tol)
+
+
+def test_members_do_not_depend_on_rounds_or_threads():
+    """Member i of a case is one deterministic run: the same row bit for bit whether it runs in one
+    parallel call with another case's members, with its own case alone, on one thread, grown over
+    several rounds, or as a single recorded run (kernel_compliant.run_contacts)."""
+    import numba
+
+    from impact import kernel_compliant as KC
+    from impact.kernel import pack
+    from impact.stats import ensemble_members
+
+    sc = Scenario("short device", 5.0, 0.005, 0.03)
+    cases = [ImpactParams(m_free=m, freq=20e3) for m in (0.002, 0.008)]
+    h_laws, t_law = [HertzLaw(k, 0.8) for k in (1e10, 2e10)], HertzLaw(1e10, 0.8)
+    st = StatsSettings(n_start=6, n_max=6)
+    both = compliant_batch(cases, _horn3(), horn_law=h_laws, tool_law=t_law, scenario=sc, settings=st)
+    threads = numba.get_num_threads()
+    numba.set_num_threads(1)
+    try:
+        alone = [compliant_batch([c], _horn3(), horn_law=h, tool_law=t_law, scenario=sc, settings=st)[0]
+                 for c, h in zip(cases, h_laws)]
+    finally:
+        numba.set_num_threads(threads)
+    # a target no ensemble meets: 2 members, then the cap (6) in a second round
+    rounds = compliant_batch(cases[:1], _horn3(), horn_law=h_laws[0], tool_law=t_law, scenario=sc,
+                             settings=StatsSettings(rel_tol=1e-6, n_start=2, n_max=6))[0]
+    for a, b in zip(both, alone):
+        assert a.raw.shape == (6, KC.N_KSTATS) and np.array_equal(a.raw, b.raw)
+    assert np.array_equal(rounds.raw, both[0].raw) and not rounds.converged
+    tab, xs = _horn3().pack(20e3)
+    p = sc.apply(cases[1])
+    member = ensemble_members(p, 1, st, start=4)[0]
+    row = KC.run_contacts(pack(member), KC.pack_laws(h_laws[1], t_law, 0.0, 1e-10), tab, xs, sc.t_from, sc.t_end,
+                          p.max_events)[-1]
+    assert np.array_equal(row, both[1].raw[4])
+
+
+def test_members_grow_to_what_the_widest_interval_asks():
+    """A half-width falls as 1/sqrt(n): at n members with the widest driving CI h (relative), the
+    target r needs n (h / r)^2 members; the batch asks 20 % more, at least 1.25 n, in steps of 8, up
+    to n_max; per-case settings hold each case to its own target."""
+    from impact.compliant_engine import _members_wanted
+
+    st = StatsSettings(rel_tol=0.03, n_start=16, n_max=1000)
+    assert _members_wanted(16, 0.06, st) == 80           # 16 x 4 x 1.2 = 76.8 -> 80
+    assert _members_wanted(64, 0.031, st) == 88          # 1.2 x 64 x 1.068 = 82.0 -> 88
+    assert _members_wanted(64, 0.0301, st) == 80         # 77.3, at least 1.25 x 64 = 80
+    assert _members_wanted(600, 0.06, st) == 1000        # capped
+    assert _members_wanted(16, math.inf, st) == 32       # no estimate yet: double
+    sc = Scenario("short device", 5.0, 0.005, 0.03)
+    p = ImpactParams(m_free=0.004, freq=20e3)
+    loose, tight = (StatsSettings(rel_tol=r, n_start=4, n_max=12) for r in (0.9, 1e-6))
+    a, b = compliant_batch([p, p], _horn3(), **_laws(p), scenario=sc, settings=[loose, tight])
+    assert (a.members, a.converged) == (4, True) and (b.members, b.converged) == (12, False)
+    assert np.array_equal(a.raw, b.raw[:4])

@@ -210,3 +210,23 @@ def test_compliant_model_cannot_reach_the_article_rate(drill):
                         settings=StatsSettings(n_start=64, n_max=64))[0]
     e = r["tool_impact_rate_hz"]
     assert e.mean + e.half_width < 520.0 - 25.6, (e.mean, e.half_width)
+
+
+def test_each_case_holds_its_own_ci_target():
+    """compliant_ensembles hands each case its own CI target to the batch (a study's cases may take
+    a looser one than the headline's), and refuses a list that does not match the cases."""
+    from results.stage_compliant import compliant_ensembles
+
+    seen = {}
+
+    def engine(cases, horn, *, horn_law, tool_law, horn_residual, scenario, settings):
+        seen["rel_tol"] = [s.rel_tol for s in settings]
+        return []
+
+    st = CompliantSettings(rel_tol=0.03)
+    compliant_ensembles([1, 2, 3], None, [(None, None)] * 3, 0.0, st, rel_tols=[0.03, 0.1, 0.1], engine=engine)
+    assert seen["rel_tol"] == [0.03, 0.1, 0.1]
+    compliant_ensembles([1, 2], None, [(None, None)] * 2, 0.0, st, engine=engine)
+    assert seen["rel_tol"] == [0.03, 0.03]
+    with pytest.raises(ParameterError, match="rel_tols"):
+        compliant_ensembles([1, 2], None, [(None, None)] * 2, 0.0, st, rel_tols=[0.1], engine=engine)
