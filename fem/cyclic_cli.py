@@ -273,26 +273,37 @@ def _solved(args, design, sectors, ks, near, n_modes, backend, estimate: bool):
 
     Each harmonic's first solve starts in a worker thread as soon as its mesh is assembled, while
     this thread makes the next mesh and then the coarse level (Gmsh is started from here): on two
-    cores the solves fill the core that meshing leaves idle. OpenBLAS stays on one thread across
-    all of them, as in the solves alone: the same numbers as one after the other."""
+    cores the solves fill the core that meshing leaves idle. OpenBLAS and MKL (PARDISO) stay on
+    one thread across all of them (three jobs on two cores: more threads only compete), so every
+    run gets the same numbers."""
     from concurrent.futures import ThreadPoolExecutor
 
     from .cyclic import cyclic_modes, first_ask, nearest_modes
-    from .solvers import blas_threads
+    from .solvers import backend_name, blas_threads
 
     kw = {"clamp": args.clamp, "backend": backend}
     ask = first_ask(ks, n_modes)
-    with blas_threads(1), ThreadPoolExecutor(max_workers=len(ks), thread_name_prefix="harmonic") as pool:
+    backend_name(backend)                   # loads MKL (PARDISO), so that its threads can be limited
+    with blas_threads(1, mkl=True), ThreadPoolExecutor(max_workers=len(ks), thread_name_prefix="harmonic") as pool:
         futures = {}
 
         def start(users, system):
             for k in users:
-                futures[k] = pool.submit(cyclic_modes, system, sectors, k, near, ask[k], **kw)
+                futures[k] = pool.submit(_one_thread, cyclic_modes, system, sectors, k, near, ask[k], **kw)
 
         meshes = _meshes(args, design, sectors, ks, single=bool(args.render or args.vtu), built=start)
         coarse = _coarse(args, design, near) if estimate else None
         first = {k: f.result() for k, f in futures.items()}
     return meshes, nearest_modes({k: meshes[k][0] for k in ks}, sectors, near, n_modes, first=first, **kw), coarse
+
+
+def _one_thread(fn, *args, **kw):
+    """``fn(*args, **kw)`` with OpenBLAS and MKL on one thread (MKL's limit holds for the thread
+    that sets it: each worker sets its own)."""
+    from .solvers import blas_threads
+
+    with blas_threads(1, mkl=True):
+        return fn(*args, **kw)
 
 
 def _estimate_options(args, near) -> dict:

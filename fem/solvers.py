@@ -97,16 +97,21 @@ def backend_name(backend: str | None = None) -> str:
     return choice
 
 
-def blas_threads(n: int = 1):
-    """Limit the OpenBLAS threads (numpy's and scipy's bundled copies) inside a ``with`` block.
+def blas_threads(n: int = 1, mkl: bool = False):
+    """Limit the OpenBLAS threads (numpy's and scipy's bundled copies) inside a ``with`` block,
+    and with ``mkl`` MKL's (PARDISO's) too.
 
     ARPACK's small dense updates gain nothing from threads, and OpenBLAS threads spinning next to
-    PARDISO's MKL threads on 2 shared cores cost seconds per eigen solve. MKL (PARDISO) keeps its
-    threads. Uses :class:`threadpoolctl.ThreadpoolController`.
+    PARDISO's MKL threads on 2 shared cores cost seconds per eigen solve. MKL keeps its threads
+    unless ``mkl``: where several solves already run side by side (one per core), its threads only
+    compete with them. Uses :class:`threadpoolctl.ThreadpoolController`. MKL's limit holds for
+    the calling thread only (a thread started inside the block has MKL's default: limit it
+    there), and only once MKL is loaded (:func:`pardiso_available` loads it).
     """
     from threadpoolctl import ThreadpoolController
 
-    return ThreadpoolController().select(internal_api="openblas").limit(limits=int(n))
+    apis = ["openblas", "mkl"] if mkl else "openblas"
+    return ThreadpoolController().select(internal_api=apis).limit(limits=int(n))
 
 
 class Factor:

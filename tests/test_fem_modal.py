@@ -180,3 +180,26 @@ def test_blas_threads_limits_openblas_only_inside_the_block():
         with blas_threads(1):
             assert openblas() == [1] * len(before)
         assert openblas() == before
+
+
+def test_blas_threads_limits_mkl_too_when_asked():
+    """``blas_threads(1, mkl=True)``: PARDISO's MKL on one thread in the calling thread inside the
+    block, its own count again after it (the command line's worker threads each set it)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from fem.solvers import blas_threads, pardiso_available
+
+    if not pardiso_available():
+        pytest.skip("no MKL here")
+
+    def mkl():
+        return [i["num_threads"] for i in threadpool_info() if i["internal_api"] == "mkl"]
+
+    with threadpool_limits(limits=2, user_api="blas"):
+        before = mkl()
+        assert before and set(before) == {2}
+        with blas_threads(1, mkl=True):
+            assert mkl() == [1] * len(before)
+        assert mkl() == before
+        with blas_threads(1):
+            assert mkl() == before
