@@ -99,7 +99,8 @@ def drilling_stage(base, masses, amplitudes: dict, wob: float, seed: int, say=No
 
 
 def _table(d: dict, ci) -> list[str]:
-    lines = ["| free mass (g) | A0 (um) | blows (Hz) | penetration per blow (um) | drilling rate (mm/min) "
+    amp = "free tip, FE horn (um)" if d.get("model") == "compliant" else "A0 (um)"
+    lines = [f"| free mass (g) | {amp} | blows (Hz) | penetration per blow (um) | drilling rate (mm/min) "
              "| depth (mm) | efficiency (%) | members |", "|---|---|---|---|---|---|---|---|"]
     for r in d["rows"]:
         lines.append(f"| {r['m_free_kg'] * 1e3:g} | {r['A0_m'] * 1e6:.2f} | {ci(r['blow_rate_hz'])} "

@@ -350,12 +350,14 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     with Renders(run) as renders, CompliantWorker() as compliant:     # beside the later stages
         _fe_stages(run, clock, tune, say, renders, compliant)
         renders.modes()
-        _impact_stages(run, clock, say)
+        base, masses = _impact_stages(run, clock, say)
         t0 = time.perf_counter()
         run.compliant, seconds = compliant.collect(say)
         if seconds is not None:
             clock.timings["compliant_s"] = seconds
             clock.took("compliant_wait_s", t0)
+        if run.settings.load == "rock":
+            _drilling_stage(run, clock, say, base, masses)
         t0 = clock.stage("renders")
         renders.collect()
         clock.took("renders_s", t0)
@@ -478,9 +480,9 @@ def _response_beside_estimate(run: _Run, clock: _Clock) -> "_Lines":
     return lines
 
 
-def _impact_stages(run: _Run, clock: _Clock, say) -> None:
-    """A0 under the impact load, the impact statistics, the coupled model, the operating point and
-    (opt-in) drilling.
+def _impact_stages(run: _Run, clock: _Clock, say) -> tuple:
+    """A0 under the impact load, the impact statistics, the coupled model and the operating point;
+    returns the impact stage's base parameters and its free masses.
 
     The operating point's modal bases at Q/2 and 2Q need only the FE system: a worker thread
     builds them while the impact stages run (their solves and products release the interpreter,
@@ -504,17 +506,23 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> None:
                                           run.sweeps["device_fe"], coupled_amplitudes, say=say, bases=bases)
     run.operating["preload"] = run.preload
     clock.took("operating_point_s", t0)
-    if st.load == "rock":                # opt-in: drilling under load
-        from .drilling import drill_horn, drilling_stage
-
-        t0 = time.perf_counter()
-        run.drilling = drilling_stage(base, list(st.m_free_values), {k: run.amps[k].A0 for k in masses},
-                                      st.wob, st.seed, say=say, horn_members=st.compliant_members or 16,
-                                      horn=drill_horn(run.compliant, run.matched.design, base, st.m_free_values))
-        clock.took("drilling_s", t0)
     top = {k: sw.rows[-1]["mean_tool_ke_after_j"].scaled(1e3) for k, sw in run.sweeps.items()}
     say(f"      tool KE after impact at {masses[-1] * 1e3:g} g (mJ, 95 % CI): device {top['device_fe']}, "
         f"article scenario {top['article_fe']} (FE A0), {top['article_15um']} (A0 = 15 um)")
+    return base, masses
+
+
+def _drilling_stage(run: _Run, clock: _Clock, say, base, masses) -> None:
+    """(opt-in) drilling under load: on the compliant stage's horn and contacts when it ran, with
+    the kinematic model at the loaded amplitudes as its comparison (:mod:`results.drilling`)."""
+    from .drilling import drill_horn, drilling_stage
+
+    st = run.settings
+    t0 = time.perf_counter()
+    run.drilling = drilling_stage(base, list(st.m_free_values), {k: run.amps[k].A0 for k in masses},
+                                  st.wob, st.seed, say=say, horn_members=st.compliant_members or 16,
+                                  horn=drill_horn(run.compliant, run.matched.design, base, st.m_free_values))
+    clock.took("drilling_s", t0)
 
 
 def _loaded_impacts(run: _Run, clock: _Clock, say):

@@ -43,6 +43,8 @@ SLOW: tuple[str, ...] = (
     "tests/test_drilling_compliant.py::test_window_energy_balance_closes",
     "tests/test_drilling_compliant.py::test_heavy_horn_stiff_contacts_rigid_tool_give_the_kinematic_drilling_model",
     "tests/test_drilling_compliant.py::test_sweep_is_reproducible_and_carries_the_model_status",
+    "tests/test_drilling_compliant.py::test_cli_fem_horn_refuses_bad_input_before_the_fe_build",
+    "tests/test_drilling_compliant.py::test_pipeline_stage_drills_on_the_fe_horn_beside_the_kinematic_comparison",
     "tests/test_preload_errors.py::test_two_level_estimate_bounds_the_true_error_of_the_window_and_the_heat",
     "tests/test_preload_window.py",
     "tests/test_thermal.py::test_heat_is_input_minus_delivered_power",

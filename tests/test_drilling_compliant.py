@@ -176,3 +176,17 @@ def test_bad_inputs_are_refused():
         drilling_sweep(p, [0.002], A0_values=[1e-5], horn=CompliantHorn(_horn3(), 0.0, _laws(ip)))
     with pytest.raises(ParameterError, match="m_free"):
         drilling_sweep(p, [0.0], horn=CompliantHorn(_horn3(), 0.0, _laws(ip)))
+
+
+def test_cli_fem_horn_refuses_bad_input_before_the_fe_build(tmp_path):
+    """``python -m impact --load rock --horn fem``: a bad value is one line naming it, exit 2, no file,
+    before the FE horn is built."""
+    import subprocess
+    import sys
+
+    out = tmp_path / "d.json"
+    for args, name in ((["--m-free", "0"], "m_free"), (["--members", "1"], "--members")):
+        r = subprocess.run([sys.executable, "-m", "impact", "--load", "rock", "--horn", "fem", *args, "--json", str(out)],
+                           capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2 and name in r.stderr and len(r.stderr.strip().splitlines()) == 1
+        assert "Traceback" not in r.stderr and not out.exists()
