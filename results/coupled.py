@@ -468,6 +468,12 @@ def static_residual(factor, M, a, kept, *, lam_cut: float, rtol: float = 1e-13, 
                          f"leaves the residual series unconverged after {max_solves} solves")
 
 
+#: modes asked of :func:`wideband_modes`' first window per Hz of cut-off: the default drill's k = 0
+#: spectrum holds one mode per ~3.8 kHz (32 below 122 kHz), so one per 3 kHz covers it in one window;
+#: a denser spectrum takes a second window on the same factorisation
+FIRST_WINDOW_MODES_PER_HZ = 1.0 / 3e3
+
+
 def wideband_modes(system, cutoff_hz: float):
     """Every short-circuit mode of ``system`` from 0 to ``cutoff_hz`` (Hz): one shift-invert
     window centred on ``lambda_cut / 2``, widened until it reaches both ends on the same
@@ -479,7 +485,7 @@ def wideband_modes(system, cutoff_hz: float):
 
     check_range("cutoff_hz", cutoff_hz, 1e3, 1e6, "Hz")
     lam_cut = (2 * np.pi * cutoff_hz) ** 2
-    n_req, modes = 16, None
+    n_req, modes = max(16, int(np.ceil(cutoff_hz * FIRST_WINDOW_MODES_PER_HZ))), None
     while modes is None or not _window_covers(modes, lam_cut):
         if n_req > 400:
             raise ParameterError("cutoff_hz", cutoff_hz, "needs more than 400 modes (lower the cut-off)")
