@@ -286,11 +286,19 @@ def _coupled_model_lines(cm: dict | None) -> list[str]:
     return lines
 
 
+def _two_digits(x: float) -> str:
+    """An uncertainty to 2 significant digits, without an exponent up to 10^5 (110, not 1.1e+02)."""
+    if not math.isfinite(x) or x == 0 or not 100 <= abs(x) < 1e5:
+        return f"{x:.2g}"
+    return f"{float(f'{x:.2g}'):.0f}"
+
+
 def _pm2(est: dict, mf: float, scale: float, fmt: str = ".3g") -> str:
     """'mean ± CI ± model form' of an estimate's dict and its model-form estimate."""
     if est["mean"] is None:
         return "n/a"
-    return (f"{est['mean'] * scale:{fmt}} ± {est['ci95_half_width'] * scale:.2g} ± {mf * scale:.2g}")
+    return (f"{est['mean'] * scale:{fmt}} ± {_two_digits(est['ci95_half_width'] * scale)} "
+            f"± {_two_digits(mf * scale)}")
 
 
 def _faces_text(ct: dict) -> str:
