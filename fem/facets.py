@@ -20,13 +20,19 @@ __all__ = ["facet_basis", "CentroidNewtonMapping"]
 class CentroidNewtonMapping(MappingIsoparametric):
     """``MappingIsoparametric`` whose inverse starts at the reference centroid, unclipped."""
 
-    def invF(self, x, tind=None, newton_max_iters=50, newton_tol=1e-12):
+    def invF(self, x, tind=None, newton_max_iters=50, newton_tol=1e-12, floor_tol=1e-9):
+        """Reference coordinates of the points ``x``: Newton from the centroid until every step is
+        below ``newton_tol``, or until the steps, all below ``floor_tol``, stop shrinking (the
+        roundoff floor of the map, which on small curved elements lies near 1e-12)."""
         X = np.full(x.shape, 1.0 / (x.shape[0] + 1))
+        last = np.inf
         for _ in range(newton_max_iters):
             dX = np.einsum("ijkl,jkl->ikl", self.invDF(X, tind), x - self.F(X, tind))
             X = X + dX
-            if (np.linalg.norm(dX, 1, (0, 2)) < newton_tol).all():
+            step = np.linalg.norm(dX, 1, (0, 2))
+            if (step < newton_tol).all() or (step.max() < floor_tol and step.max() >= last):
                 return X
+            last = step.max()
         raise ArithmeticError(f"inverse isoparametric map: no convergence to {newton_tol:g} in "
                               f"{newton_max_iters} Newton steps (a folded element?)")
 

@@ -51,3 +51,26 @@ def test_same_coordinates_as_scikit_fem_where_it_converges(meshes):
         ours = CentroidNewtonMapping(mp.mesh, mp.elem, mp.bndelem).invF(x, tind=tind)
         assert np.abs(ours - theirs).max() < 1e-10, name
 
+
+
+def test_small_curved_elements_far_from_the_origin_are_inverted_to_their_roundoff():
+    # curved P2 tetrahedra 1 mm .. 1 um in size, 0.1 m from the origin (the horn tip's small
+    # elements): their points carry the rounding of coordinates near 0.17 m, which the inverse
+    # map magnifies by 1 / h in reference coordinates, so Newton's steps stall above 1e-12 for
+    # h <= 0.1 mm. The inverse must still return: its points must come back to within the
+    # rounding of the coordinates (a few units in the last place; 16 allowed) and lie inside
+    # the reference tetrahedron
+    from skfem import MeshTet, MeshTet2
+
+    base = MeshTet2.from_mesh(MeshTet().refined(1))
+    q, _ = get_quadrature(base.brefdom, 4)
+    for h in (1e-3, 1e-4, 1e-5, 1e-6):
+        p = 0.1 + h * (base.doflocs + 0.05 * np.sin(3 * base.doflocs[[1, 2, 0]]))
+        mesh = MeshTet2(p, base.t)
+        facets = mesh.boundary_facets()
+        mp = mesh.mapping()
+        x, tind = mp.G(q, find=facets), mesh.f2t[0, facets]
+        ours = CentroidNewtonMapping(mp.mesh, mp.elem, mp.bndelem)
+        X = ours.invF(x, tind=tind)
+        assert np.abs(ours.F(X, tind) - x).max() <= 16 * np.finfo(float).eps * np.abs(x).max(), h
+        assert X.min() > -1e-9 and X.sum(axis=0).max() < 1 + 1e-9, h
