@@ -31,8 +31,11 @@ def _tool_energy(base, ref_m: float, A0: float, stats_settings):
     return {q: row.estimates[q].to_dict() for q in ("mean_tool_ke_after_j", "tool_power_w")}
 
 
-def _bracketed(losses) -> str:
-    """Why the losses have no Q/2, 2Q bracket ("" when they have one)."""
+def _bracketed(settings) -> str:
+    """Why the run has no Q/2, 2Q bracket ("" when it has one)."""
+    losses = settings.losses()
+    if not settings.losses_bracket:
+        return "not computed (the run's losses_bracket setting is off)"
     if losses.q_mech is None:
         return "datasheet losses: no single Q to bracket"
     if losses.origin == "measured":
@@ -47,9 +50,9 @@ def bracket_bases(settings, system, modal, basis, f_w: float) -> dict:
     from fem.harmonic import modal_basis
     from fem.losses import Q_BRACKET
 
-    losses = settings.losses()
-    if _bracketed(losses):
+    if _bracketed(settings):
         return {}
+    losses = settings.losses()
     return {factor: modal_basis(system, f_w, loss=losses.scaled(factor).loss_model(), modes=modal, reuse=basis)
             for factor in Q_BRACKET}
 
@@ -79,7 +82,7 @@ def losses_bracket(settings, system, modal, basis, f_w: float, surfaces, base, s
 
     t0 = time.perf_counter()
     losses = settings.losses()
-    out = {"losses": losses.record(), "rows": [{"factor": 1.0, **default}], "note": _bracketed(losses)}
+    out = {"losses": losses.record(), "rows": [{"factor": 1.0, **default}], "note": _bracketed(settings)}
     if out["note"]:
         return out
     bases = bases if bases is not None else bracket_bases(settings, system, modal, basis, f_w)

@@ -115,6 +115,8 @@ class PipelineSettings:
     coupled_model : run the coupled model (FE transducer in the impact loop) beside the kinematic horn
     coupled_modes : modes of the reduced transducer (None: the tip-participation rule of fem.reduced)
     coupled_history_s : length of the coupled ring-up history with the reference free mass, s
+    losses_bracket : recompute the headline at Q/2 and 2Q (the losses' model-form range,
+        :mod:`results.operating_point`); off, the report says the range was not computed
     compliant_members : ensemble members per case of the compliant-contact model and its convergence
         study to start with (:mod:`results.stage_compliant`, the report's headline; 0: the stage is
         skipped; it runs on the k = 0 sector path)
@@ -152,6 +154,7 @@ class PipelineSettings:
     coupled_model: bool = True
     coupled_modes: int | None = None
     coupled_history_s: float = 0.05
+    losses_bracket: bool = True
     compliant_members: int = 16
     compliant_max_members: int = 32
     compliant_rel_tol: float = 0.05

@@ -165,6 +165,8 @@ SLOW: tuple[str, ...] = (
     "tests/test_report_html.py::test_report_html_in_a_real_browser",
     "tests/test_report_html.py::test_the_browser_check_sees_a_broken_page",
     "tests/test_results_pipeline.py",
+    "tests/test_results_sector_pipeline.py",
+    "tests/test_default_design_answers.py",
     "tests/test_revolve.py::test_bending_and_torsion_against_the_converged_harmonics",
     "tests/test_revolve.py::test_matching_on_the_swept_mesh_agrees_with_a_fresh_mesh_of_the_tuned_design",
     "tests/test_revolve.py::test_swept_mesh_volumes_groups_and_quality",

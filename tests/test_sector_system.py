@@ -106,12 +106,15 @@ def test_capacitances_equal_the_whole_drill(pair):
 
 
 def test_direct_sweep_and_ring_up_equal_the_whole_drill(pair, modes):
+    """The direct sweep and the direct Newmark ring-up: the identity holds at every frequency and
+    every step, so one frequency (the whole drill's complex factorisation is the costly part) and two
+    cycles of 20 steps check it."""
     f0 = modes[1].f_r_hz[modes[1].working]
-    freqs = f0 * np.array([0.995, 1.005])
+    freqs = f0 * np.array([1.005])
     a, b = (harmonic_sweep(s, freqs, method="direct", surfaces=SURFACES) for s in pair)
     _close(a.admittance, b.admittance, TOL_SOLVE)
     _close(a.surfaces["teeth_tops"]["tangential"], b.surfaces["teeth_tops"]["tangential"], TOL_SOLVE)
-    ra, rb = (ring_up(s, f0, 10.0, 3 / f0, method="direct", steps_per_cycle=40) for s in pair)
+    ra, rb = (ring_up(s, f0, 10.0, 2 / f0, method="direct", steps_per_cycle=20) for s in pair)
     _close(ra.surfaces["horn_tip"]["axial"], rb.surfaces["horn_tip"]["axial"], TOL_SOLVE)
 
 

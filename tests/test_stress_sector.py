@@ -10,16 +10,11 @@ References
   there); a stress is a gradient of that error: at most TOL_SOLVE x L / h_min of the largest
   stress of the field (L the drill's length, h_min its shortest element edge), the bound used
   below for every peak of a kind (Pa or V/m) against the largest peak of that kind.
-* ``python -m fem.harmonic --stress`` against the pipeline (results.pipeline.run_pipeline) on the
-  default design at the pipeline's drive (225 V, Q_m 100, the design's bolt, the same four modes,
-  the design as it is: same path, same mesh): the same function computes both tables
-  (fem.stress_state.working_point_stress), so they agree to round-off: 1e-9 relative (the two
-  runs factorise the same matrices in the same order; 1e-9 leaves the summation order of BLAS
-  a thousandfold room).
+
+``python -m fem.harmonic --stress`` against the pipeline's table: tests/test_default_design_answers.py.
 """
 
 import dataclasses
-import json
 
 import numpy as np
 import pytest
@@ -107,40 +102,3 @@ def test_sector_node_fields_expand_to_the_whole_drills(states, tmp_path):
     assert np.allclose(back.point_data["von_mises_Pa"], fields["von_mises"], rtol=0, atol=0)
     assert files["png"].stat().st_size > 10_000
 
-
-def test_harmonic_stress_equals_the_pipelines_table(tmp_path, capsys):
-    """``fem.harmonic --stress`` runs the sector path by default (auto) and its table is the
-    pipeline's: every row's peak, two-mesh error, headline and singular mark, and the rings'
-    preload window (module docstring). Both say which mesh ran."""
-    from fem.harmonic_cli import main
-    from results.pipeline import PipelineSettings, run_pipeline
-
-    settings = PipelineSettings(match=False, m_free_values=(0.008,), impact_rel_tol=0.1, impact_max_members=256,
-                                n_points=30, render=False, coupled_model=False, compliant_members=0)
-    s = run_pipeline(default_design(), settings, tmp_path / "run").summary
-    assert s["mesh"]["path"] == "sector"
-    pipe = s["stress"]
-    assert main(["--voltage", "225", "--modes", "4", "--points", "30", "--stress", str(tmp_path / "st"),
-                 "--stress-points", "0", "--json", str(tmp_path / "h.json"), "-q"]) == 0
-    rec = json.loads((tmp_path / "h.json").read_text())
-    printed = capsys.readouterr().out
-    assert rec["path"] == "sector" and rec["stress"]["mesh"] == rec["mesh"] == pipe["mesh"] == s["mesh"]["label"]
-    assert f"mesh: {rec['mesh']}" in printed
-    assert rec["drive_hz"] == pytest.approx(s["working_mode"]["f_r_hz"], rel=1e-9)
-    mine, theirs = rec["stress"]["working_point"], pipe["utilisation"]
-    assert "two meshes" in mine["note"] and mine["note"] == theirs["note"]
-    assert mine["preload_n"] == pytest.approx(theirs["preload_n"], rel=1e-12) and mine["preload_n"] > 0
-    keys = [(r["region"], r["quantity"]) for r in mine["rows"]]
-    assert keys == [(r["region"], r["quantity"]) for r in theirs["rows"]]
-    for a, b in zip(mine["rows"], theirs["rows"]):
-        for key in ("peak", "headline", "error_estimate"):
-            assert a[key] == pytest.approx(b[key], rel=1e-9), (a["region"], a["quantity"], key)
-        assert a["singular"] == b["singular"]
-    # the rings' preload window: the same function on the same state
-    win, op = rec["stress"]["preload_window"], s["operating_point"]["preload"]
-    for key in ("p_min_n", "p_max_n", "voltage_max_v"):
-        assert win[key] == pytest.approx(op[key], rel=1e-9), key
-    import meshio
-
-    # the whole drill: about N x the sector's P2 nodes (at most ndof / 3 of them)
-    assert len(meshio.read(tmp_path / "st" / "stress.vtu").points) > 4 * s["mesh"]["ndof"] / 3

@@ -7,7 +7,8 @@ Example 4: the whole chain from Python, geometry to drill-tool kinetic energy.
 design, match horn and coupler to the target frequency, compute the horn-tip amplitude A0 at
 the drive voltage, load it with the free-mass impacts until A0 and the impact power agree, and
 sweep the free mass with converged statistics. Here with a lighter design study: one design
-variant, a coarse mesh and a 5 % interval target (``--fast``: no matching, 10 %, no renders).
+variant, a coarse mesh and a 5 % interval target (``--fast``: no matching, 10 %, no renders, no
+Q/2, 2Q range).
 
 Run it with ``python results/examples/ex04_pipeline.py`` (about a minute; ``--fast``: also without the coupled model).
 """
@@ -35,6 +36,7 @@ settings = results.PipelineSettings(
     match=not fast, render=not fast, n_points=40 if fast else 120,
     coupled_model=not fast,                          # the FE transducer inside the impacts (slow)
     compliant_members=0 if fast else 16,             # the compliant headline: 0 skips it (it costs ~1 min CPU)
+    losses_bracket=not fast,                         # the headline again at Q/2 and 2Q (the losses' range)
 )
 res = results.run_pipeline(design, settings, out / "pipeline", progress=print)
 print(res)                                           # headline numbers with their 95 % CIs
