@@ -22,8 +22,9 @@ spring, 20 ms discarded, 200 ms window).
    STUDY_REL_TOL: a model-form estimate carries each difference's own CI).
 
 Times: wall (best of n for the single runs) and process CPU time of this process (numba's threads
-included). Run: ``PYTHONPATH=. python benchmarks/bench_compliant.py`` (FE ~1-2 min, table several
-minutes on 2 cores).
+included). Run: ``PYTHONPATH=. python benchmarks/bench_compliant.py`` (FE ~1-2 min; the baseline
+table ~3-5 min CPU, today's about a third of it, at 1 g + 8 g and 3 % 85 s against 29 s CPU on a
+loaded machine).
 """
 
 import subprocess

@@ -116,10 +116,12 @@ def parse_harmonics(text: str | None, sectors: int) -> tuple[int, ...]:
     return tuple(ks)
 
 
-def _meshes(args, design, sectors, ks, single: bool, built=None):
+def _meshes(args, design, sectors, ks, single: bool, built=None, pool=None):
     """``{k: (system, mesh, rule)}``: one assembled sector per mesh rule the harmonics need, the
     rule of the highest harmonic first (its solve is the longest); ``built(harmonics, system)``
-    is called as each is assembled."""
+    is called as each is assembled. With a ``pool`` (an executor) each mesh is assembled there
+    (``built`` then called from there) while Gmsh (one at a time) makes the next mesh; the lines
+    are printed here, in order."""
     import geometry
     from geometry.options import mesher_of
     from geometry.sector import AXIAL_RULE, LATERAL_RULE
@@ -134,7 +136,21 @@ def _meshes(args, design, sectors, ks, single: bool, built=None):
         else:
             refine, meshing = AXIAL_RULE if (k == 0 or single) else LATERAL_RULE
             rules[k] = (refine * args.refine, meshing.scaled(args.refine))
-    done = {}
+
+    def assembled(mesh, rule):
+        system = assemble(mesh, order=args.order)
+        t1 = time.perf_counter()
+        if built is not None:
+            built([k for k in ks if rules[k] == rule], system)
+        return system, t1
+
+    def finish(rule, mesh, t0, job):
+        system, t1 = job.result() if pool is not None else job
+        users = ", ".join(str(k) for k in ks if rules[k] == rule)
+        print(f"sector mesh for k = {users}: {_describe(rule)}, {system.ndof} DOFs, {t1 - t0:.1f} s", flush=True)
+        done[rule] = (system, mesh)
+
+    done, last = {}, None
     for rule in dict.fromkeys(rules[k] for k in sorted(ks, reverse=True)):
         kw = {"refine": rule[0], "grade": args.grade, "mesher": "revolve" if swept else "free", "sectors": sectors}
         if swept:
@@ -143,13 +159,11 @@ def _meshes(args, design, sectors, ks, single: bool, built=None):
         mesh = geometry.build_mesh(design, mesh_size=args.mesh_size, order=args.order, **kw)
         for name in args.clamp:
             mesh.facets(name)
-        system = assemble(mesh, order=args.order)
-        users = ", ".join(str(k) for k in ks if rules[k] == rule)
-        print(f"sector mesh for k = {users}: {_describe(rule)}, {system.ndof} DOFs, {time.perf_counter() - t0:.1f} s",
-              flush=True)
-        done[rule] = (system, mesh)
-        if built is not None:
-            built([k for k in ks if rules[k] == rule], system)
+        job = pool.submit(assembled, mesh, rule) if pool is not None else assembled(mesh, rule)
+        if last is not None:
+            finish(*last)           # the previous mesh's assembly, done beside this meshing
+        last = (rule, mesh, t0, job)
+    finish(*last)
     return {k: (*done[rules[k]], rules[k]) for k in ks}
 
 
@@ -271,9 +285,10 @@ def _solved(args, design, sectors, ks, near, n_modes, backend, estimate: bool):
     nearest ``near`` (:func:`fem.cyclic.nearest_modes`) and, with ``estimate``, the two-level
     estimate's coarse level (else None).
 
-    Each harmonic's first solve starts in a worker thread as soon as its mesh is assembled, while
-    this thread makes the next mesh and then the coarse level (Gmsh is started from here): on two
-    cores the solves fill the core that meshing leaves idle. OpenBLAS and MKL (PARDISO) stay on
+    Each mesh is assembled in a worker thread while this thread has Gmsh make the next one (Gmsh
+    is started from here), and each harmonic's first solve starts there as soon as its mesh is
+    assembled, while this thread goes on to the coarse level: on two cores the assemblies and
+    solves fill the core that meshing leaves idle. OpenBLAS and MKL (PARDISO) stay on
     one thread across all of them (three jobs on two cores: more threads only compete), so every
     run gets the same numbers."""
     from concurrent.futures import ThreadPoolExecutor
@@ -291,7 +306,7 @@ def _solved(args, design, sectors, ks, near, n_modes, backend, estimate: bool):
             for k in users:
                 futures[k] = pool.submit(_one_thread, cyclic_modes, system, sectors, k, near, ask[k], **kw)
 
-        meshes = _meshes(args, design, sectors, ks, single=bool(args.render or args.vtu), built=start)
+        meshes = _meshes(args, design, sectors, ks, single=bool(args.render or args.vtu), built=start, pool=pool)
         coarse = _coarse(args, design, near) if estimate else None
         first = {k: f.result() for k, f in futures.items()}
     return meshes, nearest_modes({k: meshes[k][0] for k in ks}, sectors, near, n_modes, first=first, **kw), coarse
