@@ -103,17 +103,23 @@ def bonded_sandwich(metal: str = "al7075", ceramic: str = "PZT-4", bond: str = "
                     ElectrodeSpec("electrode_top", "disc", "top", "hot")))
 
 
-def bolted_design(horn_length: float = 0.07538543, coupler_length: float = 0.05375048,
-                  step_fraction: float = 0.57, slot_offset: float = 0.008) -> RPUDDesign:
+def bolted_design(horn_length: float = 0.07549045, coupler_length: float = 0.05355691,
+                  step_fraction: float = 0.57, slot_offset: float = 0.008,
+                  horn_back_diameter: float = 0.030) -> RPUDDesign:
     """The drill with its M12 bolt part (``stack.bolt_diameter`` 12 mm), designed with the bolt.
 
-    The bolt stiffens the working mode, so the match lengthens the horn; at the default step
-    (``step_fraction`` 0.5) the horn's thin tip section becomes a torsional quarter wave at the
-    drive (``c_T / (4 L_tip)`` = 19.8 kHz), a dynamic absorber that stills the teeth's torsion
-    (ellipse ratio 0.006). A step at 0.57 of the horn puts that absorber at 23.9 kHz, and a
-    slot zone 8 mm from the teeth roots (4 mm by default) takes the twist where the coupler's
-    axial strain is larger (benchmarks/study_bolted_coupler.py). The lengths are the ones
-    matched to 20 kHz on the k = 0 sector at refine 1 (the pipeline's matching).
+    The bolt stiffens the working mode, so the match lengthens the horn and the coupler, and
+    the drill's torsional modes fall (the bolt adds almost no torsional stiffness). Two changes
+    restore the rotary drive. At the default step (``step_fraction`` 0.5) the horn's thin tip
+    section is a torsional quarter wave at the drive (``c_T / (4 L_tip)`` = 19.8 kHz), a dynamic
+    absorber that stills the teeth's torsion; a step at 0.57 of the horn puts it near 24 kHz.
+    The torsional mode that drives the teeth then lies below the drive (19.1 kHz with the
+    default's 24 mm horn back, teeth phase 7 deg: a slow rotor); the horn's back section's polar
+    moment (``d^4``) lifts it, and a 30 mm back puts it at 20.9 kHz, just above the drive as in
+    the default drill (phase 173 deg). The slot zone 8 mm from the teeth roots (4 mm by
+    default) takes the twist where the coupler's axial strain is larger
+    (benchmarks/study_bolted_coupler.py). The lengths are the ones matched to 20 kHz on the
+    k = 0 sector at refine 1 (the pipeline's matching).
 
     Parameters
     ----------
@@ -123,10 +129,12 @@ def bolted_design(horn_length: float = 0.07538543, coupler_length: float = 0.053
         The horn's back-section share of its length, dimensionless.
     slot_offset : float
         Gap between the teeth roots and the slotted zone, m.
+    horn_back_diameter : float
+        Diameter of the horn's back section, m.
     """
     d = default_design()
-    return RPUDDesign(name="bolted", horn=replace(d.horn, length=horn_length, step_fraction=step_fraction),
-                      stack=replace(d.stack, bolt_diameter=0.012), flange=d.flange,
+    horn = replace(d.horn, length=horn_length, step_fraction=step_fraction, back_diameter=horn_back_diameter)
+    return RPUDDesign(name="bolted", horn=horn, stack=replace(d.stack, bolt_diameter=0.012), flange=d.flange,
                       coupler=replace(d.coupler, length=coupler_length, slot_offset=slot_offset))
 
 
