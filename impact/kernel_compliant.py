@@ -715,7 +715,9 @@ def run_contacts(pvec: np.ndarray, laws: np.ndarray, tab: np.ndarray, xs: np.nda
     return log[:n_log].copy(), y, float(t), int(status), float(E0), acc, row
 
 
-@njit(cache=True, parallel=True)
+# nogil: the pipeline runs the compliant ensembles in a worker thread beside its other stages;
+# holding the GIL here would stall them for the whole call (the omp threading layer is thread-safe)
+@njit(cache=True, parallel=True, nogil=True)
 def _ensemble(pmat, lmat, tab, xs, t_from, t_end, max_events, out):
     for i in prange(pmat.shape[0]):
         _core(pmat[i], lmat[i], tab, xs, t_from, t_end, max_events, False, out[i])
