@@ -12,9 +12,11 @@ from rpud_common.figures import axes_or_new
 __all__ = ["plot_depth_vs_mass"]
 
 
-def plot_depth_vs_mass(sweep, *, ax=None):
+def plot_depth_vs_mass(sweep, *, ax=None, no_load_ke=None):
     """``sweep``: :class:`impact.drilling.DrillSweep`. Returns the Axes (depth); the no-load KE is
-    on its twin axis when the sweep carries it."""
+    on its twin axis when the sweep carries it, or as given by ``no_load_ke``: ``(m_free (kg),
+    mean (J), 95 % CI half-width (J), label)`` arrays, so the depth of one model is drawn beside
+    that same model's no-load energy."""
     ax = axes_or_new(ax, figsize=(7, 4.5), dpi=120)
     rows = sweep.rows
     m = np.array([r.m_free for r in rows]) * 1e3
@@ -32,11 +34,14 @@ def plot_depth_vs_mass(sweep, *, ax=None):
     ax.set_ylabel("predicted drilling depth (mm)", color="tab:blue")
     ax.grid(alpha=0.3)
     handles, labels = ax.get_legend_handles_labels()
-    if sweep.no_load is not None:
-        ax2 = ax.twinx()
+    if no_load_ke is None and sweep.no_load is not None:
         ke, kh = sweep.no_load.column("mean_tool_ke_after_j")
-        ax2.errorbar(sweep.no_load.m_free * 1e3, ke * 1e3, yerr=np.nan_to_num(kh) * 1e3, fmt="s--",
-                     color="tab:red", capsize=3, label="no-load tool KE after impact (device scenario)")
+        no_load_ke = (sweep.no_load.m_free, ke, kh, "no-load tool KE after impact (device scenario)")
+    if no_load_ke is not None:
+        ax2 = ax.twinx()
+        m_nl, ke, kh, label = no_load_ke
+        ax2.errorbar(np.asarray(m_nl) * 1e3, np.asarray(ke) * 1e3, yerr=np.nan_to_num(np.asarray(kh, float)) * 1e3,
+                     fmt="s--", color="tab:red", capsize=3, label=label)
         ax2.set_ylabel("no-load tool kinetic energy (mJ)", color="tab:red")
         h2, l2 = ax2.get_legend_handles_labels()
         handles, labels = handles + h2, labels + l2

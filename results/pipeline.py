@@ -515,6 +515,17 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> tuple:
     return base, masses
 
 
+def _compliant_no_load(run: _Run, model: str):
+    """The compliant headline's no-load tool KE per free mass for the drilling figure when the
+    drilling ran on the compliant model (None otherwise: the kinematic device sweep is drawn)."""
+    if run.compliant is None or model == "kinematic":
+        return None
+    rows = run.compliant["json"]["rows"]
+    ke = [r["mean_tool_ke_after_j"] for r in rows]
+    return ([r["m_free_kg"] for r in rows], [k["mean"] for k in ke], [k["ci95_half_width"] for k in ke],
+            "no-load tool KE after impact, compliant model (device scenario, 95 % CI)")
+
+
 def _drilling_stage(run: _Run, clock: _Clock, say, base, masses) -> None:
     """(opt-in) drilling under load: on the compliant stage's horn and contacts when it ran, with
     the kinematic model at the loaded amplitudes as its comparison (:mod:`results.drilling`)."""
@@ -633,8 +644,10 @@ def _figures(run: _Run) -> dict:
     if run.drilling is not None:
         from impact.drilling_plots import plot_depth_vs_mass
 
-        run.drilling["result"].no_load = sw["device_fe"]
-        drawn["drilling"] = (plot_depth_vs_mass(run.drilling["result"]), "depth_vs_free_mass.png")
+        res = run.drilling["result"]
+        res.no_load = sw["device_fe"]
+        drawn["drilling"] = (plot_depth_vs_mass(res, no_load_ke=_compliant_no_load(run, res.model)),
+                             "depth_vs_free_mass.png")
     if run.rotor is not None:
         from impact.rotor_plots import plot_contact_phases, plot_torque_speed
 

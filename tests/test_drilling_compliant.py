@@ -163,6 +163,12 @@ def test_pipeline_stage_drills_on_the_fe_horn_beside_the_kinematic_comparison():
     text = " ".join(t.get_text().replace("\n", " ") for t in ax.texts)
     assert "compliant" in text and "NOT credible" in text
     assert len(ax.get_legend().get_texts()) == 2
+    # the pipeline's no-load axis for a compliant drilling run: that model's own no-load energies
+    ax = plot_depth_vs_mass(out["result"], no_load_ke=([0.004], [6.8e-3], [0.3e-3], "no-load, compliant model"))
+    legend = [t.get_text() for t in ax.get_legend().get_texts()]
+    assert len(legend) == 3 and legend[-1] == "no-load, compliant model"
+    twin = [a for a in ax.figure.axes if a is not ax][0]
+    assert np.allclose(twin.lines[0].get_ydata(), [6.8])
 
 
 def test_bad_inputs_are_refused():
