@@ -163,10 +163,13 @@ def _faces(args):
 
 def _inputs(design, settings, out) -> dict:
     """The run's inputs for the inputs line."""
+    from .stage_teeth import teeth_mesh_text
+
     on = {True: "on", False: "off"}
     items = {"design": design.name, "voltage": settings.drive().text(),
              "losses": settings.losses().short() if not settings.admittance else f"measured ({settings.admittance})",
              "mesh": settings.mesh_options().resolved(design).label(design),
+             "teeth motion": teeth_mesh_text(design, settings.mesh_options().resolved(design)),
              "matching": on[settings.match], "impact load on the tip": on[settings.couple_impacts],
              "coupled model": (f"{settings.coupled_modes} modes" if settings.coupled_model and settings.coupled_modes
                                else on[settings.coupled_model]),

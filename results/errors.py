@@ -6,7 +6,8 @@ mesh's own f_r with the pipeline's losses, on those modes + residual as the fine
 puts the errors beside the values (``X`` -> ``X_error``, same units; :mod:`fem.errors`):
 
 - ``working_mode``: ``f_r_hz``, ``f_a_hz``, ``k_eff``; ``matching``: ``matched_hz``;
-- ``harmonic``: ``tip_per_volt_m``, ``teeth_ellipse_ratio``, ``teeth_phase_deg`` (estimated), and the amplitudes
+- ``harmonic``: ``tip_per_volt_m``, ``teeth_ellipse_ratio``, ``teeth_phase_deg`` (estimated; the teeth's from
+  their finer mesh's estimate where it ran, :mod:`results.stage_teeth`), and the amplitudes
   proportional to the tip amplitude per volt (at the voltage, with datasheet losses, after the
   ring-up), which carry its relative error;
 - ``A0``: ``per_volt_m``, ``used_m``, ``unloaded_m`` and ``per_mass_error``; each row of
@@ -59,8 +60,10 @@ def estimate_stage(design, options, settings, system, modal, w: int, wp, surface
     return est
 
 
-def annotate_summary(summary: dict, est) -> dict:
-    """Add the ``X_error`` keys and the ``discretisation_error`` block to ``summary`` (in place)."""
+def annotate_summary(summary: dict, est, teeth=None) -> dict:
+    """Add the ``X_error`` keys and the ``discretisation_error`` block to ``summary`` (in place);
+    ``teeth``: the estimate of the teeth motion on its finer mesh (:mod:`results.stage_teeth`),
+    which then gives the teeth's errors."""
     from fem.errors import annotate
 
     annotate(summary["working_mode"], est, {"f_r_hz": "f_r_hz", "f_a_hz": "f_a_hz", "k_eff": "k_eff"})
@@ -70,6 +73,9 @@ def annotate_summary(summary: dict, est) -> dict:
     annotate(summary["harmonic"], est, {TIP: TIP, "tip_amplitude_m": TIP, "teeth_ellipse_ratio": "teeth_ellipse_ratio",
                                         "teeth_phase_deg": "teeth_phase_deg", "tip_per_volt_datasheet_losses_m": TIP,
                                         "tip_amplitude_datasheet_losses_m": TIP, "ring_up_steady_m": TIP})
+    if teeth is not None:
+        annotate(summary["harmonic"], teeth, {"teeth_ellipse_ratio": "teeth_ellipse_ratio",
+                                              "teeth_phase_deg": "teeth_phase_deg"})
     a0 = summary["A0"]
     annotate(a0, est, {"per_volt_m": TIP, "used_m": TIP, "unloaded_m": TIP})
     a0["per_mass_error"] = {k: (est.scaled(TIP, v) if est is not None else None) for k, v in a0["per_mass"].items()}

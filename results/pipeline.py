@@ -320,6 +320,8 @@ class _Run:
     op_fine: dict | None = None
     drilling: dict | None = None
     rotor: dict | None = None
+    teeth: object = None
+    teeth_note: str = ""
     renders: list = field(default_factory=list)
     vtu: object = None
 
@@ -374,7 +376,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     from fem.operating_errors import annotate_operating_point, error_lines
     from .report import write_report
 
-    annotate_summary(summary, run.est)
+    annotate_summary(summary, run.est, teeth=None if run.teeth is None else run.teeth.est)
     annotate_operating_point(summary, run.op_fine, run.est)
     for line in error_lines(summary):
         say(f"      {line}")
@@ -408,12 +410,14 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
         from .operating_point import measured_settings
 
         st = run.settings = measured_settings(st, m.system, m.modal, m.w, say)
+    teeth = _start_teeth(run)                 # the teeth motion's finer mesh, solved beside what follows
     h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
     _start_compliant(run, compliant)
     from .operating_point import preload_stage
 
     run.bolt, run.preload = preload_stage(m.design, m.system, h.wp, say=say)   # the design's bolt, the window
     estimated = _response_beside_estimate(run, clock)
+    teeth.release()                           # after the estimate's and the band's solves: memory
     clock.took("harmonic_s", t0)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
@@ -424,8 +428,47 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
     t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
     from .rotor_stage import pipeline_rotor_stage
 
-    run.rotor = pipeline_rotor_stage(m.design, h.wp, h.f_w, run.est, st.wob, say=say)
+    wp, est = _collect_teeth(run, teeth, say)
+    clock.took("teeth_wait_s", t0)
+    t0 = time.perf_counter()
+    run.rotor = pipeline_rotor_stage(m.design, wp, h.f_w, est, st.wob, say=say)
     clock.took("rotor_s", t0)
+
+
+def _start_teeth(run: _Run):
+    """Mesh the teeth motion's finer sector (:mod:`results.stage_teeth`) and start its solve in a
+    worker thread; the job (its :attr:`~results.stage_teeth.TeethJob.note` says why when it does not run)."""
+    from .stage_harmonic import tip_surfaces
+    from .stage_teeth import TeethJob
+
+    st, m = run.settings, run.matched
+    job = TeethJob()
+    job.start(m.design, m.options, tip_surfaces(m.mesh), loss=st.losses().loss_model(), near_hz=m.f_r_hz,
+              voltage=st.voltage)
+    run.teeth_note = job.note
+    return job
+
+
+def _collect_teeth(run: _Run, job, say):
+    """The teeth motion the rotary unit is driven by and its error estimate: the finer mesh's
+    when ``job`` ran (its coarse level the run's own values), else the run's working point's."""
+    from fem.convergence import Level, harmonic_quantities
+    from fem.errors import plus_minus
+
+    from .stage_teeth import TEETH_QUANTITIES
+
+    h, m = run.harm, run.matched
+    own = Level(m.options.refine, int(m.system.ndof),
+                {q: v for q, v in harmonic_quantities(h.wp).items() if q in TEETH_QUANTITIES})
+    run.teeth = job.collect(own)
+    if run.teeth is None:
+        return h.wp, run.est
+    t, e = run.teeth, run.teeth.est
+    say(f"      teeth motion on {t.label} ({t.ndof} DOFs, {t.seconds:.1f} s beside the run): ellipse "
+        f"{plus_minus(t.wp.teeth_ellipse_ratio, e.error('teeth_ellipse_ratio'))}, phase "
+        f"{plus_minus(t.wp.teeth_phase_deg, e.error('teeth_phase_deg'), 'deg')} (two-level against the run's mesh, "
+        f"{own.values.get('teeth_ellipse_ratio', float('nan')):.4f})")
+    return t.wp, e
 
 
 class _Lines:
@@ -666,12 +709,21 @@ def _harmonic_record(run: _Run) -> dict:
         "tip_per_volt_datasheet_losses_m": wp_ds.tip_per_volt_m,
         "tip_amplitude_datasheet_losses_m": wp_ds.tip_amplitude_m,
         "power_w": wp.power_w, "current_a": float(abs(wp.current_a)),
-        "teeth_ellipse_ratio": wp.teeth_ellipse_ratio, "teeth_phase_deg": wp.teeth_phase_deg,
+        **_teeth_record(run),
         "admittance_f_r_hz": r.sweep.f_r_hz, "admittance_f_a_hz": r.sweep.f_a_hz,
         "ring_up_tau_s": r.tau, "ring_up_steady_m": r.ring.steady_amplitude(h.surfaces[0]),
         "basis_reuse": "modal superposition on the matched short-circuit modes + residual "
                        "(one real factorisation at the modal shift)",
     }
+
+
+def _teeth_record(run: _Run) -> dict:
+    """The teeth motion's keys of the harmonic record: the finer mesh's values and the
+    ``teeth_mesh`` block when it ran, else the run's working point's and why."""
+    t = run.teeth
+    wp = run.harm.wp if t is None else t.wp
+    return {"teeth_ellipse_ratio": wp.teeth_ellipse_ratio, "teeth_phase_deg": wp.teeth_phase_deg,
+            "teeth_mesh": t.record() if t is not None else {"note": run.teeth_note}}
 
 
 def _a0_record(run: _Run) -> dict:

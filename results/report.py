@@ -189,6 +189,12 @@ def _heading_lines(s: dict) -> list[str]:
     return lines
 
 
+def _teeth_mesh(h: dict) -> str:
+    """Where the teeth motion was solved when not on the run's mesh (results.stage_teeth)."""
+    tm = h.get("teeth_mesh") or {}
+    return f"; on {tm['label']}, {tm['ndof']} DOFs" if tm.get("ndof") else ""
+
+
 def _summary_table_lines(s: dict) -> list[str]:
     """The quantity / value table of the transducer (mesh, working mode, drive, A0) and its error note."""
     wm, h, a0 = s["working_mode"], s["harmonic"], s["A0"]
@@ -202,7 +208,7 @@ def _summary_table_lines(s: dict) -> list[str]:
         f"| tip amplitude per volt (datasheet losses, unloaded) | "
         f"{_pm(h['tip_per_volt_datasheet_losses_m'], h.get('tip_per_volt_datasheet_losses_m_error'), 'nm/V', 1e9)} |",
         f"| drive | {h['voltage_v']:g} V amplitude at {wm['f_r_hz'] / 1e3:.3f} kHz: {h['current_a']:.2f} A, {h['power_w']:.1f} W |",
-        f"| teeth ellipse (tangential/axial, phase) | {_pm(h['teeth_ellipse_ratio'], h.get('teeth_ellipse_ratio_error'))}, "
+        f"| teeth ellipse (tangential/axial, phase{_teeth_mesh(h)}) | {_pm(h['teeth_ellipse_ratio'], h.get('teeth_ellipse_ratio_error'))}, "
         f"{_pm(h['teeth_phase_deg'], h.get('teeth_phase_deg_error'), 'deg')} |",
         f"| admittance peak / dip | {_f(h['admittance_f_r_hz'], 1e-3, '.3f', 'kHz')} / {_f(h['admittance_f_a_hz'], 1e-3, '.3f', 'kHz')} |",
         f"| ring-up | time constant {h['ring_up_tau_s'] * 1e3:.2f} ms, steady {h['ring_up_steady_m'] * 1e6:.2f} um |",

@@ -1,0 +1,233 @@
+"""The teeth motion on a finer mesh than the run's, with a two-level error of <= 5 %.
+
+The teeth's ellipse ratio (tangential / axial) is the slowest of the run's outputs to converge:
+on the default design's ``k = 0`` sector at refine 1 (89 498 DOFs) it is 0.1727 against a
+converged 0.1791 (two mesh families, tests/test_discretisation_error.py), and the two-level
+estimate between refine 1.4 and 1 states 0.010 (5.8 %). One level finer, refine 0.8
+(:data:`TEETH_REFINE` x the run's refine: 154 759 DOFs, one more element layer across the
+sector) gives 0.1756, and the two-level estimate between the run's mesh and it states 0.0067
+(3.8 %) against a true 0.0035: covered 1.9x. So the run solves the teeth motion once more on
+that mesh and reports it (the rotary unit is driven by it), the run's own mesh being the coarse
+level of its estimate.
+
+Like with like: the finer mesh is solved as the run's is, the harmonic response at the mesh's
+own short-circuit resonance on its modes + residual (:func:`fem.convergence.working_mode_level`,
+``harmonic_method="modal"``) with the run's losses and drive voltage. At its own resonance,
+not the run's frequency: the ratio moves by ~5e-4 over the few hertz between the two meshes'
+resonances, a detuning that would enter the level difference; the converged reference is the
+limit of each mesh at its own resonance, as the drive tracks the resonance.
+
+Orders (:func:`fem.errors.teeth_estimate`): 2 for every quantity when the two meshes differ by
+an element layer across the sector (the observed orders of the consistent triple 1 / 0.8 / 0.64
+are 3.3 for the ratio and 4.8 for the phase); when they have the same layers the phase keeps
+:data:`fem.convergence.SECTOR_PHASE_ORDER` (its layers' error is then not seen by the pair).
+
+Cost: one mesh (Gmsh, in the caller's thread: Gmsh is one per process and sets signal handlers
+from the main thread only), then assembly, a 4-mode modal solve and the modal basis in a daemon
+worker thread from the end of the run's band response and two-level estimate on (their
+factorisations and its own do not add up in memory), ~16 s CPU on the default design.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass
+from typing import Any
+
+log = logging.getLogger(__name__)
+
+__all__ = ["TEETH_REFINE", "TEETH_QUANTITIES", "TeethMotion", "teeth_refine", "teeth_mesh_text", "teeth_motion", "TeethJob"]
+
+TEETH_REFINE = 0.8
+"""Refine factor of the teeth motion's mesh relative to the run's (one step of the refinement
+studies: 1.73x the DOFs, h ratio 1.20, and one more element layer across the sector at refine 1)."""
+
+TEETH_QUANTITIES = ("teeth_ellipse_ratio", "teeth_phase_deg", "teeth_axial_per_volt_m")
+"""What the finer mesh gives the run (the rotary unit's inputs)."""
+
+
+@dataclass(frozen=True)
+class TeethMotion:
+    """The teeth motion on the finer mesh (:func:`teeth_motion`).
+
+    Attributes
+    ----------
+    wp : fem.harmonic.WorkingPoint
+        At the finer mesh's own resonance and the run's drive voltage, ``teeth_tops`` among its surfaces.
+    f_hz : float
+        That resonance, Hz.
+    refine, ndof, label
+        The finer mesh: refine factor, DOFs, words (:func:`fem.sector_system.path_label`).
+    est : fem.errors.ErrorEstimate
+        Two-level estimate, the run's mesh the coarse level.
+    seconds : float
+        Wall time of the solve (assembly on), s.
+    """
+
+    wp: Any
+    f_hz: float
+    refine: float
+    ndof: int
+    label: str
+    est: Any
+    seconds: float
+
+    def record(self) -> dict:
+        """The ``teeth_mesh`` block of ``summary.json``."""
+        return {"refine": self.refine, "ndof": self.ndof, "label": self.label, "f_r_hz": self.f_hz,
+                "method": "harmonic response at the mesh's own resonance on its modes + residual, the run's losses "
+                          "and voltage", "seconds": self.seconds, "discretisation_error": self.est.to_dict()}
+
+
+def teeth_refine(design, options, surfaces) -> tuple[float | None, str]:
+    """The refine factor of the teeth motion's mesh for a run meshed by ``options``
+    (:class:`results.stage_fe.MeshOptions`, resolved) reading ``surfaces``, or None and why not:
+    only on the sector path, for a design with teeth, where the finer mesh stays in the refine
+    range and the resource budget (:func:`geometry.guard.sector_estimate`)."""
+    from geometry.guard import MAX_DOFS, sector_estimate
+    from geometry.sector import symmetry_order
+
+    if options.path != "sector" or "teeth_tops" not in surfaces:
+        return None, "the teeth motion is the run's mesh's (not a k = 0 sector run with teeth)"
+    refine = options.refine * TEETH_REFINE
+    if refine < 0.2:
+        return None, f"the teeth motion is the run's mesh's (refine x {TEETH_REFINE:g} = {refine:g} is below 0.2)"
+    dofs = sector_estimate(design, symmetry_order(design) or 6, options.mesh_size, refine).dofs
+    if dofs > MAX_DOFS:
+        return None, (f"the teeth motion is the run's mesh's (refine {refine:g} would need ~{dofs:,} DOFs, "
+                      f"above the budget {MAX_DOFS:,})")
+    return refine, ""
+
+
+def teeth_mesh_text(design, options) -> str:
+    """The inputs line's words for the teeth motion's mesh of a run meshed by ``options``
+    (resolved) on ``design``."""
+    from fem.sector_system import path_label
+
+    teeth = ("teeth_tops",) if getattr(getattr(design, "coupler", None), "n_teeth", 0) else ()
+    refine, why = teeth_refine(design, options, teeth)
+    if refine is None:
+        return why.removeprefix("the teeth motion is ")
+    return path_label(design, "sector", refine=refine, grade=options.grade, mesh_size=options.mesh_size)
+
+
+def _sector_mesh(design, refine: float, options):
+    from geometry import build_mesh
+    from geometry.sector import AXIAL_RULE, symmetry_order
+
+    rule_refine, meshing = AXIAL_RULE
+    sectors = symmetry_order(design) or 6
+    return build_mesh(design, mesh_size=options.mesh_size, order=2, refine=rule_refine * refine, grade=options.grade,
+                      mesher="revolve", sectors=sectors, sector_meshing=meshing.scaled(refine)), sectors
+
+
+def _solve(design, mesh, sectors: int, refine: float, options, loss, near_hz: float, voltage: float,
+           surfaces: tuple[str, ...]) -> tuple:
+    """Assemble the finer sector mesh and solve its working point: ``(wp, f_r, ndof, label, seconds)``."""
+    from fem.assembly import assemble
+    from fem.harmonic import modal_basis, working_point
+    from fem.modal import modal_analysis, working_mode
+    from fem.sector_system import path_label, sector_system
+
+    t0 = time.perf_counter()
+    system = sector_system(assemble(mesh, order=2), sectors,
+                           label=path_label(design, "sector", refine=refine, grade=options.grade,
+                                            mesh_size=options.mesh_size))
+    # short-circuit modes only, keeping the factorisation for the residual: the shift off the working
+    # mode (as fem.harmonic.modal_basis sets it) so that the residual can use it as it is
+    import numpy as np
+
+    res = modal_analysis(system, near_hz, 4, open_circuit=False, keep_factor=True,
+                         sigma=(2 * np.pi * near_hz) ** 2 * (1 - 2e-3))
+    w = working_mode(system, res.f_r_hz, res.vectors, near_hz)
+    f = float(res.f_r_hz[w])
+    basis = modal_basis(system, f, loss=loss, modes=res)
+    wp = working_point(system, f, voltage, loss=loss, surfaces=surfaces, basis=basis)
+    return wp, f, int(system.ndof), system.label, time.perf_counter() - t0
+
+
+def _motion(design, refine: float, options, solved: tuple, coarse) -> TeethMotion:
+    """The :class:`TeethMotion` of a solve (:func:`_solve`) with its estimate against ``coarse``."""
+    from fem.convergence import Level, harmonic_quantities
+    from fem.errors import teeth_estimate
+
+    wp, f, ndof, label, seconds = solved
+    fine = Level(refine, ndof, {q: v for q, v in harmonic_quantities(wp).items() if q in TEETH_QUANTITIES})
+    est = teeth_estimate(design, fine, coarse, mesh_size=options.mesh_size)
+    return TeethMotion(wp, f, refine, ndof, label, est, seconds)
+
+
+def teeth_motion(design, options, *, loss, near_hz: float, voltage: float, surfaces: tuple[str, ...], coarse,
+                 refine: float | None = None) -> TeethMotion:
+    """The teeth motion of ``design`` on the finer sector mesh (``refine``, default the run's x
+    :data:`TEETH_REFINE`), in the calling thread.
+
+    Parameters
+    ----------
+    design : the tuned design
+    options : the run's resolved :class:`results.stage_fe.MeshOptions` (sector path)
+    loss : fem.harmonic.LossModel, the run's
+    near_hz : the run's working frequency, Hz (where the finer mesh's working mode is sought)
+    voltage : drive amplitude, V
+    surfaces : the run's working-point surfaces (tip first, ``teeth_tops`` among them)
+    coarse : fem.convergence.Level, the run's mesh and its values (:data:`TEETH_QUANTITIES`)
+    """
+    refine = options.refine * TEETH_REFINE if refine is None else refine
+    mesh, sectors = _sector_mesh(design, refine, options)
+    solved = _solve(design, mesh, sectors, refine, options, loss, near_hz, voltage, tuple(surfaces))
+    return _motion(design, refine, options, solved, coarse)
+
+
+class TeethJob:
+    """:func:`teeth_motion` beside the caller's stages: :meth:`start` meshes in the calling (main)
+    thread and readies a daemon worker thread, which solves from :meth:`release` on (PARDISO and
+    NumPy release the interpreter; the caller releases it once its own largest solves are done,
+    so the two factorisations do not add up in memory); :meth:`collect` takes the run's own
+    values, the estimate's coarse level. A run ended by a signal or an error does not wait for
+    the thread (its answer is dropped)."""
+
+    def __init__(self):
+        import threading
+
+        self.thread, self.box, self.refine, self.note = None, {}, None, ""
+        self.design = self.options = None
+        self.go = threading.Event()
+
+    def start(self, design, options, surfaces, **solve) -> None:
+        """Mesh and start the solve when :func:`teeth_refine` allows it (else :attr:`note` says
+        why); ``solve``: ``loss``, ``near_hz``, ``voltage`` of :func:`teeth_motion`."""
+        import threading
+
+        self.refine, self.note = teeth_refine(design, options, surfaces)
+        if self.refine is None:
+            return
+        self.design, self.options = design, options
+        mesh, sectors = _sector_mesh(design, self.refine, options)
+
+        def work():
+            try:
+                self.go.wait()
+                self.box["out"] = _solve(design, mesh, sectors, self.refine, options, surfaces=tuple(surfaces),
+                                         **solve)
+            except BaseException as exc:          # handed to the caller at collect
+                self.box["error"] = exc
+
+        self.thread = threading.Thread(target=work, name="teeth", daemon=True)
+        self.thread.start()
+
+    def release(self) -> None:
+        """Let the worker solve."""
+        self.go.set()
+
+    def collect(self, coarse) -> TeethMotion | None:
+        """Wait for the solve (an error in it is raised here) and estimate its error with the run's
+        own values ``coarse`` (:class:`fem.convergence.Level`); None when it did not run."""
+        if self.thread is None:
+            return None
+        self.release()
+        self.thread.join()
+        if "error" in self.box:
+            raise self.box["error"]
+        return _motion(self.design, self.refine, self.options, self.box["out"], coarse)
