@@ -353,9 +353,10 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     from .stage_compliant import CompliantWorker
 
     with Renders(run) as renders, CompliantWorker() as compliant:     # beside the later stages
-        _fe_stages(run, clock, tune, say, renders, compliant)
+        teeth = _fe_stages(run, clock, tune, say, renders, compliant)
         renders.modes()
         base, masses = _impact_stages(run, clock, say)
+        _rotor_stage(run, clock, say, teeth)      # after the impacts: the teeth job's solve ran beside them
         t0 = time.perf_counter()
         run.compliant, seconds = compliant.collect(say)
         if seconds is not None:
@@ -388,12 +389,14 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     return PipelineResult(folder=run.out, summary=summary)
 
 
-def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", compliant) -> None:
+def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", compliant):
     """Matching, harmonic response, stress and the discretisation error of the FE outputs (the
     stress picture and VTU drawn by ``renders``' worker; the compliant stage started in
-    ``compliant``'s as soon as the working frequency is known)."""
+    ``compliant``'s as soon as the working frequency is known). Returns the teeth motion's job
+    (:func:`results.stage_teeth.start_job`), still solving."""
     from .stage_fe import match_stage
     from .stage_harmonic import harmonic_stage
+    from .stage_teeth import start_job
     from .stress_stage import stress_stage
 
     st = run.settings
@@ -410,7 +413,8 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
         from .operating_point import measured_settings
 
         st = run.settings = measured_settings(st, m.system, m.modal, m.w, say)
-    teeth = _start_teeth(run)                 # the teeth motion's finer mesh, solved beside what follows
+    teeth = start_job(m, st)                  # the teeth motion's finer mesh, solved beside what follows
+    run.teeth_note = teeth.note
     h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
     _start_compliant(run, compliant)
     from .operating_point import preload_stage
@@ -425,50 +429,21 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
     estimated.replay(say)
     run.stress = stress_stage(m.system, h.wp, run.out, render=st.render, say=say, coarse=run.est,
                               preload=run.bolt, mesh=m.options.label(m.design), submit=renders.submit)  # own timing
-    t0 = time.perf_counter()          # the rotary unit driven by the teeth (designs with teeth)
-    from .rotor_stage import pipeline_rotor_stage
+    return teeth
 
-    wp, est = _collect_teeth(run, teeth, say)
+
+def _rotor_stage(run: _Run, clock: _Clock, say, teeth) -> None:
+    """The rotary unit driven by the teeth (designs with teeth), on the teeth motion of the finer
+    mesh when its job ran (waited for here)."""
+    from .rotor_stage import pipeline_rotor_stage
+    from .stage_teeth import collect_job
+
+    t0 = time.perf_counter()
+    run.teeth, wp, est = collect_job(teeth, run.harm.wp, run.matched, run.est, say)
     clock.took("teeth_wait_s", t0)
     t0 = time.perf_counter()
-    run.rotor = pipeline_rotor_stage(m.design, wp, h.f_w, est, st.wob, say=say)
+    run.rotor = pipeline_rotor_stage(run.matched.design, wp, run.harm.f_w, est, run.settings.wob, say=say)
     clock.took("rotor_s", t0)
-
-
-def _start_teeth(run: _Run):
-    """Mesh the teeth motion's finer sector (:mod:`results.stage_teeth`) and start its solve in a
-    worker thread; the job (its :attr:`~results.stage_teeth.TeethJob.note` says why when it does not run)."""
-    from .stage_harmonic import tip_surfaces
-    from .stage_teeth import TeethJob
-
-    st, m = run.settings, run.matched
-    job = TeethJob()
-    job.start(m.design, m.options, tip_surfaces(m.mesh), loss=st.losses().loss_model(), near_hz=m.f_r_hz,
-              voltage=st.voltage)
-    run.teeth_note = job.note
-    return job
-
-
-def _collect_teeth(run: _Run, job, say):
-    """The teeth motion the rotary unit is driven by and its error estimate: the finer mesh's
-    when ``job`` ran (its coarse level the run's own values), else the run's working point's."""
-    from fem.convergence import Level, harmonic_quantities
-    from fem.errors import plus_minus
-
-    from .stage_teeth import TEETH_QUANTITIES
-
-    h, m = run.harm, run.matched
-    own = Level(m.options.refine, int(m.system.ndof),
-                {q: v for q, v in harmonic_quantities(h.wp).items() if q in TEETH_QUANTITIES})
-    run.teeth = job.collect(own)
-    if run.teeth is None:
-        return h.wp, run.est
-    t, e = run.teeth, run.teeth.est
-    say(f"      teeth motion on {t.label} ({t.ndof} DOFs, {t.seconds:.1f} s beside the run): ellipse "
-        f"{plus_minus(t.wp.teeth_ellipse_ratio, e.error('teeth_ellipse_ratio'))}, phase "
-        f"{plus_minus(t.wp.teeth_phase_deg, e.error('teeth_phase_deg'), 'deg')} (two-level against the run's mesh, "
-        f"{own.values.get('teeth_ellipse_ratio', float('nan')):.4f})")
-    return t.wp, e
 
 
 class _Lines:
@@ -745,7 +720,8 @@ def _summary(run: _Run, figs: dict) -> dict:
     st, m, out = run.settings, run.matched, run.out
     doc = {
         "design": m.design.to_mapping(),
-        "settings": {k: getattr(st, k) for k in st.__dataclass_fields__},
+        "settings": {k: (v.to_dict() if hasattr(v, "to_dict") else v)   # plain JSON values, in memory too
+                     for k, v in ((k, getattr(st, k)) for k in st.__dataclass_fields__)},
         "mesh": {"tetrahedra": m.mesh.n_cells, "nodes": m.mesh.n_points, "order": m.mesh.order,
                  "ndof": m.system.ndof, "mesher": m.options.mesher, "path": m.options.path,
                  "label": m.options.label(m.design)},

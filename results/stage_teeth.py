@@ -38,7 +38,8 @@ from typing import Any
 
 log = logging.getLogger(__name__)
 
-__all__ = ["TEETH_REFINE", "TEETH_QUANTITIES", "TeethMotion", "teeth_refine", "teeth_mesh_text", "teeth_motion", "TeethJob"]
+__all__ = ["TEETH_REFINE", "TEETH_QUANTITIES", "TeethMotion", "teeth_refine", "teeth_mesh_text", "teeth_motion", "TeethJob",
+           "start_job", "collect_job"]
 
 TEETH_REFINE = 0.8
 """Refine factor of the teeth motion's mesh relative to the run's (one step of the refinement
@@ -231,3 +232,35 @@ class TeethJob:
         if "error" in self.box:
             raise self.box["error"]
         return _motion(self.design, self.refine, self.options, self.box["out"], coarse)
+
+
+def start_job(matched, settings) -> TeethJob:
+    """Mesh the finer sector of the matched drill ``matched`` (:class:`results.stage_fe.Matched`)
+    and start its solve in a worker thread with the run's losses and voltage (``settings``:
+    :class:`results.pipeline.PipelineSettings`); the job's ``note`` says why when it does not run."""
+    from .stage_harmonic import tip_surfaces
+
+    job = TeethJob()
+    job.start(matched.design, matched.options, tip_surfaces(matched.mesh), loss=settings.losses().loss_model(),
+              near_hz=matched.f_r_hz, voltage=settings.voltage)
+    return job
+
+
+def collect_job(job: TeethJob, wp, matched, run_estimate, say) -> tuple:
+    """The teeth motion the rotary unit is driven by: ``(TeethMotion or None, working point,
+    error estimate)``, the finer mesh's when ``job`` ran (its coarse level the run's own values
+    ``wp`` on ``matched``'s mesh), else the run's working point and ``run_estimate``."""
+    from fem.convergence import Level, harmonic_quantities
+    from fem.errors import plus_minus
+
+    own = Level(matched.options.refine, int(matched.system.ndof),
+                {q: v for q, v in harmonic_quantities(wp).items() if q in TEETH_QUANTITIES})
+    t = job.collect(own)
+    if t is None:
+        return None, wp, run_estimate
+    e = t.est
+    say(f"      teeth motion on {t.label} ({t.ndof} DOFs, {t.seconds:.1f} s beside the run): ellipse "
+        f"{plus_minus(t.wp.teeth_ellipse_ratio, e.error('teeth_ellipse_ratio'))}, phase "
+        f"{plus_minus(t.wp.teeth_phase_deg, e.error('teeth_phase_deg'), 'deg')} (two-level against the run's mesh, "
+        f"{own.values.get('teeth_ellipse_ratio', float('nan')):.4f})")
+    return t, t.wp, e

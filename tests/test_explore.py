@@ -144,7 +144,12 @@ def test_one_and_two_workers_give_the_same_table(two_runs):
 
     study, one, two, tmp = two_runs
     assert (one.workers, two.workers) == (1, 2)
-    pd.testing.assert_frame_equal(_table(tmp / "one"), _table(tmp / "two"), check_exact=True)
+    # Equal to round-off, not bit for bit: under load the scheduler may hand the points to the
+    # workers in another order, and a worker's solver state (the reused sparse factorisation) then
+    # differs; the 2-worker table once differed in power_w alone, in its ninth digit. Bound: the
+    # factorisation's backward error (~1e-12) amplified near resonance by up to ~Q^2 = 1e4 in the
+    # power (amplitude ~Q, power ~amplitude^2): rtol 1e-8.
+    pd.testing.assert_frame_equal(_table(tmp / "one"), _table(tmp / "two"), check_exact=False, rtol=1e-8, atol=0.0)
     assert (tmp / "two" / "table.csv").is_file() and (tmp / "two" / "figures" / "main_effects.png").is_file()
     assert len(list((tmp / "two" / "points").glob("p*.json"))) == 6
 
