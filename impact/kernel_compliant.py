@@ -210,6 +210,27 @@ def rhs_table(tab, xs):
     return mt
 
 
+@njit(cache=True, inline="always")
+def modal_rates(y, out, n, mt, xs, co, si, Fh):
+    """The modes' rates into ``out[4:4 + 2n]`` (``y = [.., .., .., .., q (n), q' (n), ..]``, the tip
+    force ``Fh`` on them, ``co, si`` the drive's phase) and the power integrands they give:
+    ``(drive power, modal damping power, the electrode current)``. Shared by every model with the
+    FE horn's modes in its state."""
+    W = xs[X_W]
+    V, Vd = xs[X_V0] * si, xs[X_V0] * W * co
+    cur = xs[X_QBR] * Vd - xs[X_QBI] * W * V
+    drive = damp = 0.0
+    for i in range(n):
+        qv = y[4 + n + i]
+        f = mt[i, H_FC] * co + mt[i, H_FS] * si
+        acc = (f - mt[i, H_TIP] * Fh) * mt[i, M_INVM] - mt[i, M_2ZO] * qv - mt[i, M_OM2] * y[4 + i]
+        out[4 + i], out[4 + n + i] = qv, acc
+        drive += f * qv
+        damp += mt[i, M_DAMP] * qv * qv
+        cur += mt[i, H_GRE] * qv + mt[i, M_GIMW] * acc
+    return drive, damp, cur
+
+
 @njit(cache=True)
 def contact_rhs(t, y, out, n, mt, xs, pv, lw, cs):
     """Right-hand side of a contact phase: ``y = [w, w', x, x', q, q', integrals (N_INT)]``
@@ -230,17 +251,7 @@ def contact_rhs(t, y, out, n, mt, xs, pv, lw, cs):
     out[0], out[1] = y[1], a + (Fh - Ft) / m_free
     out[2], out[3] = y[3], (Ft - c * y[3] - k0 * y[2]) / m_tool
     V = xs[X_V0] * si
-    Vd = xs[X_V0] * W * co
-    cur = xs[X_QBR] * Vd - xs[X_QBI] * W * V
-    drive = damp = 0.0
-    for i in range(n):
-        qv = y[4 + n + i]
-        f = mt[i, H_FC] * co + mt[i, H_FS] * si
-        acc = (f - mt[i, H_TIP] * Fh) * mt[i, M_INVM] - mt[i, M_2ZO] * qv - mt[i, M_OM2] * y[4 + i]
-        out[4 + i], out[4 + n + i] = qv, acc
-        drive += f * qv
-        damp += mt[i, M_DAMP] * qv * qv
-        cur += mt[i, H_GRE] * qv + mt[i, M_GIMW] * acc
+    drive, damp, cur = modal_rates(y, out, n, mt, xs, co, si, Fh)
     j = 4 + 2 * n
     u = um + r - g * Fh       # the tip recedes by g F_h
     out[j], out[j + 1], out[j + 2], out[j + 3] = drive + Fh * rd, damp, c * y[3] * y[3], Fh * (umd + rd)

@@ -54,12 +54,12 @@ from numba import njit, prange
 from . import kernel_cache  # noqa: F401  (drops stale caches first)
 from .drill_kernel import (N_DSTATS, S_BLOWS, S_EVENTS, S_FDT, S_FPEAK_SUM, S_HORN, S_HORN_WORK, S_KE_COLLAR,
                            S_P_END, S_P_FROM, S_PEN, S_ROCK_WORK, S_STATUS, S_STEPS, S_T, S_T_CONTACT)
-from .horn import H_A, H_B, H_FC, H_FS, H_GRE, H_MASS, H_OMEGA, H_TIP, X_QBI, X_QBR, X_RC, X_RS, X_STEADY, X_V0, X_W
+from .horn import H_A, H_B, H_MASS, H_OMEGA, H_TIP, X_RC, X_RS, X_STEADY, X_V0, X_W
 from .kernel import P_C, P_G, P_GAP, P_K0, P_M_FREE, P_M_TOOL, P_SPRING_FORCE, P_V0
 from .kernel_compliant import (CS_STATE, CS_TMAX, CS_XD0, EV_PEAK, EV_RELOAD, L_E, L_G, L_K, L_RTOL, L_TOOL,
-                               LOADING, M_2ZO, M_DAMP, M_GIMW, M_INVM, M_OM2, OPEN, R8_A, R8_B, R8_C, R8_S, UNLOADING,
+                               LOADING, OPEN, R8_A, R8_B, R8_C, R8_S, UNLOADING,
                                CS_K, CS_N, CS_P, CS_DMAX, absorbed, combine, contact_force, law_branch, loss,
-                               rhs_table, step_error, tip_modal, tolerances, touch)
+                               modal_rates, rhs_table, step_error, tip_modal, tolerances, touch)
 
 __all__ = ["DV_N", "pack_drill", "run_drill", "ensemble_drill", "N_KD", "K_DRIVE", "K_DAMP", "K_TOOL_DAMP", "K_LOSS",
            "K_ROCK_DISS", "K_STORED", "K_LEDGER", "K_ELEC", "STATUS_OK", "STATUS_STEPS", "warmup"]
@@ -226,18 +226,11 @@ def rhs(t, y, out, n, mt, xs, pv, lw, cs, dv, rk):
     out[2], out[3] = y[3], (wob - Fk + Ft - Fr) / m_t
     out[j] = y[j + 1]
     out[j + 1] = (Fs + Fk - Fh) / Mh if math.isfinite(Mh) else 0.0
-    V, Vd = xs[X_V0] * si, xs[X_V0] * W * co
-    cur = xs[X_QBR] * Vd - xs[X_QBI] * W * V
-    drive = damp = umd = 0.0
+    V = xs[X_V0] * si
+    drive, damp, cur = modal_rates(y, out, n, mt, xs, co, si, Fh)
+    umd = 0.0
     for i in range(n):
-        qv = y[4 + n + i]
-        f = mt[i, H_FC] * co + mt[i, H_FS] * si
-        acc = (f - mt[i, H_TIP] * Fh) * mt[i, M_INVM] - mt[i, M_2ZO] * qv - mt[i, M_OM2] * y[4 + i]
-        out[4 + i], out[4 + n + i] = qv, acc
-        drive += f * qv
-        damp += mt[i, M_DAMP] * qv * qv
-        cur += mt[i, H_GRE] * qv + mt[i, M_GIMW] * acc
-        umd += mt[i, H_TIP] * qv
+        umd += mt[i, H_TIP] * y[4 + n + i]
     k = j + 2
     crushing = rk[RK_BR] == B_CRUSH
     out[k + I_DRIVE], out[k + I_DAMP], out[k + I_TDAMP] = drive + Fh * rd, damp, c * sd * sd
