@@ -69,20 +69,21 @@ def test_escape_is_idempotent_and_leaves_prose_alone():
 
 
 def _headline_ke(summary: dict) -> str:
-    """The headline's tool energy as the report must print it: the committed summary's device row
-    at the reference free mass, formatted as every estimate is."""
-    from impact.stats import Estimate
+    """The headline's tool energy as the report must print it: the committed summary's headline
+    record (the compliant model at the reference free mass), mean ± 95 % CI ± model form in mJ."""
+    from results.report import headline_text
 
-    ref = summary["A0"]["reference_m_free_kg"]
-    row = next(r for r in summary["impacts"]["device_fe"]["table"] if r["m_free_kg"] == ref)
-    ke = row["mean_tool_ke_after_j"]
-    return f"{Estimate(ke['mean'], ke['ci95_half_width'], ke['members'], 0.95).scaled(1e3)} mJ"
+    rec = summary["headline"]["mean_tool_ke_after_j"]
+    text = headline_text(summary)
+    mean = f"{rec['mean'] * 1e3:.3g}"
+    assert mean in text          # the sentence carries the record's mean, to its three digits
+    return text[text.index(mean):text.index(" mJ")]
 
 
 def test_report_carries_headline_and_provenance(written, summary):
     md = (written / "report.md").read_text()
-    assert md.split("\n")[2].startswith("**Headline (device scenario, 8 g free mass):**")
-    assert _headline_ke(summary) in md.split("\n")[2]       # the 8 g device row of the committed summary
+    assert md.split("\n")[2].startswith("**Headline (compliant contacts, device scenario, 8 g free mass):**")
+    assert _headline_ke(summary) in md.split("\n")[2]       # the committed summary's headline record
     prov = md[md.index("## Provenance"):]
     for item in ("rpud version", "git commit", "command line", "date (UTC)"):
         assert f"| {item} |" in prov
@@ -116,7 +117,7 @@ def test_report_html_in_a_real_browser(written, summary):
     assert seen["errors"] == []
     assert seen["images"] and all(ok and w > 0 for _, ok, w in seen["images"]), seen["images"]
     assert len(seen["images"]) == len(summary["files"]["figures"]) + len(summary["files"]["renders"]) + 1
-    assert seen["headline"] and seen["headline"].startswith("Headline (device scenario, 8 g free mass):")
+    assert seen["headline"] and seen["headline"].startswith("Headline (compliant contacts, device scenario, 8 g free mass):")
     assert _headline_ke(summary) in seen["headline"]
     assert seen["tables"] >= 5 and seen["title"].startswith("RPUD end-to-end run")
     assert all(u.startswith(("file:", "data:", "about:")) for u in seen["urls"]), seen["urls"]

@@ -175,7 +175,7 @@ def test_whole_report_with_the_compliant_stage():
     assert "**Headline: the device scenario**" in plain and "compliant contacts" not in plain
     assert "not estimated: the compliant stage did not run" in plain
     s["compliant_model"] = _doc()
-    s["files"]["figures"] = {"compliant_energy_power": "figures/c.png", **s["files"]["figures"]}
+    s["files"]["figures"] = {**s["files"]["figures"], "compliant_energy_power": "figures/c.png"}
     text = "\n".join(report_lines(s))
     order = ["**Headline (compliant contacts", "## Headline: drill-tool kinetic energy vs free mass (compliant",
              "![compliant_energy_power](figures/c.png)", "**Comparison at 8 g**",
