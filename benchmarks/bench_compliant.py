@@ -10,20 +10,20 @@ spring, 20 ms discarded, 200 ms window).
    closed-form flights) and the compiled one (impact.kernel_compliant) side by side.
 2. CPU time per device member (0.22 s simulated) at 8 g and 1 g, 70 kHz cut-off: the compiled
    engine as first landed (commit BASELINE: Dormand-Prince 5(4) contacts, events located by whole
-   trial steps; loaded from git, so it shares today's impact.compliant.approach_of) against
-   today's (DOP853 contacts, events on the step's interpolant) at rtol 1e-10 and 1e-9, the same
+   trial steps; loaded from git, so it shares this checkout's impact.compliant.approach_of) against
+   this checkout's (DOP853 contacts, events on the step's interpolant) at rtol 1e-10 and 1e-9, the same
    members, one thread; with each run's window energy balance and its tool KE (95 % CI).
 3. The converged table: free masses 1-8 g at the 70 kHz cut-off, every driving quantity's 95 % CI
    within 3 %, and the convergence study at 1 g and 8 g: cut-offs 40 and 100 kHz, contact
    stiffness x0.5 and x2 (16 cases). Target: 30 s on 2 cores. Side by side in the same run: the
    baseline, impact.compliant_engine.compliant_batch as of BATCH_BASELINE (loaded from git: one
-   case at a time, members doubled, the study at 3 % too), and today's (every growing case's new
+   case at a time, members doubled, the study at 3 % too), and this checkout's (every growing case's new
    members in one parallel call per round, grown to what the widest CI asks, the study's cases at
    STUDY_REL_TOL: a model-form estimate carries each difference's own CI).
 
 Times: wall (best of n for the single runs) and process CPU time of this process (numba's threads
 included). Run: ``PYTHONPATH=. python benchmarks/bench_compliant.py`` (FE ~1-2 min; the baseline
-table ~3-5 min CPU, today's about a third of it, at 1 g + 8 g and 3 % 85 s against 29 s CPU on a
+table ~3-5 min CPU, this checkout's about a third of it, at 1 g + 8 g and 3 % 85 s against 29 s CPU on a
 loaded machine).
 """
 
@@ -42,7 +42,7 @@ BASE_CUT = 70e3
 BASELINE = "e35e23a"
 #: compliant_batch before the rounds over all cases and the growth to the CI's need
 BATCH_BASELINE = "de567f9"
-#: the CI target of the study's cases in today's table (the headline's: 3 %)
+#: the CI target of the study's cases in this checkout's table (the headline's: 3 %)
 STUDY_REL_TOL = 0.1
 N_TIMED = 8
 
@@ -105,7 +105,7 @@ def _baseline_kernel():
 
 
 def _per_member(f, horns, tip, ball):
-    """CPU time per member of the baseline and today's engine, side by side on the same members."""
+    """CPU time per member of the baseline and this checkout's engine, side by side on the same members."""
     from impact import kernel_compliant as KC
     from impact.kernel import pack
     from impact.params import ImpactParams
@@ -113,7 +113,7 @@ def _per_member(f, horns, tip, ball):
 
     old = _baseline_kernel()
     engines = ([] if old is None else [(f"{BASELINE} (5(4)), rtol 1e-10", old, 1e-10)]) + [
-        ("today (DOP853), rtol 1e-10", KC, 1e-10), ("today (DOP853), rtol 1e-9", KC, 1e-9)]
+        ("this checkout (DOP853), rtol 1e-10", KC, 1e-10), ("this checkout (DOP853), rtol 1e-9", KC, 1e-9)]
     horn, g = horns[BASE_CUT]
     tab, xs = horn.pack(f)
     sc = get_scenario("device")
@@ -195,7 +195,7 @@ def main():
 
     old = _git_module(BATCH_BASELINE, "impact/compliant_engine.py", "compliant_engine_baseline")
     runs = ([] if old is None else [(f"baseline: compliant_batch at {BATCH_BASELINE}, study at 3 %", old.compliant_batch,
-                                     None)]) + [(f"today: rounds over all cases, study at {STUDY_REL_TOL:.0%}",
+                                     None)]) + [(f"this checkout: rounds over all cases, study at {STUDY_REL_TOL:.0%}",
                                                  compliant_batch, STUDY_REL_TOL)]
     tables = []
     for name, batch, tol in runs:
