@@ -311,13 +311,14 @@ class CompliantWorker:
     on two cores it overlaps the caller's stages. OpenBLAS is held at one thread from its start to
     the end of the ``with`` block (the pipeline's stages beside it run at one thread already), so no
     thread count changes under its dense products: its numbers do not depend on what runs beside
-    it. Its progress lines are kept (:attr:`lines`) and shown at :meth:`collect`. The thread is a
-    daemon: a run ended by a signal or an error does not wait for it (its answer would be dropped).
+    it. Its progress lines are kept (:attr:`lines`) and shown at :meth:`collect`. A run ended by a
+    signal or an error does not wait for it (its answer would be dropped); the process then ends
+    without finalisation (:func:`rpud_common.cli.start_native_worker`).
     """
 
     def __init__(self):
         self.lines: list[str] = []
-        self.thread, self.box, self.limit = None, {}, None
+        self.thread, self.done, self.box, self.limit = None, None, {}, None
 
     def __enter__(self) -> "CompliantWorker":
         return self
@@ -327,10 +328,10 @@ class CompliantWorker:
         """Start :func:`compliant_stage` (same arguments; ``base.freq`` the drive frequency). The
         ``drive`` basis may be used by the caller meanwhile: its factor's solves are serialised
         (:class:`fem.solvers.Factor`)."""
-        import threading
         import time
 
         from fem.solvers import blas_threads
+        from rpud_common.cli import start_native_worker
 
         self.limit = blas_threads(1)
 
@@ -343,15 +344,14 @@ class CompliantWorker:
             except BaseException as exc:          # handed to the caller at collect
                 self.box["error"] = exc
 
-        self.thread = threading.Thread(target=work, name="compliant", daemon=True)
-        self.thread.start()
+        self.thread, self.done = start_native_worker(work, "compliant")
 
     def collect(self, say) -> tuple[dict | None, float | None]:
         """Wait for the stage (an error in it is raised here) and pass its progress lines to ``say``.
         Returns ``(answer, its wall time in s)``, or ``(None, None)`` when it was not started."""
         out = (None, None)
         if self.thread is not None:
-            self.thread.join()
+            self.done.wait()
             if "error" in self.box:
                 raise self.box["error"]
             out = self.box["out"]
@@ -360,5 +360,6 @@ class CompliantWorker:
         return out
 
     def __exit__(self, *exc) -> None:
-        if self.limit is not None:
+        # a thread count changed under the worker's running dense products corrupts OpenBLAS
+        if self.limit is not None and (self.done is None or self.done.is_set()):
             self.limit.restore_original_limits()

@@ -187,19 +187,19 @@ class TeethJob:
     NumPy release the interpreter; the caller releases it once its own largest solves are done,
     so the two factorisations do not add up in memory); :meth:`collect` takes the run's own
     values, the estimate's coarse level. A run ended by a signal or an error does not wait for
-    the thread (its answer is dropped)."""
+    the thread (its answer is dropped; :func:`rpud_common.cli.start_native_worker`)."""
 
     def __init__(self):
         import threading
 
-        self.thread, self.box, self.refine, self.note = None, {}, None, ""
+        self.thread, self.done, self.box, self.refine, self.note = None, None, {}, None, ""
         self.design = self.options = None
         self.go = threading.Event()
 
     def start(self, design, options, surfaces, **solve) -> None:
         """Mesh and start the solve when :func:`teeth_refine` allows it (else :attr:`note` says
         why); ``solve``: ``loss``, ``near_hz``, ``voltage`` of :func:`teeth_motion`."""
-        import threading
+        from rpud_common.cli import start_native_worker
 
         self.refine, self.note = teeth_refine(design, options, surfaces)
         if self.refine is None:
@@ -215,8 +215,7 @@ class TeethJob:
             except BaseException as exc:          # handed to the caller at collect
                 self.box["error"] = exc
 
-        self.thread = threading.Thread(target=work, name="teeth", daemon=True)
-        self.thread.start()
+        self.thread, self.done = start_native_worker(work, "teeth")
 
     def release(self) -> None:
         """Let the worker solve."""
@@ -228,7 +227,7 @@ class TeethJob:
         if self.thread is None:
             return None
         self.release()
-        self.thread.join()
+        self.done.wait()
         if "error" in self.box:
             raise self.box["error"]
         return _motion(self.design, self.refine, self.options, self.box["out"], coarse)

@@ -23,6 +23,7 @@ from .signals import (
 )
 
 __all__ = ["CliParser", "run_cli", "library_error", "setup_logging", "abandon_native_run", "native_code_running",
+           "start_native_worker",
            "check_given", "needs", "check_zero_or_range", "quantity", "inputs_lines", "echo_inputs", "warn",
            "mesh_text", "DRILL_RANGES", "check_usual"]
 
@@ -72,11 +73,52 @@ def abandon_native_run(done: threading.Event) -> None:
     test session) is ended the same way from an ``atexit`` hook, with exit code 1 and one
     stderr line, rather than crash in the C library's exit handlers.
     """
-    global _exit_hook_installed
     _NATIVE_RUNS.append(done)
+    _install_exit_hook()
+
+
+def _install_exit_hook() -> None:
+    global _exit_hook_installed
     if not _exit_hook_installed:
         atexit.register(_exit_past_native_runs)
         _exit_hook_installed = True
+
+
+_WORKERS: list[threading.Event] = []
+"""Completion flags of :func:`start_native_worker` threads: while one runs, the process ends like
+it does past an abandoned Gmsh run, but a new Gmsh run may start."""
+
+
+def start_native_worker(work: Callable[[], None], name: str) -> tuple[threading.Thread, threading.Event]:
+    """Run ``work()`` in a daemon thread whose native code (PARDISO, numba, BLAS) may outlive its
+    caller: a run ended by a signal or an error does not wait for it.
+
+    The thread is recorded at once, so a process that ends while it still runs ends through ``os._exit`` instead of finalising the interpreter and the C library
+    under it (seen: "double free detected" on SIGINT during a worker's ensembles). Signals are
+    blocked in the thread: they reach the main thread, which decides how the run ends.
+
+    Returns
+    -------
+    thread : threading.Thread
+        The started thread.
+    done : threading.Event
+        Set as the very last thing the thread does; wait on it rather than ``join`` (an
+        interrupted ``join`` may mark the thread stopped while it still runs).
+    """
+    done = threading.Event()
+
+    def run():
+        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+        try:
+            work()
+        finally:
+            done.set()
+
+    _WORKERS[:] = [d for d in _WORKERS if not d.is_set()] + [done]
+    _install_exit_hook()
+    thread = threading.Thread(target=run, name=name, daemon=True)
+    thread.start()
+    return thread, done
 
 
 def native_code_running() -> bool:
@@ -90,10 +132,15 @@ def _flush_std() -> None:
             stream.flush()
 
 
+def _native_threads_running() -> bool:
+    """True while an abandoned Gmsh run or a :func:`start_native_worker` thread still runs."""
+    return native_code_running() or any(not done.is_set() for done in _WORKERS)
+
+
 def _exit_past_native_runs() -> None:
-    if native_code_running():
+    if _native_threads_running():
         with contextlib.suppress(Exception):
-            sys.stderr.write("rpud: an abandoned Gmsh run is still going: the process ends without "
+            sys.stderr.write("rpud: native code is still running in a worker thread: the process ends without "
                              "finalisation (exit code 1)\n")
         _flush_std()
         os._exit(1)
@@ -154,10 +201,11 @@ def run_cli(main: Callable[[list[str] | None], int | None], argv: list[str] | No
     Returns
     -------
     int
-        The exit code. With ``final``, if native code (Gmsh) was abandoned by an interrupt or a
-        time limit and still runs, the process ends here instead, through ``os._exit`` after
-        flushing the streams (see :data:`_NATIVE_RUNS`); without it (in-process use, tests) the
-        interpreter exit is guarded instead (:func:`abandon_native_run`).
+        The exit code. With ``final``, if native code still runs in another thread (Gmsh
+        abandoned by an interrupt or a time limit, a :func:`start_native_worker` thread), the
+        process ends here instead, through ``os._exit`` after flushing the streams (see
+        :data:`_NATIVE_RUNS`); without it (in-process use, tests) the interpreter exit is guarded
+        instead.
     """
     in_main = threading.current_thread() is threading.main_thread()
     saved = {}
@@ -170,11 +218,11 @@ def run_cli(main: Callable[[list[str] | None], int | None], argv: list[str] | No
     except BaseException as exc:
         # SystemExit (argparse usage/--help), RPUD_DEBUG re-raise, or a signal landing while a
         # handler below was already reporting
-        if final and native_code_running():
+        if final and _native_threads_running():
             _exit_now(exc.code if isinstance(exc, SystemExit) and isinstance(exc.code, int) else 1)
         _restore(saved)
         raise
-    if final and native_code_running():
+    if final and _native_threads_running():
         _exit_now(code)
     if in_main and final:
         settle(code)

@@ -112,3 +112,36 @@ def test_an_integer_beyond_the_float_range_is_not_a_finite_number():
                   lambda: check_range("x", huge, 0.0, 1.0)):
         with pytest.raises(ParameterError, match="x = "):
             check()
+
+
+def test_an_interrupt_while_a_native_worker_runs_ends_the_process_without_finalisation(tmp_path):
+    """A run interrupted while a :func:`rpud_common.cli.start_native_worker` thread still runs ends
+    at once with 130 and its one line, by ``os._exit``: the interpreter's exit handlers (here an
+    ``atexit`` marker file; in a real run the C library's, which crashed under the running
+    worker) do not run. Without the worker, the same script exits normally and they do run."""
+    import subprocess
+    import sys
+    import time
+    from pathlib import Path
+
+    script = tmp_path / "run.py"
+    script.write_text(
+        "import atexit, sys, time\n"
+        "from pathlib import Path\n"
+        "from rpud_common.cli import run_cli, start_native_worker\n"
+        "atexit.register(lambda: Path(sys.argv[2]).write_text('finalised'))\n"
+        "def main(argv):\n"
+        "    if sys.argv[1] == 'worker':\n"
+        "        start_native_worker(lambda: time.sleep(60), 'sleeper')\n"
+        "    raise KeyboardInterrupt\n"
+        "sys.exit(run_cli(main, [], prog='x', final=True))\n")
+    root = Path(__file__).resolve().parents[1]
+    for mode, finalised in (("worker", False), ("none", True)):
+        marker = tmp_path / f"{mode}.txt"
+        t0 = time.monotonic()
+        proc = subprocess.run([sys.executable, str(script), mode, str(marker)], capture_output=True, text=True,
+                              env={"PYTHONPATH": str(root), "PATH": "/usr/bin:/bin"}, timeout=60)
+        assert proc.returncode == 130, proc.stderr
+        assert proc.stderr.strip() == "x: interrupted"
+        assert time.monotonic() - t0 < 30          # the 60 s worker was not waited for
+        assert marker.exists() is finalised
