@@ -130,9 +130,18 @@ def error_box(teeth: TeethReport, params: RotorParams, load_torque: float, point
     return nominal, values, spread
 
 
-def rotor_text(values: dict, errors: dict, load_torque: float, hovers: bool | None) -> str:
-    """One line: no-load speed, stall torque and the speed under the load, each +- its error."""
+def rotor_text(values: dict, errors: dict, load_torque: float, hovers: bool | None,
+               torque_bound: float | None = None) -> str:
+    """One line: no-load speed, stall torque and the speed under the load, each +- its error.
+
+    A stall torque at the friction bound ``torque_bound`` (mu F r, N m) is printed as that bound:
+    the teeth motion's error does not move it (its error is the friction coefficient's)."""
+    stall, stall_err = values["stall_torque_n_m"], errors["stall_torque_n_m"]
+    if torque_bound is not None and stall_err == 0.0 and abs(stall - torque_bound) <= ROUNDOFF * torque_bound:
+        stall_part = f"{stall * 1e3:.3g} mN m (the friction bound mu F r: set by the assumed mu, not by the teeth motion)"
+    else:
+        stall_part = plus_minus(stall, stall_err, "mN m", 1e3)
     return (f"rotor: no-load {plus_minus(values['no_load_speed_rpm'], errors['no_load_speed_rpm'], 'rpm')}, "
-            f"stall {plus_minus(values['stall_torque_n_m'], errors['stall_torque_n_m'], 'mN m', 1e3)}, under "
+            f"stall {stall_part}, under "
             f"{load_torque * 1e3:.3g} mN m {plus_minus(values['load_speed_rpm'], errors['load_speed_rpm'], 'rpm')}"
             + ("" if hovers is None or hovers else "; the rotor does not hover (it bounces): not a prediction"))

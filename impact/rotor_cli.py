@@ -178,7 +178,7 @@ def main(argv) -> int:
     if report is not None:
         _, values, errors = error_box(report, rotor, load, ns.points, nominal=res)
         print("with the teeth motion's errors (largest departure over the corners of the error box): "
-              + rotor_text(values, errors, load, res.hover["holds"]))
+              + rotor_text(values, errors, load, res.hover["holds"], res.torque_bound))
         record["errors"] = {f"{k}_error": errors[k] for k, _, _ in OUTPUTS}
     if ns.json:
         write_json(ns.json, record)

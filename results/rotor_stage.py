@@ -103,7 +103,8 @@ def rotor_stage(teeth: TeethReport, params: RotorParams, load_torque: float, ele
     out["hover"] = nominal.hover
     out["notes"] = list(nominal.notes)
     if say:
-        say("      " + rotor_text(values, spread, load_torque, None if nominal.hover is None else nominal.hover["holds"]))
+        say("      " + rotor_text(values, spread, load_torque, None if nominal.hover is None else nominal.hover["holds"],
+                                       nominal.torque_bound))
     return {"result": nominal, "json": out}
 
 

@@ -336,13 +336,15 @@ def test_stage_errors_print_to_their_significant_digits():
     assert out["stall_torque_n_m_error"] == 0.0
     assert out["no_load_speed_rpm_error"] > 1e-3 * out["no_load_speed_rpm"]
     text = lines[0]
-    assert "stall 45 ± 0 mN m" in text, text
+    assert "stall 45 mN m (the friction bound mu F r" in text, text      # not a "± 0"
     no_load = re.search(r"no-load (\S+) ± (\S+) rpm", text).groups()
     err = out["no_load_speed_rpm_error"]
     assert float(no_load[1]) == pytest.approx(float(f"{err:.2g}"))       # two significant digits
     assert len(no_load[0].split(".")[-1]) == len(no_load[1].split(".")[-1])   # the value to the error's last digit
-    assert rotor_text(out, {k: 0.0 for k in ("no_load_speed_rpm", "stall_torque_n_m", "load_speed_rpm")}, 2.8e-3,
-                      False).endswith("not a prediction")
+    zero = {k: 0.0 for k in ("no_load_speed_rpm", "stall_torque_n_m", "load_speed_rpm")}
+    assert rotor_text(out, zero, 2.8e-3, False).endswith("not a prediction")
+    # below the friction bound the stall torque is a computed value and keeps its +- form
+    assert "stall 45 ± 0 mN m" in rotor_text(out, zero, 2.8e-3, True, 2 * out["stall_torque_n_m"])
 
 
 @pytest.mark.parametrize("phase", [-90.0, 90.0])
