@@ -20,8 +20,11 @@ stiffness (x0.5, x2 at the headline cut-off). The model-form estimate of a quant
 the cut-off term (the change between the two highest cut-offs: the last increment of a
 converging sequence) and the stiffness term (half the spread between x0.5 and x2: the contact
 stiffness is known to about a factor of two, the face radius and the surface finish being
-assumed). Both differences carry the sampling noise of the two ensembles they compare; the table
-gives each with its 95 % CI.
+assumed). Both differences carry the sampling noise of the two ensembles they compare, so each term
+is taken with its 95 % sampling half-width added (a difference smaller than its noise is not
+evidence of convergence); the table gives each difference and its half-width apart. Because the
+estimate carries that noise, the study's cases (the lower cut-offs and the stiffness variants) are
+held to a looser CI target (``study_rel_tol``) than the headline's.
 
 Contact geometry (design data of this stage, :class:`results.contact_faces.ContactFaces`): the
 free mass's faces, crowned (by default with the radius of a sphere of its own mass and material)
@@ -48,7 +51,7 @@ log = logging.getLogger(__name__)
 QUANTITIES = ("mean_tool_ke_after_j", "tool_impact_rate_hz", "tool_power_w")
 
 __all__ = ["QUANTITIES", "CompliantSettings", "contact_laws", "shortest_contact_time", "compliant_ensembles",
-           "compliant_stage", "model_form", "CompliantWorker"]
+           "compliant_stage", "model_form", "stage_runs", "CompliantWorker"]
 
 
 @dataclass(frozen=True)
@@ -61,7 +64,10 @@ class CompliantSettings:
         the headline's)
     stiffness_factors : contact-stiffness multipliers of the study (at the headline cut-off)
     members : ensemble members per case to start with (launch speeds as :func:`impact.stats.ensemble_members`)
-    rel_tol : members are doubled until every driving 95 % CI is within ``rel_tol`` of its mean ...
+    rel_tol : members are added until every driving 95 % CI of a headline case is within
+        ``rel_tol`` of its mean ...
+    study_rel_tol : ... and of a study case (lower cut-off, stiffness variant) within this one
+        (its sampling half-width enters the model-form estimate) ...
     max_members : ... or this cap is reached (reported)
     seed : seed of the members' launch speeds
     v0_spread : relative half-range of the launch speeds
@@ -75,6 +81,7 @@ class CompliantSettings:
     stiffness_factors: tuple[float, ...] = (0.5, 2.0)
     members: int = 16
     rel_tol: float = 0.05
+    study_rel_tol: float = 0.1
     max_members: int = 64
     seed: int = 20260
     v0_spread: float = 0.05
@@ -91,6 +98,7 @@ class CompliantSettings:
             raise ParameterError("stiffness_factors", self.stiffness_factors, "must be two numbers in [0.01, 100]")
         check_integer("members", self.members, 2, 100_000)
         check_range("rel_tol", self.rel_tol, 0.0, 1.0, lo_open=True)
+        check_range("study_rel_tol", self.study_rel_tol, 0.0, 1.0, lo_open=True)
         check_integer("max_members", self.max_members, self.members, 1_000_000)
         check_integer("seed", self.seed, 0)
         check_range("v0_spread", self.v0_spread, 0.0, 0.5)
@@ -189,8 +197,8 @@ def compliant_ensembles(cases, horn, laws: list, residual: float, settings: Comp
 def model_form(study: dict, quantity: str) -> dict:
     """The model-form estimate of ``quantity`` from one mass's study (see the module docstring):
     ``cutoff`` = |headline - next-lower cut-off|, ``stiffness`` = half the spread of the two
-    stiffness variants, ``total`` = their sum; each difference with its sampling half-width
-    (the two ensembles' CIs added in quadrature)."""
+    stiffness variants, each with its sampling half-width (the two ensembles' CIs added in
+    quadrature, halved with the spread); ``total`` = both differences plus both half-widths."""
     levels = study["cutoff"]
     top, below = levels[-1][quantity], levels[-2][quantity]
     lo, hi = (v[quantity] for v in study["stiffness"])
@@ -201,13 +209,29 @@ def model_form(study: dict, quantity: str) -> dict:
     cut, cut_hw = diff(top, below, 1.0)
     stiff, stiff_hw = diff(hi, lo, 0.5)
     return {"cutoff": cut, "cutoff_sampling_half_width": cut_hw, "stiffness": stiff,
-            "stiffness_sampling_half_width": stiff_hw, "total": cut + stiff}
+            "stiffness_sampling_half_width": stiff_hw, "total": cut + cut_hw + stiff + stiff_hw}
 
 
-def _runs(base, design, masses, horns: dict, settings: CompliantSettings, engine) -> tuple[dict, dict]:
+def stage_runs(base, design, masses, horns: dict, settings: CompliantSettings, engine) -> tuple[dict, dict]:
     """Every ensemble of the stage, one batch per horn: the lower cut-offs at the two end masses; at
-    the headline cut-off every mass and the ends' stiffness variants. Returns ``(study, headline)``:
-    end mass -> {"cutoff": [...], "stiffness": [...]}, and mass -> its headline estimates."""
+    the headline cut-off every mass and the ends' stiffness variants. The headline cases hold
+    ``settings.rel_tol``, the study's ``settings.study_rel_tol``.
+
+    Parameters
+    ----------
+    base : impact.params.ImpactParams
+    design : the design (materials of the contact)
+    masses : free masses, kg (increasing)
+    horns : dict
+        cut-off (Hz) -> (impact.horn.ModalHorn, residual m/N, info); the largest is the headline's.
+    settings : CompliantSettings
+    engine : the compliant batch (:func:`impact.compliant_engine.compliant_batch`'s signature)
+
+    Returns
+    -------
+    (dict, dict)
+        ``study``: end mass -> {"cutoff": [...], "stiffness": [...]}; ``headline``: mass -> its estimates.
+    """
     ends = sorted({masses[0], masses[-1]})
     study = {m: {"cutoff": [], "stiffness": []} for m in ends}
     top = max(horns)
@@ -216,7 +240,9 @@ def _runs(base, design, masses, horns: dict, settings: CompliantSettings, engine
         if cut == top:
             cases += [(m, f) for m in ends for f in settings.stiffness_factors]
         laws = [contact_laws(design, m, base.e2, base.e1, settings, f)[:2] for m, f in cases]
-        res = compliant_ensembles([base.with_(m_free=m) for m, _ in cases], horn, laws, g, settings, engine=engine)
+        tols = [settings.rel_tol if cut == top and f == 1.0 else settings.study_rel_tol for _, f in cases]
+        res = compliant_ensembles([base.with_(m_free=m) for m, _ in cases], horn, laws, g, settings, rel_tols=tols,
+                                  engine=engine)
         for (m, f), r in zip(cases, res):
             if f != 1.0:
                 study[m]["stiffness"].append(r | {"stiffness_factor": f})
@@ -264,7 +290,7 @@ def compliant_stage(system, design, freq_hz: float, voltage: float, base, masses
     top = wideband_horn(system, freq_hz, cutoffs[-1], voltage, q_mech=q_mech, modes=wideband_modes(system, cutoffs[-1]),
                         drive=drive, say=say)
     horns = {c: truncated_horn(top[0], top[1], c, freq_hz) + (top[2],) for c in cutoffs[:-1]} | {cutoffs[-1]: top}
-    study, headline = _runs(base, design, masses, horns, settings, engine)
+    study, headline = stage_runs(base, design, masses, horns, settings, engine)
     mf = {m: {q: model_form(study[m], q) for q in QUANTITIES} for m in ends}
     horn, g, info = horns[cutoffs[-1]]
     rel = {q: max(mf[e][q]["total"] / abs(study[e]["cutoff"][-1][q].mean) for e in ends) for q in QUANTITIES}

@@ -97,7 +97,7 @@ def _est(mean, hw):
     return Estimate(mean, hw, 16)
 
 
-def test_model_form_is_the_last_cutoff_step_plus_half_the_stiffness_spread():
+def test_model_form_is_the_last_cutoff_step_plus_half_the_stiffness_spread_with_their_noise():
     study = {"cutoff": [{"q": _est(10.0, 1.0)}, {"q": _est(8.0, 1.0)}, {"q": _est(7.5, 0.3)}],
              "stiffness": [{"q": _est(7.0, 0.4)}, {"q": _est(8.2, 0.3)}]}
     mf = model_form(study, "q")
@@ -105,7 +105,9 @@ def test_model_form_is_the_last_cutoff_step_plus_half_the_stiffness_spread():
     assert mf["cutoff_sampling_half_width"] == pytest.approx(math.hypot(1.0, 0.3))
     assert mf["stiffness"] == pytest.approx(0.6)
     assert mf["stiffness_sampling_half_width"] == pytest.approx(0.5 * math.hypot(0.4, 0.3))
-    assert mf["total"] == pytest.approx(1.1)
+    # each difference counts with its sampling half-width: the study's cases take a looser CI
+    # target than the headline, so the noise of a difference must not pass for convergence
+    assert mf["total"] == pytest.approx(1.1 + math.hypot(1.0, 0.3) + 0.5 * math.hypot(0.4, 0.3))
 
 
 @pytest.mark.parametrize("field, value", [("cutoff_factors", (1.0,)), ("cutoff_factors", (2.0, 1.0)),
@@ -230,3 +232,28 @@ def test_each_case_holds_its_own_ci_target():
     assert seen["rel_tol"] == [0.03, 0.03]
     with pytest.raises(ParameterError, match="rel_tols"):
         compliant_ensembles([1, 2], None, [(None, None)] * 2, 0.0, st, rel_tols=[0.1], engine=engine)
+
+
+def test_the_study_cases_take_the_study_target_and_the_headline_its_own():
+    """The stage's runs: every mass at the headline cut-off holds ``rel_tol``; the lower cut-offs and
+    the stiffness variants (the study, whose noise enters the model-form estimate) ``study_rel_tol``."""
+    from types import SimpleNamespace
+
+    import geometry
+    from impact.params import ImpactParams
+    from results.stage_compliant import QUANTITIES, stage_runs
+
+    asked = []
+
+    def engine(cases, horn, *, horn_law, tool_law, horn_residual, scenario, settings):
+        asked.append((horn, [c.m_free for c in cases], [s.rel_tol for s in settings]))
+        return [SimpleNamespace(estimates={q: _est(1.0, 0.1) for q in QUANTITIES}, members=16, converged=True)
+                for _ in cases]
+
+    st = CompliantSettings(rel_tol=0.03, study_rel_tol=0.12)
+    horns = {30e3: ("low", 0.0, None), 60e3: ("top", 0.0, None)}
+    study, headline = stage_runs(ImpactParams(), geometry.default_design(), [0.001, 0.004, 0.008], horns, st, engine)
+    assert asked[0] == ("low", [0.001, 0.008], [0.12, 0.12])
+    assert asked[1] == ("top", [0.001, 0.004, 0.008, 0.001, 0.001, 0.008, 0.008], [0.03] * 3 + [0.12] * 4)
+    assert sorted(headline) == [0.001, 0.004, 0.008]
+    assert [len(study[m]["cutoff"]) for m in (0.001, 0.008)] == [2, 2]
