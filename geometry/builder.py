@@ -396,6 +396,13 @@ def _swept_sector(gmsh, design, sizes, refine, grade, order, sectors, per_quarte
     return tm
 
 
+def _above_free_coupler(gmsh, design, vol: int) -> bool:
+    """True for a coupler volume swept with the stack (a threaded bolt's thread zone, above the
+    coupler's freely meshed part: :attr:`geometry.design_rpud.RPUDDesign.coupler_top`)."""
+    top = getattr(design, "coupler_top", 0.0)
+    return top < 0 and gmsh.model.getBoundingBox(3, vol)[2] > top - 1e-6
+
+
 def _solids(gmsh, design, layers, per_quarter, sectors, report: BuildReport) -> _Model:
     """The design's solids (parametric or imported), fragmented, with named physical groups."""
     t0 = time.perf_counter()
@@ -415,7 +422,8 @@ def _solids(gmsh, design, layers, per_quarter, sectors, report: BuildReport) -> 
     for name, surfs in facet_surfs.items():
         gmsh.model.addPhysicalGroup(2, sorted(surfs), name=name)
     layer_vols = frozenset(v for name in layers for v in region_vols[name])
-    swept_vols = frozenset(v for name, vs in region_vols.items() if per_quarter and name != "coupler" for v in vs)
+    swept_vols = frozenset(v for name, vs in region_vols.items() if per_quarter for v in vs
+                           if name != "coupler" or _above_free_coupler(gmsh, design, v))
     return _Model(region_vols, region_meta, facet_surfs, layer_vols, swept_vols)
 
 

@@ -27,7 +27,7 @@ from .design_materials import check_material_name
 from .materials import Material
 from .validate import check_bore, check_count, check_frequency, check_length, check_name
 
-__all__ = ["HornDesign", "StackRings", "FlangeDesign", "CouplerDesign", "RPUDDesign", "default_design",
+__all__ = ["BOLT_JOINTS", "HOLE_ALLOWANCE", "HornDesign", "StackRings", "FlangeDesign", "CouplerDesign", "RPUDDesign", "default_design",
            "HORN_MAKER_FILLET", "filleted"]
 
 HORN_MAKER_FILLET = 0.002
@@ -35,6 +35,15 @@ HORN_MAKER_FILLET = 0.002
 1-2 mm is usual for titanium horns of 10-25 mm diameter; 2 mm is the upper end of it."""
 
 _MIN_WALL = MIN_WALL
+
+BOLT_JOINTS = ("faces", "thread")
+"""How a bolt part meets the metal (:attr:`StackRings.bolt_joint`)."""
+
+HOLE_ALLOWANCE = 0.25
+"""Depth of a blind threaded hole beyond its engaged thread, in bolt diameters (3 mm for M12):
+a tapped hole runs on past its full thread (the tap's chamfer and the drill point), so the
+bolt's tip does not bear on the hole's bottom. The model's hole has a flat bottom; the value is a
+stated assumption, not a standard's."""
 _annulus = annulus
 _material = check_material_name
 
@@ -191,20 +200,33 @@ class StackRings:
     bolt_diameter : float
         Diameter of the stack bolt as an elastic part of the model, m (0: the bolt is only its
         prestress, no part). The bolt is a rod in the rings' bore, free along the rings (a radial
-        gap), its back end threaded into the coupler and its front end into the flange; both
-        threads are modelled as bonded faces: its front face bonded to the flange's back face,
-        its back face to the coupler's top face, whose bore is closed over the thread's length
-        :attr:`bolt_engagement` (the threaded hole, titanium in the model). 12 mm is an M12
+        gap), its back end threaded into the coupler and its front end into the flange and horn;
+        :attr:`bolt_joint` says how the threads are modelled (by default as bonded faces: its
+        front face bonded to the flange's back face, its back face to the coupler's top face,
+        whose bore is closed over the thread's length :attr:`bolt_engagement`, titanium in the
+        model). 12 mm is an M12
         bolt: the largest metric coarse size that clears the rings' 15 mm bore (1.5 mm radial gap;
         M14 would leave 0.5 mm), and the bolt force of the default prestress (35.3 kN) stresses
         its 84.3 mm^2 stress area to 419 MPa, half the 830 MPa proof stress of a property class 10.9
         bolt, the class Langevin stacks use. Default 0 (the bolt is its prestress only): the
-        M12 part stiffens the working mode (+10.3 % on f_r of the default drill at fixed
-        lengths), and the drill re-matched with it loses its rotary drive (teeth ellipse ratio
+        M12 part stiffens the working mode (+10.0 % on f_r of the default drill at its matched
+        lengths, threaded; +10.1 % bonded at the faces: :data:`fem.preload.ELASTIC_BOLT_FR_SHIFT`),
+        and the drill re-matched with it loses its rotary drive (teeth ellipse ratio
         0.17 -> 0.007), so it needs a coupler designed with the bolt; see
         docs/theory/operating-point.md.
     bolt_material : str
         Material of the bolt (default the library's steel).
+    bolt_joint : str
+        How the bolt part meets the metal. ``"faces"`` (default): its end faces bonded to the
+        flange's back face and the coupler's top face, the stiffest idealisation of a threaded
+        joint. ``"thread"``: the bolt runs on through the stack's faces into the coupler and
+        through the flange into the horn, bonded to them along its lateral surface over
+        :attr:`bolt_engagement` at each end (a threaded hole engages its bolt over that length),
+        its shank free in the rings' bore; the coupler keeps its bore below the thread (the bolt's
+        back tip is free) and the hole in the horn runs :data:`HOLE_ALLOWANCE` beyond the front tip.
+    thread_engagement : float
+        Engaged thread length at each end of a ``"thread"`` joint, m; 0 (default): 1.5 bolt
+        diameters (:attr:`bolt_engagement`).
     """
 
     _prefix: ClassVar[str] = "stack"
@@ -219,9 +241,13 @@ class StackRings:
     bolt_prestress: float = 45e6
     bolt_diameter: float = 0.0
     bolt_material: str = "steel_45"
+    bolt_joint: str = "faces"
+    thread_engagement: float = 0.0
 
     def __post_init__(self):
         p = self._prefix
+        check_choice(f"{p}.bolt_joint", self.bolt_joint, BOLT_JOINTS)
+        check_range(f"{p}.thread_engagement", self.thread_engagement, 0.0, 0.1, "m")
         check_range(f"{p}.bolt_prestress", self.bolt_prestress, 0.0, 200e6, "Pa")
         check_bore(f"{p}.bolt_diameter", self.bolt_diameter)
         _material(f"{p}.bolt_material", self.bolt_material)
@@ -242,10 +268,18 @@ class StackRings:
 
     @property
     def bolt_engagement(self) -> float:
-        """Length of the bolt's thread in the coupler, m: 1.5 bolt diameters, the engagement a
-        steel bolt needs in a softer metal (titanium) to carry its proof load (Machinery's
-        Handbook, length of engagement); 0 without a bolt part."""
-        return 1.5 * self.bolt_diameter
+        """Length of the bolt's thread in the coupler (and, with a ``"thread"`` joint, in the
+        flange and horn), m: :attr:`thread_engagement` when given, else 1.5 bolt diameters, the
+        engagement a steel bolt needs in a softer metal (titanium) to carry its proof load
+        (Machinery's Handbook, length of engagement); 0 without a bolt part."""
+        if not self.bolt_diameter:
+            return 0.0
+        return self.thread_engagement or 1.5 * self.bolt_diameter
+
+    @property
+    def threaded(self) -> bool:
+        """True for a bolt part engaged by its threads (``bolt_joint == "thread"``)."""
+        return bool(self.bolt_diameter) and self.bolt_joint == "thread"
 
     @property
     def length(self) -> float:
@@ -507,18 +541,68 @@ class RPUDDesign(DesignBase):
                                  "with bore_diameter > 0")
         used = (c.tooth_height if c.n_teeth else 0.0) + (c.slot_offset + c.slot_length if c.n_slots else 0.0)
         room = c.length - used - _MIN_WALL
+        if self.coupler_bore > 0 and s.bolt_engagement > room and s.thread_engagement:
+            raise ParameterError("stack.thread_engagement", s.thread_engagement,
+                                 f"the thread must fit in the coupler's plain base: must be <= {room:g} m")
         if self.coupler_bore > 0 and s.bolt_engagement > room:
             raise ParameterError("stack.bolt_diameter", s.bolt_diameter,
                                  f"its thread (1.5 diameters = {s.bolt_engagement:g} m) must fit in the coupler's "
                                  f"plain base ({room:g} m): must be <= {room / 1.5:g} m, or 0 (no bolt part)")
+        if s.threaded:
+            self._check_thread_hole()
+
+    def _check_thread_hole(self) -> None:
+        """A threaded joint's hole runs through the flange into the horn's first section."""
+        s, h = self.stack, self.horn
+        if h.profile == "exponential":
+            raise ParameterError("stack.bolt_joint", s.bolt_joint,
+                                 "a threaded bolt needs a stepped or conical horn (its hole is swept): use faces")
+        z_hole = self.bolt_hole[1]
+        z_horn = s.length + self.flange.thickness
+        if s.bolt_engagement <= self.flange.thickness + _MIN_WALL:
+            raise ParameterError("stack.thread_engagement", s.bolt_engagement,
+                                 f"the thread must reach through the flange into the horn: must be > "
+                                 f"{self.flange.thickness + _MIN_WALL:g} m")
+        end = z_horn + (h.step_fraction * h.length if h.profile == "stepped" else h.length) - _MIN_WALL
+        if z_hole > end:
+            raise ParameterError("stack.thread_engagement", s.bolt_engagement,
+                                 f"the bolt's hole must end {_MIN_WALL:g} m before the horn's "
+                                 f"{'step' if h.profile == 'stepped' else 'tip'}: must be <= "
+                                 f"{end - s.length - HOLE_ALLOWANCE * s.bolt_diameter:g} m")
 
     @property
     def bolt_thread(self) -> tuple[float, float] | None:
         """``(z0, z1)`` of the coupler's closed bore around the bolt's thread, m (None when the
-        design has no bolt part or the coupler no bore)."""
-        if not self.stack.bolt_diameter or self.coupler_bore <= 0:
+        design has no bolt part, the coupler no bore, or the bolt is threaded into it: then the
+        thread zone is :attr:`thread_zone`)."""
+        if not self.stack.bolt_diameter or self.coupler_bore <= 0 or self.stack.threaded:
             return None
         return -self.stack.bolt_engagement, 0.0
+
+    @property
+    def thread_zone(self) -> tuple[float, float] | None:
+        """``(z0, z1)`` of the coupler's part around a threaded bolt's back end, m: a ring of the
+        coupler bonded to the bolt, swept with the stack (None without a ``"thread"`` joint)."""
+        if not self.stack.threaded:
+            return None
+        return -self.stack.bolt_engagement, 0.0
+
+    @property
+    def coupler_top(self) -> float:
+        """z (m) of the top face of the coupler's freely meshed part: the thread zone's bottom
+        with a ``"thread"`` joint, else the stack's bottom face (0)."""
+        zone = self.thread_zone
+        return zone[0] if zone else 0.0
+
+    @property
+    def bolt_hole(self) -> tuple[float, float] | None:
+        """``(radius, z_end)`` m of a threaded bolt's hole through the flange into the horn (the
+        bolt's front tip at ``stack.length + bolt_engagement``, the hole
+        :data:`HOLE_ALLOWANCE` deeper); None without a ``"thread"`` joint."""
+        s = self.stack
+        if not s.threaded:
+            return None
+        return s.bolt_diameter / 2, s.length + s.bolt_engagement + HOLE_ALLOWANCE * s.bolt_diameter
 
     def material_uses(self) -> list[tuple[str, str, Any]]:
         s = self.stack
@@ -594,7 +678,7 @@ class RPUDDesign(DesignBase):
                 z += c.slot_offset
             zones.append(("coupler.slots", "coupler", z, z + c.slot_length))
             z += c.slot_length
-        thread = self.bolt_thread
+        thread = self.bolt_thread or self.thread_zone
         if thread is not None:
             zones.append(("coupler.base", "coupler", z, thread[0]))
             zones.append(("coupler.thread", "coupler", *thread))
@@ -642,8 +726,10 @@ class RPUDDesign(DesignBase):
         """Axial extent ``(z0, z1)`` in m of every part; the bolt part shares the stack's zones
         (it runs through the rings' bore from the flange to the coupler)."""
         out = super().part_extents()
-        if self.stack.bolt_diameter:
-            out["bolt"] = (0.0, self.stack.length)
+        s = self.stack
+        if s.bolt_diameter:
+            e = s.bolt_engagement if s.threaded else 0.0
+            out["bolt"] = (-e, s.length + e)
         return out
 
     def region_table(self) -> list[tuple[str, str, str, float]]:
@@ -657,12 +743,21 @@ class RPUDDesign(DesignBase):
             else:
                 rows.append((region, "electrodes", s.shim_material,
                              _annulus(s.outer_diameter, s.inner_diameter) * s.shim_thickness))
+        hole_f = hole_h = 0.0
         if s.bolt_diameter:
-            rows.append(("bolt", "bolt", s.bolt_material, _annulus(s.bolt_diameter, 0.0) * s.length))
+            z0, z1 = self.part_extents()["bolt"]
+            rows.append(("bolt", "bolt", s.bolt_material, _annulus(s.bolt_diameter, 0.0) * (z1 - z0)))
+        if s.threaded:
+            # the coupler's thread zone is closed down to the bolt; the hole's share in each part
+            rows[0] = (*rows[0][:3], rows[0][3] + _annulus(self.coupler_bore, s.bolt_diameter) * s.bolt_engagement)
+            r, z_end = self.bolt_hole
+            hole_f = math.pi * r ** 2 * self.flange.thickness
+            hole_h = math.pi * r ** 2 * (z_end - s.length - self.flange.thickness)
         fv = self.fillet_volumes()
         rows.append(("flange_disc", "flange", self.flange.material,
-                     _annulus(self.flange.outer_diameter, self.bore_diameter) * self.flange.thickness + fv["flange_disc"]))
-        rows.append(("horn", "horn", self.horn.material, self.horn.volume(self.bore_diameter) + fv["horn"]))
+                     _annulus(self.flange.outer_diameter, self.bore_diameter) * self.flange.thickness + fv["flange_disc"]
+                     - hole_f))
+        rows.append(("horn", "horn", self.horn.material, self.horn.volume(self.bore_diameter) + fv["horn"] - hole_h))
         return rows
 
     def sections_1d(self, n_taper: int = 200) -> list[tuple[float, float, str]]:
@@ -671,7 +766,9 @@ class RPUDDesign(DesignBase):
         Slots reduce the area by their cross-section; the teeth count with their area
         fraction; tapered horns are cut into ``n_taper`` slices (midpoint diameters). A bolt part
         is a member in parallel with the rings, which a chain of slices cannot hold: it is left
-        out (the coupler's bore closed around its thread is in).
+        out (the coupler's bore closed around its thread is in, the coupler's material standing
+        for the threaded bolt's steel there; the hole of a threaded bolt in the flange and horn is
+        not cut from their slices).
         """
         c, s = self.coupler, self.stack
         out = []
@@ -686,7 +783,7 @@ class RPUDDesign(DesignBase):
             out.append((c.slot_length, full - c.n_slots * c.slot_area(), c.material))
         base = [z for z in self._zones() if z[0] == "coupler.base"][0]
         out.append((base[3] - base[2], full, c.material))
-        if self.bolt_thread is not None:
+        if self.bolt_thread is not None or self.thread_zone is not None:
             out.append((self.stack.bolt_engagement, _annulus(c.outer_diameter, 0.0), c.material))
         for region, kind, z0, z1 in self.stack_layers():
             mat = s.material if kind == "ring" else s.shim_material

@@ -105,7 +105,7 @@ def bonded_sandwich(metal: str = "al7075", ceramic: str = "PZT-4", bond: str = "
 
 def bolted_design(horn_length: float = 0.07549045, coupler_length: float = 0.05355691,
                   step_fraction: float = 0.57, slot_offset: float = 0.008,
-                  horn_back_diameter: float = 0.030) -> RPUDDesign:
+                  horn_back_diameter: float = 0.030, bolt_joint: str = "faces") -> RPUDDesign:
     """The drill with its M12 bolt part (``stack.bolt_diameter`` 12 mm), designed with the bolt.
 
     The bolt stiffens the working mode, so the match lengthens the horn and the coupler, and
@@ -131,10 +131,14 @@ def bolted_design(horn_length: float = 0.07549045, coupler_length: float = 0.053
         Gap between the teeth roots and the slotted zone, m.
     horn_back_diameter : float
         Diameter of the horn's back section, m.
+    bolt_joint : {"faces", "thread"}
+        How the bolt meets the metal (:attr:`geometry.design_rpud.StackRings.bolt_joint`): the
+        lengths are matched with ``"faces"``; ``"thread"`` keeps them (the thread's effect at
+        fixed lengths, docs/theory/operating-point.md).
     """
     d = default_design()
     horn = replace(d.horn, length=horn_length, step_fraction=step_fraction, back_diameter=horn_back_diameter)
-    return RPUDDesign(name="bolted", horn=horn, stack=replace(d.stack, bolt_diameter=0.012), flange=d.flange,
+    return RPUDDesign(name="bolted", horn=horn, stack=replace(d.stack, bolt_diameter=0.012, bolt_joint=bolt_joint), flange=d.flange,
                       coupler=replace(d.coupler, length=coupler_length, slot_offset=slot_offset))
 
 

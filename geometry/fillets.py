@@ -135,9 +135,12 @@ def horn_fillets(d) -> dict[str, FilletArc]:
 
 def flange_horn_outlines(d) -> tuple[Outline, Outline | None]:
     """(flange outline, horn outline) of an RPUD with its fillets; the horn's is None for an
-    exponential profile (a loft, not a polygon with arcs: see :func:`exponential_base`)."""
+    exponential profile (a loft, not a polygon with arcs: see :func:`exponential_base`). A
+    threaded bolt's hole (:attr:`geometry.design_rpud.RPUDDesign.bolt_hole`) bores the flange
+    and ends in the horn."""
     s, f, h = d.stack, d.flange, d.horn
-    b = d.bore_diameter / 2
+    hole = getattr(d, "bolt_hole", None)
+    b = hole[0] if hole else d.bore_diameter / 2
     zf = s.length
     z0 = zf + f.thickness
     Rf = f.outer_diameter / 2
@@ -163,7 +166,8 @@ def flange_horn_outlines(d) -> tuple[Outline, Outline | None]:
             pts.append(sf.start)
             arcs[len(pts) - 1] = sf.centre
             pts.append(sf.end)
-    pts += [(Rt, z0 + L), (b, z0 + L)]
+    pts.append((Rt, z0 + L))
+    pts += [(0.0, z0 + L), (0.0, hole[1]), (b, hole[1])] if hole else [(b, z0 + L)]
     return flange, Outline(pts, arcs)
 
 

@@ -107,7 +107,9 @@ def _regions(design) -> list[tuple[str, float, float, float]]:
         for region, kind, z0, z1 in design.stack_layers():
             lengths[region] = z1 - z0
             radii[region] = s.outer_diameter / 2
-        lengths["bolt"], radii["bolt"] = s.length, s.bolt_diameter / 2
+        if s.bolt_diameter:
+            z0, z1 = design.part_extents()["bolt"]
+            lengths["bolt"], radii["bolt"] = z1 - z0, s.bolt_diameter / 2
         for region, _part, _mat, vol in design.region_table():
             out.append((region, vol, lengths[region], radii[region]))
     elif isinstance(design, CadDesign):

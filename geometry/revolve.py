@@ -120,14 +120,25 @@ def section_outlines(d: RPUDDesign) -> list[tuple[str, str, str, object, tuple]]
     (m), counter-clockwise, in the order of :func:`geometry.solids.make_rpud`; the flange's and
     the horn's with their fillet arcs (:func:`geometry.fillets.flange_horn_outlines`; a stepped or
     conical horn). A bolt part is one outline per stack layer (one region): a plane across the
-    stack at an electrode (where the matching cuts the drill) then cuts no element of it."""
+    stack at an electrode (where the matching cuts the drill) then cuts no element of it. A
+    threaded bolt (:attr:`geometry.design_rpud.StackRings.threaded`) runs on into the coupler's
+    thread zone (a ring of the coupler, region ``coupler``, bonded to it) and through the flange
+    into the horn, one outline per part it passes."""
     s, f, h = d.stack, d.flange, d.horn
     ri, ro = s.inner_diameter / 2, s.outer_diameter / 2
     out = [(*meta, ((ri, z0), (ro, z0), (ro, z1), (ri, z1))) for *meta, z0, z1 in stack_regions(d)]
     if s.bolt_diameter:        # one piece per stack layer: its faces meet every electrode plane
         rb = s.bolt_diameter / 2
+        spans = [(z0, z1) for _r, _kind, z0, z1 in d.stack_layers()]
+        zone = d.thread_zone
+        if zone is not None:
+            zf, e = s.length, s.bolt_engagement
+            spans = [zone] + spans + [(zf, zf + f.thickness), (zf + f.thickness, zf + e)]
+            rc, rbore = d.coupler.outer_diameter / 2, d.coupler_bore / 2
+            out.append(("coupler", "coupler", d.coupler.material, None,
+                        ((rb, zone[0]), (rbore, zone[0]), (rc, zone[0]), (rc, zone[1]), (ri, zone[1]), (rb, zone[1]))))
         out += [("bolt", "bolt", s.bolt_material, None, ((0.0, z0), (rb, z0), (rb, z1), (0.0, z1)))
-                for _r, _kind, z0, z1 in d.stack_layers()]
+                for z0, z1 in spans]
     flange, horn = flange_horn_outlines(d)
     out.append(("flange_disc", "flange", f.material, None, flange))
     out.append(("horn", "horn", h.material, None, horn))

@@ -61,7 +61,8 @@ def check_sweepable(d: RPUDDesign) -> None:
 
 def sector_model(gmsh, d: RPUDDesign, sectors: int):
     """The OCC model: ``(coupler_vols, section_faces, interface)`` with ``section_faces`` region ->
-    face tags (plane theta = 0) and ``interface`` the coupler's top face (z = 0)."""
+    face tags (plane theta = 0) and ``interface`` the top face of the coupler's free part (z =
+    :attr:`geometry.design_rpud.RPUDDesign.coupler_top`)."""
     occ = gmsh.model.occ
     coupler = make_coupler(occ, d, sectors)
     outlines = section_outlines(d)
@@ -72,7 +73,7 @@ def sector_model(gmsh, d: RPUDDesign, sectors: int):
     section: dict[str, list[int]] = {}
     for o, m in zip(outlines, omap[len(coupler):len(coupler) + len(outlines)]):     # a region of several faces
         section[o[0]] = sorted(set(section.get(o[0], []) + [t for dim, t in m if dim == 2]))
-    top = [f for f in boundary_surfaces(gmsh, vols) if planar_at(gmsh, f, "z", 0.0, 1e-6)]
+    top = [f for f in boundary_surfaces(gmsh, vols) if planar_at(gmsh, f, "z", d.coupler_top, 1e-6)]
     if len(top) != 1:      # pragma: no cover - check_sweepable keeps the coupler top one face
         raise ParameterError("design", d.name, f"the coupler's top face is {len(top)} faces")
     return vols, section, top[0], {o[0]: o[1:4] for o in outlines}
@@ -163,7 +164,7 @@ def premesh_interface(gmsh, face: int, sectors: int, layers: int, new_tag: int):
     return grid, np.hypot(x0[:, 0], x0[:, 1]), new_tag
 
 
-def _interface_grid(gmsh, face: int, points_rz: dict, sectors: int, layers: int) -> dict:
+def _interface_grid(gmsh, face: int, points_rz: dict, sectors: int, layers: int, z_face: float) -> dict:
     """Section tag -> the coupler top face's node tags of its copies at layers 0 .. ``layers``
     (found by position: Gmsh renumbers nodes when it raises the order)."""
     from scipy.spatial import cKDTree
@@ -175,7 +176,7 @@ def _interface_grid(gmsh, face: int, points_rz: dict, sectors: int, layers: int)
     scale = float(np.abs(xyz).max())
     out = {}
     for t, p in points_rz.items():
-        if abs(p[2]) > 1e-12 or p[0] <= 0:
+        if abs(p[2] - z_face) > 1e-12 or p[0] <= 0:
             continue
         ring = np.array([rotation(j * 2 * math.pi / (sectors * layers)) @ p for j in range(layers + 1)])
         dist, k = tree.query(ring)
@@ -281,15 +282,15 @@ def add_midnodes(points: np.ndarray, cells4: np.ndarray, known: dict) -> tuple[n
 
 
 def _check_interface(design: RPUDDesign, points: np.ndarray, cells: np.ndarray) -> None:
-    """Raise if the coupler and the first ring (or the bolt) do not meet face to face (a boundary
-    triangle inside their common annulus, or the bolt's disc, at z = 0)."""
+    """Raise if the coupler's free part and the section do not meet face to face (a boundary
+    triangle inside their common annulus, or a face-bonded bolt's disc, at the free part's top)."""
     local = np.array([[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]])
     faces, counts = np.unique(np.sort(cells[:, :4][:, local].reshape(-1, 3), axis=1), axis=0, return_counts=True)
     p = points[faces[counts == 1]]
     r = np.hypot(p[:, :, 0], p[:, :, 1])
     bonded = ((r > design.coupler_bore / 2 + 1e-9) & (r < design.coupler.outer_diameter / 2 - 1e-9)
-              | (r < design.stack.bolt_diameter / 2 - 1e-9))
-    inside = np.all((np.abs(p[:, :, 2]) < 1e-12) & bonded, axis=1)
+              | (design.bolt_thread is not None) & (r < design.stack.bolt_diameter / 2 - 1e-9))
+    inside = np.all((np.abs(p[:, :, 2] - design.coupler_top) < 1e-12) & bonded, axis=1)
     if inside.any():    # pragma: no cover - the cuts follow one order on both sides
         raise RuntimeError(f"{int(inside.sum())} faces of the coupler's top do not match the first ring's "
                            "or the bolt's")
@@ -309,15 +310,18 @@ def assemble_sector(design: RPUDDesign, coords: np.ndarray, coupler_cells: np.nd
     regions = [Region("coupler", "coupler", design.coupler.material, None)]
     cells, cell_region = [coupler_cells], [np.zeros(len(coupler_cells), dtype=np.int64)]
     points = coords
-    for i, (region, c4) in enumerate(swept.items(), start=1):
+    swept_mask = [np.zeros(len(coupler_cells), dtype=bool)]
+    for region, c4 in swept.items():
         part, material, poling = region_meta[region]
-        regions.append(Region(region, part, material, None if poling is None else tuple(float(x) for x in poling)))
+        if region != "coupler":     # a threaded bolt's thread zone is the coupler's
+            regions.append(Region(region, part, material, None if poling is None else tuple(float(x) for x in poling)))
         points, c10 = add_midnodes(points, c4, known)
         cells.append(c10)
-        cell_region.append(np.full(len(c10), i, dtype=np.int64))
+        cell_region.append(np.full(len(c10), [r.name for r in regions].index(region), dtype=np.int64))
+        swept_mask.append(np.ones(len(c10), dtype=bool))
     cells = np.concatenate(cells)
     cell_region = np.concatenate(cell_region)
-    swept_mask = cell_region > 0
+    swept_mask = np.concatenate(swept_mask)
     points = place_midnodes(points, cells[swept_mask])
     cells = orient(cells, points)
     facet_sets = dict(coupler_facets)
@@ -417,7 +421,7 @@ def mesh_swept_sector(gmsh, d: RPUDDesign, sizes: dict, refine: float, grade: bo
     where = dict(zip(node_tags.tolist(), range(len(node_tags))))
     corner_tags = np.unique(np.concatenate([t for _r, t in tri]))
     points_rz = {int(t): xyz[where[int(t)]] for t in corner_tags}
-    fixed = _interface_grid(gmsh, top, points_rz, sectors, layers)
+    fixed = _interface_grid(gmsh, top, points_rz, sectors, layers, d.coupler_top)
     # the top face was cut by its tags before setOrder renumbered them: the prisms below it are
     # cut in that order too (rows of the grid: the top face's edge nodes outward, found by radius)
     rank = {}

@@ -119,7 +119,9 @@ JUNCTION_GROWTH = 0.4
 
 BOLT_END_FRACTION = 0.05
 """Edge size at the stack bolt's bonded ends (re-entrant corners on the coupler's and the
-flange's faces, :func:`junction_edges`) as a fraction of the smallest of the bolt's, the
+flange's faces, :func:`junction_edges`; with a threaded bolt the same circles, where its shank
+leaves the coupler's and the flange's thread: the thread's far ends and the hole's bottom lie
+away from the rings and are not graded) as a fraction of the smallest of the bolt's, the
 coupler's and the flange's sizes; growth :data:`REVOLVE_GROWTH`. Measured on a bolted variant of
 the design without slots and teeth (tests/test_sector_paths.py, sector path at refine 1; f_r /
 f_a / tip amplitude per volt against the (r, z) model, DOFs): not graded +0.089 / +0.065 /
@@ -387,8 +389,8 @@ def junction_edges(design: DesignBase, sizes: dict[str, float], refine: float = 
             frac = JUNCTION_FRACTION if fraction is None else fraction
             edges.append(GradedEdge(a.z1, r, frac * h_min, JUNCTION_GROWTH * refine, (a.region, b.region)))
     if isinstance(design, RPUDDesign) and design.stack.bolt_diameter and "bolt" in sizes:
-        # the bolt's bonded ends on the coupler and the flange: 270-degree re-entrant corners
-        # (the gap to the rings' bore beside them)
+        # the bolt's bonded ends on the coupler and the flange (a threaded bolt's shank leaving
+        # its threads): 270-degree re-entrant corners (the gap to the rings' bore beside them)
         h = BOLT_END_FRACTION * min(sizes["bolt"], sizes["coupler"], sizes["flange_disc"])
         for z, other in ((0.0, "coupler"), (design.stack.length, "flange_disc")):
             edges.append(GradedEdge(z, design.stack.bolt_diameter / 2, h, REVOLVE_GROWTH * refine, ("bolt", other)))

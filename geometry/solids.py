@@ -17,7 +17,7 @@ from .design_rpud import RPUDDesign
 from .design_stack import StackDesign
 from .layers import Layer, make_layer
 from .fillets import exponential_base, flange_horn_outlines
-from .revolve import revolved_parts, section_face, stack_regions
+from .revolve import revolved_parts, section_face, section_outlines, stack_regions
 
 __all__ = ["make_rpud", "make_coupler", "make_stack"]
 
@@ -132,7 +132,8 @@ def make_coupler(occ, d: RPUDDesign, sectors: int | None = None):
     """OCC solid(s) of the coupler (teeth gaps and slots cut away); ``sectors``: only its part
     in 0 <= theta <= 2 pi / sectors."""
     c = d.coupler
-    body = _annular_cylinder(occ, -c.length, c.length, c.outer_diameter / 2, d.coupler_bore / 2)
+    # a threaded bolt's thread zone is swept with the stack (geometry.revolve.section_outlines)
+    body = _annular_cylinder(occ, -c.length, c.length + d.coupler_top, c.outer_diameter / 2, d.coupler_bore / 2)
     thread = d.bolt_thread
     if thread is not None:      # the bore closed around the bolt's thread
         plug = occ.addCylinder(0, 0, thread[0], 0, 0, thread[1] - thread[0], d.coupler_bore / 2)
@@ -166,6 +167,8 @@ def make_rpud(occ, d: RPUDDesign, revolve: int | None = None, sectors: int | Non
     pieces = [("coupler", "coupler", d.coupler.material, None, make_coupler(occ, d))]
     if revolve:
         return pieces + revolved_parts(occ, d, revolve)
+    if s.threaded:      # the bolt's thread zones and holes: every body of revolution from its outline
+        return _sector(occ, d, pieces + [(*o[:4], _revolved(occ, o[4])) for o in section_outlines(d)], sectors)
     # ---- stack
     for *meta, z0, z1 in stack_regions(d):
         pieces.append((*meta, _annular_cylinder(occ, z0, z1 - z0, s.outer_diameter / 2, s.inner_diameter / 2)))
