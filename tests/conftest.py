@@ -39,6 +39,7 @@ SLOW: tuple[str, ...] = (
     "tests/test_bolt.py::test_threaded_bolt_is_bonded_over_its_engagement_only",
     "tests/test_bolt.py::test_threaded_shank_carries_the_preload_without_shear",
     "tests/test_bolt.py::test_threaded_bolt_shift_within_the_1d_bounds",
+    "tests/test_bolt.py::test_documented_bolt_shift_is_the_default_drills",
     "tests/test_bolted_design.py::test_bolted_example_is_matched_and_drives_the_rotor",
     "tests/test_bolted_design.py::test_default_horn_with_the_bolt_absorbs_the_teeth_torsion",
     "tests/test_bolted_design.py::test_default_horn_back_leaves_the_driving_mode_below_the_drive",
