@@ -90,7 +90,10 @@ def teeth_refine(design, options, surfaces) -> tuple[float | None, str]:
     from geometry.guard import MAX_DOFS, sector_estimate
     from geometry.sector import symmetry_order
 
-    if options.path != "sector" or "teeth_tops" not in surfaces:
+    # the mesh names the coupler's end face teeth_tops on a design without teeth too: its motion
+    # there drives nothing, so the design decides
+    has_teeth = getattr(getattr(design, "coupler", None), "n_teeth", 0)
+    if options.path != "sector" or "teeth_tops" not in surfaces or not has_teeth:
         return None, "the teeth motion is the run's mesh's (not a k = 0 sector run with teeth)"
     refine = options.refine * TEETH_REFINE
     if refine < 0.2:
@@ -107,8 +110,7 @@ def teeth_mesh_text(design, options) -> str:
     (resolved) on ``design``."""
     from fem.sector_system import path_label
 
-    teeth = ("teeth_tops",) if getattr(getattr(design, "coupler", None), "n_teeth", 0) else ()
-    refine, why = teeth_refine(design, options, teeth)
+    refine, why = teeth_refine(design, options, ("teeth_tops",))
     if refine is None:
         return why.removeprefix("the teeth motion is ")
     return path_label(design, "sector", refine=refine, grade=options.grade, mesh_size=options.mesh_size)

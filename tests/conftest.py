@@ -95,6 +95,7 @@ SLOW: tuple[str, ...] = (
     "tests/test_entry_points.py::test_installed_command_runs_like_python_m[rpud-harmonic---voltage=inf]",
     "tests/test_error_cli.py",
     "tests/test_examples.py",
+    "tests/test_examples_studies.py",
     "tests/test_explore_hostile.py::test_bad_resume_record_is_refused[list]",
     "tests/test_explore_hostile.py::test_fuzzed_study_files_are_refused",
     "tests/test_explore_hostile.py::test_interrupt_is_one_line",

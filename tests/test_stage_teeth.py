@@ -20,6 +20,13 @@ def test_the_finer_mesh_runs_on_sector_runs_with_teeth_only():
     refine, why = teeth_refine(d, MeshOptions(path="whole").resolved(d), TEETH)
     assert refine is None and "not a k = 0 sector run" in why
     assert teeth_refine(d, sector, ("horn_tip",))[0] is None
+    # the mesh of a design without teeth still names the coupler's end face teeth_tops
+    plain = d.replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    plain_sector = MeshOptions().resolved(plain)
+    assert plain_sector.path == "sector"
+    refine, why = teeth_refine(plain, plain_sector, TEETH)
+    assert refine is None and "with teeth" in why
+    assert teeth_mesh_text(plain, plain_sector).startswith("the run's mesh's")
     assert teeth_refine(d, MeshOptions(refine=0.24).resolved(d), TEETH)[0] is None    # 0.19: below the range
 
 
