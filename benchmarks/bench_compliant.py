@@ -10,9 +10,11 @@ spring, 20 ms discarded, 200 ms window).
    closed-form flights) and the compiled one (impact.kernel_compliant) side by side.
 2. CPU time per device member (0.22 s simulated) at 8 g and 1 g, 70 kHz cut-off: the compiled
    engine as first landed (commit BASELINE: Dormand-Prince 5(4) contacts, events located by whole
-   trial steps; loaded from git, so it shares this checkout's impact.compliant.approach_of) against
-   this checkout's (DOP853 contacts, events on the step's interpolant) at rtol 1e-10 and 1e-9, the same
-   members, one thread; with each run's window energy balance and its tool KE (95 % CI).
+   trial steps; loaded from git, so it shares this checkout's impact.compliant.approach_of), the one
+   at PREVIOUS (DOP853 contacts, events on the step's interpolant, the modes integrated in every
+   contact) and this checkout's (the modes in closed form while only the tool's contact is closed)
+   at rtol 1e-10 and 1e-9, the same members, one thread; with each run's window energy balance and
+   its tool KE (95 % CI).
 3. The converged table: free masses 1-8 g at the 70 kHz cut-off, every driving quantity's 95 % CI
    within 3 %, and the convergence study at 1 g and 8 g: cut-offs 40 and 100 kHz, contact
    stiffness x0.5 and x2 (16 cases). Target: 30 s on 2 cores. Side by side in the same run: the
@@ -40,6 +42,9 @@ CUTOFFS = (40e3, 70e3, 100e3)
 BASE_CUT = 70e3
 #: the compiled compliant engine as first landed (Dormand-Prince 5(4) contact phases)
 BASELINE = "e35e23a"
+#: the compiled engine before the tool-only contacts moved the modes in closed form (every contact
+#: state integrated with the modes)
+PREVIOUS = "7a89ed6"
 #: compliant_batch before the rounds over all cases and the growth to the CI's need
 BATCH_BASELINE = "de567f9"
 #: the CI target of the study's cases in this checkout's table (the headline's: 3 %)
@@ -112,8 +117,12 @@ def _per_member(f, horns, tip, ball):
     from impact.stats import StatsSettings, ensemble_members, get_scenario, mean_ci
 
     old = _baseline_kernel()
-    engines = ([] if old is None else [(f"{BASELINE} (5(4)), rtol 1e-10", old, 1e-10)]) + [
-        ("this checkout (DOP853), rtol 1e-10", KC, 1e-10), ("this checkout (DOP853), rtol 1e-9", KC, 1e-9)]
+    prev = _git_module(PREVIOUS, "impact/kernel_compliant.py", "kernel_compliant_previous")
+    engines = ([] if old is None else [(f"{BASELINE} (5(4)), rtol 1e-10", old, 1e-10)]) + (
+        [] if prev is None else [(f"{PREVIOUS} (DOP853, modes integrated in tool-only contacts), rtol 1e-10", prev,
+                                  1e-10)]) + [
+        ("this checkout (DOP853, modes in closed form in tool-only contacts), rtol 1e-10", KC, 1e-10),
+        ("this checkout, rtol 1e-9", KC, 1e-9)]
     horn, g = horns[BASE_CUT]
     tab, xs = horn.pack(f)
     sc = get_scenario("device")
@@ -132,6 +141,8 @@ def _per_member(f, horns, tip, ball):
             led = np.max(np.abs(out[:, KC.K_LEDGER] / out[:, KC.C_DRIVE]))
             ke = mean_ci(out[:, KC.S_KE_AFTER] / np.maximum(out[:, KC.S_N_TOOL], 1), 0.95)
             speed = f"; **{cost[(m, engines[0][0])] / cpu:.1f}x** the baseline" if mod is KC and old is not None else ""
+            if mod is KC and prev is not None:
+                speed += f"; {cost[(m, engines[len(engines) - 3][0])] / cpu:.2f}x {PREVIOUS}"
             rows.append((f"{m * 1e3:g} g, {name}", f"{cpu * 1e3:.1f} ms",
                          f"ledger max {led:.1e} of the drive work; tool KE per contact {ke.scaled(1e3)} mJ{speed}"))
     return rows, cost, [e[0] for e in engines]
