@@ -153,6 +153,7 @@ def write_report_html(s: dict, path, *, asset_dir, lines: list[str] | None = Non
 
 def report_lines(s: dict) -> list[str]:
     """The Markdown lines of the report (see :func:`write_report`)."""
+    from .rotor_stage import report_lines as rotor_report_lines
     from .stress_stage import report_lines as stress_lines
 
     lines = _heading_lines(s) + _summary_table_lines(s)
@@ -165,6 +166,7 @@ def report_lines(s: dict) -> list[str]:
 
         lines += drilling_lines(s["drilling"])
     lines += [""] + stress_lines(s.get("stress"))
+    lines += rotor_report_lines(s.get("rotor"))
     lines += _figure_lines(s) + _timing_lines(s["timings"]) + _provenance_lines(s)
     return escape_table_pipes("\n".join(lines)).split("\n")
 

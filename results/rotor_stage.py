@@ -22,11 +22,12 @@ import logging
 from impact.rotor import RotorParams, bit_friction_torque
 from impact.rotor_box import OUTPUTS, ROUNDOFF, TeethReport, error_box, rotor_text
 from rpud_common import ParameterError, check_nonnegative
+from rpud_common.formatting import plus_minus
 
 log = logging.getLogger(__name__)
 
 __all__ = ["TeethReport", "rotor_params_from_design", "teeth_report", "rotor_stage", "rotor_text", "study_rotor",
-           "OUTPUTS", "BIT", "ROUNDOFF", "STUDY_OUTPUTS"]
+           "report_lines", "OUTPUTS", "BIT", "ROUNDOFF", "STUDY_OUTPUTS"]
 
 BIT = (3e-3, 0.4)
 """The load's bit: diameter (m) of a flat bit and its friction coefficient in rock (assumed)."""
@@ -150,6 +151,36 @@ def pipeline_rotor_stage(design, wp, f_w: float, est, wob: float, say=None) -> d
     j["load_note"] = (f"the bit's friction in rock: flat {BIT[0] * 1e3:g} mm bit, weight on bit {wob:g} N, "
                       f"mu_rock {BIT[1]:g} (assumed)")
     return out
+
+
+def report_lines(rotor: dict | None) -> list[str]:
+    """The report's rotary-unit section from the summary's ``rotor`` block (None: no section).
+
+    The terminal's line (:func:`rotor_text`: no-load speed, stall torque, speed under the load,
+    each +- its error), the teeth motion it was driven by with its discretisation errors, the
+    power and efficiencies, and the model's own notes (a rotor that does not hover is no
+    prediction): the report states what the terminal printed, with the same uncertainties.
+    """
+    if not rotor:
+        return []
+    t = rotor["teeth"]
+    holds = (rotor.get("hover") or {}).get("holds")
+    values = {key: rotor[key] for key, _, _ in OUTPUTS}
+    errors = {key: rotor[f"{key}_error"] for key, _, _ in OUTPUTS}
+    bound = (rotor.get("nominal") or {}).get("torque_bound_mu_f_r_n_m")
+    lines = ["", "## Rotary unit", "",
+             rotor_text(values, errors, rotor["load_torque_n_m"], holds, bound) + ".", "",
+             f"Driven by the teeth motion at {t['freq_hz'] / 1e3:.3f} kHz: axial "
+             f"{plus_minus(t['axial_m'], t['axial_m_error'], 'um', 1e6)}, ellipse ratio "
+             f"{plus_minus(t['ellipse_ratio'], t['ellipse_ratio_error'], '')}, phase "
+             f"{plus_minus(t['phase_deg'], t['phase_deg_error'], 'deg')} (± discretisation); the rotor's errors are "
+             f"the {rotor['errors_from']}. The load: {rotor['load_note']}; under it "
+             f"{plus_minus(rotor['load_power_w'], rotor['load_power_w_error'], 'mW', 1e3)} mechanical, "
+             f"contact efficiency {plus_minus(rotor['contact_efficiency'], rotor['contact_efficiency_error'], '')}, "
+             f"electrical efficiency {plus_minus(rotor['electric_efficiency'], rotor['electric_efficiency_error'], '')} "
+             f"({rotor['electric_efficiency_note']}); largest power "
+             f"{plus_minus(rotor['max_power_w'], rotor['max_power_w_error'], 'mW', 1e3)}.", ""]
+    return lines + [f"- {note}" for note in rotor.get("notes", [])] + ([""] if rotor.get("notes") else [])
 
 
 def _teeth_axial(wp, scale: float) -> float:

@@ -34,6 +34,7 @@ import json
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -345,6 +346,29 @@ def test_stage_errors_print_to_their_significant_digits():
     assert rotor_text(out, zero, 2.8e-3, False).endswith("not a prediction")
     # below the friction bound the stall torque is a computed value and keeps its +- form
     assert "stall 45 ± 0 mN m" in rotor_text(out, zero, 2.8e-3, True, 2 * out["stall_torque_n_m"])
+
+
+def test_report_section_states_what_the_terminal_printed():
+    # the report's rotary-unit section carries the stage's own line (each number +- its error), the
+    # teeth motion with its errors and the model's notes; a run without the stage has no section
+    from results.report import report_lines as full_report
+    from results.rotor_stage import TeethReport, report_lines, rotor_stage
+
+    lines = []
+    out = rotor_stage(TeethReport(20e3, 9.8787e-6, 1.125e-8, 0.17257, 0.012, 171.238, 0.18), RotorParams(), 2.8e-3,
+                      270.0, points=5, say=lines.append)["json"]
+    out["load_note"] = "the bit's friction in rock (assumed)"
+    section = report_lines(out)
+    assert section[1] == "## Rotary unit" and section[3] == lines[0].strip() + "."
+    assert "axial 9.879 ± 0.011 um, ellipse ratio 0.173 ± 0.012, phase 171.24 ± 0.18 deg" in section[5], section[5]
+    assert "the bit's friction in rock (assumed)" in section[5]
+    assert all(f"- {note}" in section for note in out["notes"])
+    assert report_lines(None) == []
+    summary = json.loads((Path(__file__).resolve().parent.parent / "results" / "default" / "summary.json").read_text())
+    summary["rotor"] = out
+    assert "## Rotary unit" in full_report(summary)
+    summary["rotor"] = None
+    assert "## Rotary unit" not in full_report(summary)
 
 
 @pytest.mark.parametrize("phase", [-90.0, 90.0])

@@ -8,7 +8,7 @@ A ``kind = "rpud"`` design is the article's drill composition (coupler, piezo ri
 horn); every field has a default, so a design file needs only what differs. Here the horn is
 10 mm longer than the default one (the stepped profile keeps its step at half the length). A
 longer horn lowers the working resonance: the default horn and coupler lengths are the ones
-resonance matching (``fem.match``, ``python -m geometry --match``) tuned to the 20 kHz target,
+resonance matching (``fem.match``, ``python -m fem.modal --match``) tuned to the 20 kHz target,
 and a changed horn is off that target until it is matched again.
 
 The file written here works on the command line as well:
