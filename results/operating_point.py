@@ -18,7 +18,8 @@ import numpy as np
 
 log = logging.getLogger(__name__)
 
-__all__ = ["operating_point_stage", "losses_bracket", "bracket_bases", "measured_settings", "preload_stage",
+__all__ = ["operating_point_stage", "losses_bracket", "bracket_bases", "measured_settings", "preload_stage", "preload_unit",
+           "preload_state",
            "thermal_stage", "report_lines"]
 
 
@@ -174,34 +175,50 @@ def measured_settings(settings, system, modal, w: int, say=None):
                                losses_source=losses.source)
 
 
-def preload_stage(design, system, wp, say=None):
+def preload_unit(system):
+    """The bolt's static state under a unit preload (:func:`fem.preload.preload_solve` at 1 N) of
+    ``system``, or the ParameterError of a design without two stack end electrodes (no bolt to
+    model). Only the FE system enters, so the pipeline solves it beside the harmonic stage."""
+    from fem.preload import preload_solve
+    from rpud_common import ParameterError
+
+    try:
+        return preload_solve(system, 1.0)
+    except ParameterError as exc:
+        return exc
+
+
+def preload_stage(design, system, wp, say=None, unit=None):
     """The bolt's static state and the preload window of every ring at the working point.
 
     Returns ``(state, record)``: the :class:`fem.preload.PreloadState` of the design's bolt
     (None without one; the stress stage adds it) and ``summary.json["operating_point"]
     ["preload"]`` (the windows, the largest drive with a window, and a verdict that says why a
-    failing design fails and what would fix it)."""
-    from fem.preload import design_preload, preload_solve, preload_windows
+    failing design fails and what would fix it). ``unit``: :func:`preload_unit` of ``system``
+    when already solved (else solved here)."""
+    from fem.preload import design_preload, preload_windows
+    from rpud_common import ParameterError
 
     t0 = time.perf_counter()
-    force = design_preload(design)
-    try:
-        unit = preload_solve(system, 1.0)
-    except Exception as exc:             # a design without two stack end electrodes has no bolt to model
-        from rpud_common import ParameterError
-
-        if not isinstance(exc, ParameterError):
-            raise
-        return None, {"verdict": f"no preload window: {exc}", "ok": None}
-    win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, force, unit_state=unit)
+    unit = preload_unit(system) if unit is None else unit
+    if isinstance(unit, ParameterError):         # a design without two stack end electrodes has no bolt to model
+        return None, {"verdict": f"no preload window: {unit}", "ok": None}
+    win = preload_windows(system, wp.x, wp.voltage, wp.tip_amplitude_m, design_preload(design), unit_state=unit)
     rec = {**win.record(), "bolt_prestress_pa": getattr(getattr(design, "stack", None), "bolt_prestress", None),
            "seconds": time.perf_counter() - t0}
     if say is not None:
         say(f"      preload: {win.verdict()}")
-    state = None
-    if force > 0:
-        state = unit.scaled(force)
-    return state, rec
+    return preload_state(design, unit), rec
+
+
+def preload_state(design, unit):
+    """The :class:`fem.preload.PreloadState` of the design's bolt from the unit state ``unit``
+    (:func:`preload_unit`), or None: no bolt preload, or no bolt to model."""
+    from fem.preload import design_preload
+    from rpud_common import ParameterError
+
+    force = design_preload(design)
+    return None if isinstance(unit, ParameterError) or not force > 0 else unit.scaled(force)
 
 
 def _ci(d: dict, scale: float = 1.0) -> str:

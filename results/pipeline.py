@@ -29,8 +29,10 @@ Stages (each timed, each reported on the terminal through ``progress``):
    run every time (:mod:`results.stage_compliant`). The stages 1-5 models above become its
    comparison rows.
 
-Two pieces of stage 3 run side by side on two cores: the band response (a worker thread) and
-the discretisation-error estimate on the coarser mesh; ``timings``
+Pieces of stage 3 run side by side on two cores (:mod:`results.stage_beside`): the harmonic
+stage and the bolt's unit preload state beside the teeth motion's finer mesh, then the preload
+window and the band response (a worker thread) beside the discretisation-error estimate on the
+coarser mesh; ``timings``
 therefore holds overlapping intervals (``discretisation_error_s`` lies inside ``harmonic_s``).
 Beside stages 4-5 run the operating point's modal bases at Q/2 and 2Q (a worker thread) and the
 renders (a worker process); ``operating_point_s`` and ``renders_s`` count what is left after them.
@@ -394,8 +396,9 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
     stress picture and VTU drawn by ``renders``' worker; the compliant stage started in
     ``compliant``'s as soon as the working frequency is known). Returns the teeth motion's job
     (:func:`results.stage_teeth.start_job`), still solving."""
+    from .operating_point import preload_state
+    from .stage_beside import harmonic_beside_teeth_mesh, response_beside_estimate
     from .stage_fe import match_stage
-    from .stage_harmonic import harmonic_stage
     from .stage_teeth import start_job
     from .stress_stage import stress_stage
 
@@ -413,16 +416,15 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
         from .operating_point import measured_settings
 
         st = run.settings = measured_settings(st, m.system, m.modal, m.w, say)
-    teeth = start_job(m, st)                  # the teeth motion's finer mesh, solved beside what follows
-    run.teeth_note = teeth.note
-    h = run.harm = harmonic_stage(m, loss=st.losses().loss_model(), voltage=st.voltage)
+    # the teeth motion's finer mesh (solved beside what follows) beside the harmonic stage
+    h, unit, teeth = harmonic_beside_teeth_mesh(m, st, lambda: start_job(m, st))
+    run.harm, run.teeth_note = h, teeth.note
     _start_compliant(run, compliant)
-    from .operating_point import preload_stage
-
-    run.bolt, run.preload = preload_stage(m.design, m.system, h.wp, say=say)   # the design's bolt, the window
-    estimated = _response_beside_estimate(run, clock)
+    run.bolt = preload_state(m.design, unit)
+    preloaded, estimated = response_beside_estimate(run, clock, unit)
     teeth.release()                           # after the estimate's and the band's solves: memory
     clock.took("harmonic_s", t0)
+    preloaded.replay(say)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
         f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
@@ -444,61 +446,6 @@ def _rotor_stage(run: _Run, clock: _Clock, say, teeth) -> None:
     t0 = time.perf_counter()
     run.rotor = pipeline_rotor_stage(run.matched.design, wp, run.harm.f_w, est, run.settings.wob, say=say)
     clock.took("rotor_s", t0)
-
-
-class _Lines:
-    """Progress lines of a stage run beside another, kept and shown afterwards in the stage order
-    (the terminal reads the same whichever finishes first)."""
-
-    def __init__(self):
-        self.lines: list[str] = []
-
-    def __call__(self, msg: str) -> None:
-        self.lines.append(msg)
-
-    def replay(self, say) -> None:
-        for line in self.lines:
-            say(line)
-
-
-def _response_beside_estimate(run: _Run, clock: _Clock) -> "_Lines":
-    """The band response (a worker thread) beside the discretisation-error estimate (this
-    thread: its coarse mesh is made by Gmsh, which is started from here).
-
-    The two share no data that either writes (the estimate meshes, assembles and solves the
-    tuned design afresh on the coarser mesh); their work is in PARDISO, NumPy and Gmsh, which
-    release the interpreter, so on two cores they overlap. OpenBLAS stays on one thread across
-    both (the eigen solves limit it anyway): no thread count changes under the other's dense
-    products, so the numbers do not depend on which runs when. Returns the estimate's progress
-    lines, to be shown after the response's.
-    """
-    from concurrent.futures import ThreadPoolExecutor
-
-    from fem.solvers import blas_threads
-
-    from .errors import estimate_stage
-    from .stage_harmonic import response_stage
-    from .stress_stage import coarse_hook
-
-    st, m, h = run.settings, run.matched, run.harm
-    lines = _Lines()
-    from fem.operating_errors import CoarseOperatingPoint, operating_quantities
-
-    loss = st.losses().loss_model()
-    run.op_fine = operating_quantities(m.system, h.wp, loss)     # what the window and the heat scale with
-
-    def response():
-        run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
-
-    with blas_threads(1), ThreadPoolExecutor(max_workers=1, thread_name_prefix="response") as pool:
-        job = pool.submit(response)
-        t0 = time.perf_counter()          # one solve on a 1.4x coarser mesh: the error of every FE output
-        run.est = estimate_stage(m.design, m.options, st, m.system, m.modal, m.w, h.wp, h.surfaces,
-                                 float(m.design.target_frequency), lines,
-                                 extra=CoarseOperatingPoint(loss, coarse_hook(h.wp.voltage, run.bolt)))
-        clock.took("discretisation_error_s", t0)
-        job.result()
-    return lines
 
 
 def _impact_stages(run: _Run, clock: _Clock, say) -> tuple:

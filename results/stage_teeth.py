@@ -23,9 +23,9 @@ are 3.3 for the ratio and 4.8 for the phase); when they have the same layers the
 :data:`fem.convergence.SECTOR_PHASE_ORDER` (its layers' error is then not seen by the pair).
 
 Cost: one mesh (Gmsh, in the caller's thread: Gmsh is one per process and sets signal handlers
-from the main thread only), then assembly, a 4-mode modal solve and the modal basis in a daemon
-worker thread from the end of the run's band response and two-level estimate on (their
-factorisations and its own do not add up in memory), ~16 s CPU on the default design.
+from the main thread only), then in a daemon worker thread the assembly at once, and a 4-mode
+modal solve and the modal basis from the end of the run's band response and two-level estimate
+on (their factorisations and its own do not add up in memory), ~16 s CPU on the default design.
 """
 
 from __future__ import annotations
@@ -126,18 +126,26 @@ def _sector_mesh(design, refine: float, options):
                       mesher="revolve", sectors=sectors, sector_meshing=meshing.scaled(refine)), sectors
 
 
-def _solve(design, mesh, sectors: int, refine: float, options, loss, near_hz: float, voltage: float,
-           surfaces: tuple[str, ...]) -> tuple:
-    """Assemble the finer sector mesh and solve its working point: ``(wp, f_r, ndof, label, seconds)``."""
+def _system(design, mesh, sectors: int, refine: float, options):
+    """The finer sector mesh assembled and restricted to ``k = 0``: ``(system, seconds)``."""
     from fem.assembly import assemble
-    from fem.harmonic import modal_basis, working_point
-    from fem.modal import modal_analysis, working_mode
     from fem.sector_system import path_label, sector_system
 
     t0 = time.perf_counter()
     system = sector_system(assemble(mesh, order=2), sectors,
                            label=path_label(design, "sector", refine=refine, grade=options.grade,
                                             mesh_size=options.mesh_size))
+    return system, time.perf_counter() - t0
+
+
+def _solve(assembled: tuple, loss, near_hz: float, voltage: float, surfaces: tuple[str, ...]) -> tuple:
+    """The working point of the finer sector's system (:func:`_system`): ``(wp, f_r, ndof, label,
+    seconds)``, ``seconds`` the assembly's and the solve's."""
+    from fem.harmonic import modal_basis, working_point
+    from fem.modal import modal_analysis, working_mode
+
+    system, seconds = assembled
+    t0 = time.perf_counter()
     # short-circuit modes only, keeping the factorisation for the residual: the shift off the working
     # mode (as fem.harmonic.modal_basis sets it) so that the residual can use it as it is
     import numpy as np
@@ -148,7 +156,7 @@ def _solve(design, mesh, sectors: int, refine: float, options, loss, near_hz: fl
     f = float(res.f_r_hz[w])
     basis = modal_basis(system, f, loss=loss, modes=res)
     wp = working_point(system, f, voltage, loss=loss, surfaces=surfaces, basis=basis)
-    return wp, f, int(system.ndof), system.label, time.perf_counter() - t0
+    return wp, f, int(system.ndof), system.label, seconds + time.perf_counter() - t0
 
 
 def _motion(design, refine: float, options, solved: tuple, coarse) -> TeethMotion:
@@ -179,15 +187,16 @@ def teeth_motion(design, options, *, loss, near_hz: float, voltage: float, surfa
     """
     refine = options.refine * TEETH_REFINE if refine is None else refine
     mesh, sectors = _sector_mesh(design, refine, options)
-    solved = _solve(design, mesh, sectors, refine, options, loss, near_hz, voltage, tuple(surfaces))
+    solved = _solve(_system(design, mesh, sectors, refine, options), loss, near_hz, voltage, tuple(surfaces))
     return _motion(design, refine, options, solved, coarse)
 
 
 class TeethJob:
     """:func:`teeth_motion` beside the caller's stages: :meth:`start` meshes in the calling (main)
-    thread and readies a daemon worker thread, which solves from :meth:`release` on (PARDISO and
-    NumPy release the interpreter; the caller releases it once its own largest solves are done,
-    so the two factorisations do not add up in memory); :meth:`collect` takes the run's own
+    thread and starts a daemon worker thread, which assembles at once (no factorisation: little
+    memory, and it fills the cores' gaps in the caller's stages) and solves from :meth:`release`
+    on (PARDISO and NumPy release the interpreter; the caller releases it once its own largest
+    solves are done, so the two factorisations do not add up in memory); :meth:`collect` takes the run's own
     values, the estimate's coarse level. A run ended by a signal or an error does not wait for
     the thread (its answer is dropped; :func:`rpud_common.cli.start_native_worker`)."""
 
@@ -211,9 +220,9 @@ class TeethJob:
 
         def work():
             try:
+                assembled = _system(design, mesh, sectors, self.refine, options)    # no factorisation yet
                 self.go.wait()
-                self.box["out"] = _solve(design, mesh, sectors, self.refine, options, surfaces=tuple(surfaces),
-                                         **solve)
+                self.box["out"] = _solve(assembled, surfaces=tuple(surfaces), **solve)
             except BaseException as exc:          # handed to the caller at collect
                 self.box["error"] = exc
 
