@@ -35,6 +35,7 @@ import dataclasses
 import logging
 import time
 import weakref
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from typing import Iterable
 
@@ -230,8 +231,12 @@ def sector_system(system: PiezoSystem, sectors: int, *, label: str = "") -> Sect
         system, K=(n * system.K).tocsr(), M=(n * system.M).tocsr(), K_loss=(n * system.K_loss).tocsr(),
         part_mass=None if system.part_mass is None else {p: (n * m).tocsr() for p, m in system.part_mass.items()})
     restrict = _restriction(tie)
+    # the three restrictions share nothing they write and run in scipy's and NumPy's compiled
+    # loops, which release the interpreter: two threads (each result is the one computed alone)
+    with ThreadPoolExecutor(max_workers=2, thread_name_prefix="restrict") as pool:
+        K, M, K_loss = pool.map(restrict, (scaled.K, scaled.M, scaled.K_loss))
     fields = {f.name: getattr(scaled, f.name) for f in dataclasses.fields(PiezoSystem)}
-    fields.update(K=restrict(scaled.K), M=restrict(scaled.M), K_loss=restrict(scaled.K_loss), _basis_u=None,
+    fields.update(K=K, M=M, K_loss=K_loss, _basis_u=None,
                   timings={**system.timings, "sector_restriction_s": time.perf_counter() - t0})
     out = SectorSystem(**fields, sector=scaled, tie=tie, kept=kept, sectors=int(sectors),
                        label=label or f"sector 1/{int(sectors)}")

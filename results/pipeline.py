@@ -357,7 +357,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     with Renders(run) as renders, CompliantWorker() as compliant:     # beside the later stages
         teeth = _fe_stages(run, clock, tune, say, renders, compliant)
         renders.modes()
-        base, masses = _impact_stages(run, clock, say)
+        base, masses = _impact_stages(run, clock, say, teeth)
         _rotor_stage(run, clock, say, teeth)      # after the impacts: the teeth job's solve ran beside them
         t0 = time.perf_counter()
         run.compliant, seconds = compliant.collect(say)
@@ -448,14 +448,17 @@ def _rotor_stage(run: _Run, clock: _Clock, say, teeth) -> None:
     clock.took("rotor_s", t0)
 
 
-def _impact_stages(run: _Run, clock: _Clock, say) -> tuple:
+def _impact_stages(run: _Run, clock: _Clock, say, teeth) -> tuple:
     """A0 under the impact load, the impact statistics, the coupled model and the operating point;
     returns the impact stage's base parameters and its free masses.
 
     The operating point's modal bases at Q/2 and 2Q need only the FE system: a worker thread
     builds them while the impact stages run (their solves and products release the interpreter,
-    the impact kernels run on the other core). OpenBLAS stays on one thread across both, as
-    beside the discretisation-error estimate, so the numbers do not depend on which runs when.
+    the impact kernels run on the other core), after the teeth motion's solve (``teeth``, a
+    :class:`results.stage_teeth.TeethJob`) has ended: the second core does one then the other
+    in the same time, without the two solves' memory at once. OpenBLAS stays on one thread
+    across both, as beside the discretisation-error estimate, so the numbers do not depend on
+    which runs when.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -465,7 +468,7 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> tuple:
 
     st, h, m = run.settings, run.harm, run.matched
     with blas_threads(1), ThreadPoolExecutor(max_workers=1, thread_name_prefix="bracket") as pool:
-        bracket = pool.submit(bracket_bases, st, m.system, m.modal, h.basis, h.f_w)
+        bracket = pool.submit(lambda: teeth.wait() or bracket_bases(st, m.system, m.modal, h.basis, h.f_w))
         base, masses = _loaded_impacts(run, clock, say)
         bases = bracket.result()
     t0 = time.perf_counter()

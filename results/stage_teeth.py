@@ -232,13 +232,18 @@ class TeethJob:
         """Let the worker solve."""
         self.go.set()
 
+    def wait(self) -> None:
+        """Wait until the worker has ended (solved or failed; :meth:`collect` takes the result)."""
+        if self.thread is not None:
+            self.release()
+            self.done.wait()
+
     def collect(self, coarse) -> TeethMotion | None:
         """Wait for the solve (an error in it is raised here) and estimate its error with the run's
         own values ``coarse`` (:class:`fem.convergence.Level`); None when it did not run."""
         if self.thread is None:
             return None
-        self.release()
-        self.done.wait()
+        self.wait()
         if "error" in self.box:
             raise self.box["error"]
         return _motion(self.design, self.refine, self.options, self.box["out"], coarse)
