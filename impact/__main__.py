@@ -132,7 +132,9 @@ def _sweep(argv):
     else:
         ci = f" ± {f.slope_ci95:.3g}" if math.isfinite(f.slope_ci95) else ""
         r2 = f", R^2 {f.r2:.4f}" if math.isfinite(f.r2) else f" ({f.reason})"
-        print(f"linear fit: slope {f.slope:.4g}{ci} J/kg (= mJ/g), intercept {f.intercept * 1e3:.4g} mJ{r2}")
+        ici = f" ± {f.intercept_ci95 * 1e3:.3g}" if math.isfinite(f.intercept_ci95) else ""
+        print(f"linear fit: slope {f.slope:.4g}{ci} J/kg (= mJ/g), intercept {f.intercept * 1e3:.4g}{ici} mJ{r2} "
+              "(95 % intervals from the points' scatter about the line)")
     if ns.csv:
         atomic_write_text(ns.csv, sw.csv())
     if ns.json:

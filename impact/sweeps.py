@@ -30,9 +30,9 @@ log = logging.getLogger(__name__)
 class LineFit:
     """Least-squares line ``y = slope x + intercept``.
 
-    ``slope_ci95`` is the half-width of the slope's 95 % interval from the scatter of the points
-    about the line (Student t, n - 2 degrees of freedom); it and ``r2`` are NaN with fewer than
-    three points.
+    ``slope_ci95`` and ``intercept_ci95`` are the half-widths of the slope's and the intercept's
+    95 % intervals from the scatter of the points about the line (Student t, n - 2 degrees of
+    freedom); they and ``r2`` are NaN with fewer than three points.
     ``reason`` says why a fit is absent.
     """
 
@@ -42,13 +42,15 @@ class LineFit:
     slope_ci95: float
     n: int
     reason: str = ""
+    intercept_ci95: float = math.nan
 
     def to_dict(self) -> dict:
         def num(v):
             return v if math.isfinite(v) else None
 
         out = {"slope": num(self.slope), "intercept": num(self.intercept), "r2": num(self.r2),
-               "slope_ci95_half_width": num(self.slope_ci95), "points": self.n}
+               "slope_ci95_half_width": num(self.slope_ci95),
+               "intercept_ci95_half_width": num(self.intercept_ci95), "points": self.n}
         if self.reason:
             out["reason"] = self.reason
         return out
@@ -72,7 +74,9 @@ def linear_fit(x, y) -> LineFit:
                        "two points: no R^2 and no interval on the slope")
     ss_tot = float(np.sum((y - y.mean()) ** 2))
     r2 = float(res.rvalue ** 2) if ss_tot > 0 else math.nan
-    return LineFit(float(res.slope), float(res.intercept), r2, float(t.ppf(0.975, n - 2) * res.stderr), n)
+    tq = float(t.ppf(0.975, n - 2))
+    return LineFit(float(res.slope), float(res.intercept), r2, tq * float(res.stderr), n,
+                   intercept_ci95=tq * float(res.intercept_stderr))
 
 
 @dataclass(repr=False)

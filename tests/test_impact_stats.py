@@ -61,6 +61,15 @@ def test_linear_fit_recovers_a_noisy_line_within_its_interval():
     f = linear_fit(x, y)
     assert abs(f.slope - 4.0) < f.slope_ci95 < 0.2
     assert 0.99 < f.r2 <= 1.0
+    # the intercept's interval against the textbook closed form: s sqrt(1/n + xbar^2 / Sxx) t_{0.975, n-2}
+    from scipy.stats import t
+    resid = y - (f.slope * x + f.intercept)
+    s_e = math.sqrt(float(resid @ resid) / (x.size - 2))
+    sxx = float(((x - x.mean()) ** 2).sum())
+    half = s_e * math.sqrt(1 / x.size + x.mean() ** 2 / sxx) * t.ppf(0.975, x.size - 2)
+    assert f.intercept_ci95 == pytest.approx(half, rel=1e-9)
+    assert abs(f.intercept - 0.002) < f.intercept_ci95
+    assert f.to_dict()["intercept_ci95_half_width"] == f.intercept_ci95
     absent = linear_fit([0.004], [0.01])
     assert math.isnan(absent.slope) and "at least two" in absent.reason
 
