@@ -60,10 +60,11 @@ along and the rotation about the axis (the other four are ``k = 1``)."""
 @dataclass(eq=False)
 class SectorSystem(PiezoSystem):
     """A :class:`fem.assembly.PiezoSystem` restricted to the fields of harmonic ``k = 0`` of a
-    sector (see the module docstring); build it with :func:`sector_system`.
+    sector (see the module docstring); build it with :func:`sector_system`. The attributes below
+    come beside the system's own.
 
-    Attributes (beyond the system's)
-    --------------------------------
+    Attributes
+    ----------
     sector : PiezoSystem
         The sector's own system with ``K``, ``M``, ``K_loss`` and part masses times ``N``.
     tie : scipy.sparse.csr_matrix
