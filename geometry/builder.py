@@ -224,9 +224,6 @@ def _run_gmsh(job, design, mesh_size, time_limit: float):
     done = threading.Event()
 
     def work():
-        # signals go to the waiting main thread only: delivered inside Gmsh's native code they
-        # corrupt its state
-        signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
         try:
             box["result"] = job()
         except ParameterError as exc:
@@ -237,13 +234,11 @@ def _run_gmsh(job, design, mesh_size, time_limit: float):
                                           "size or the design's smallest features")
         except BaseException as exc:  # noqa: BLE001 - handed to the caller's thread
             box["error"] = exc
-        finally:
-            done.set()
 
-    worker = threading.Thread(target=work, name="gmsh", daemon=True)
     try:
-        worker.start()
-        # an Event, not worker.join(): an interrupted join marks the thread stopped (see above)
+        # signals go to the waiting main thread only (blocked in the worker)
+        common.start_native_worker(work, "gmsh", done)
+        # an Event, not a join: an interrupted join marks the thread stopped (see above)
         finished = done.wait(time_limit)
     except BaseException:
         # even a signal inside start() may leave the thread starting: treat it as running

@@ -89,13 +89,26 @@ _WORKERS: list[threading.Event] = []
 it does past an abandoned Gmsh run, but a new Gmsh run may start."""
 
 
-def start_native_worker(work: Callable[[], None], name: str) -> tuple[threading.Thread, threading.Event]:
-    """Run ``work()`` in a daemon thread whose native code (PARDISO, numba, BLAS) may outlive its
-    caller: a run ended by a signal or an error does not wait for it.
+def start_native_worker(work: Callable[[], None], name: str,
+                        done: threading.Event | None = None) -> tuple[threading.Thread, threading.Event]:
+    """Run ``work()`` in a daemon thread whose native code (Gmsh, PARDISO, numba, BLAS) may outlive
+    its caller: a run ended by a signal or an error does not wait for it.
 
-    The thread is recorded at once, so a process that ends while it still runs ends through ``os._exit`` instead of finalising the interpreter and the C library
-    under it (seen: "double free detected" on SIGINT during a worker's ensembles). Signals are
-    blocked in the thread: they reach the main thread, which decides how the run ends.
+    The thread is recorded before it starts, so a process that ends while it still runs ends
+    through ``os._exit`` instead of finalising the interpreter and the C library under it (seen:
+    "double free detected" on SIGINT during a worker's ensembles). Signals are blocked in the
+    thread: they reach the main thread, which decides how the run ends (delivered inside native
+    code, they can corrupt its state).
+
+    Parameters
+    ----------
+    work : callable
+        Runs in the thread; it hands its result or error to the caller itself.
+    name : str
+        The thread's name.
+    done : threading.Event, optional
+        The completion flag to use (a caller that must hold it even if a signal lands inside
+        this call); a new one by default.
 
     Returns
     -------
@@ -105,7 +118,7 @@ def start_native_worker(work: Callable[[], None], name: str) -> tuple[threading.
         Set as the very last thing the thread does; wait on it rather than ``join`` (an
         interrupted ``join`` may mark the thread stopped while it still runs).
     """
-    done = threading.Event()
+    done = threading.Event() if done is None else done
 
     def run():
         signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
