@@ -33,6 +33,11 @@ against ~1.5e-10), and the interpolant spares the ~8 whole trial steps per event
 the step length. The steps are set by the contact force, not by the modes: the count hardly
 changes between 7 modes (40 kHz) and 26 (100 kHz).
 
+Compiled with numba's ``numpy`` error model (here and in :mod:`impact.kernel_drill_compliant`): a
+float division by zero gives inf or nan instead of raising, so no division carries a test and an
+exception path. The numbers are the same (no division here has a zero divisor); a contact slope
+costs about half as much, and a member ~1.5x less.
+
 Contacts that do not separate (a free mass pressed onto the tool or the horn) are integrated as
 the contact they are: the law is rate-independent and continuous, so there is no Zeno chattering
 to end and no sticking rule is needed; such a phase costs integration steps at the contact
@@ -77,7 +82,7 @@ __all__ = ["N_KSTATS", "K_TOOL_DAMP", "K_LOSS", "K_STORED", "K_LEDGER", "LAW_N",
 
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _pw(x, p):
     """x^p (x >= 0), through the square root for the Hertz loading's p = 1.5 (a slope of a
     contact phase is mostly this power)."""
@@ -86,7 +91,7 @@ def _pw(x, p):
     return x ** p
 
 
-approach_of = njit(cache=True)(compliant.approach_of)
+approach_of = njit(cache=True, error_model="numpy")(compliant.approach_of)
 
 #: extra window columns after ``N_CSTATS``: tool damping, contact losses (finished contacts),
 #: change of the stored energy (bodies + closed contacts), the balance; J
@@ -146,7 +151,7 @@ def pack_laws(horn_law, tool_law, horn_residual: float, rtol: float) -> np.ndarr
 # ----------------------------------------------------------------------------- the contact law
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_force(D, state, K, p, g):
     """``(F, d)``: force (N) and Hertz approach (m) of a contact at total approach D (m)."""
     if state <= OPEN or D <= 0.0:
@@ -155,7 +160,7 @@ def contact_force(D, state, K, p, g):
     return K * _pw(d, p), d
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def absorbed(D, cs, k, e, g):
     """Energy a closed contact holds or has lost, J: on loading the Hertz work ``0.4 k d^2.5``; on
     unloading what the curve returns plus the closed-form loss of the contact; and the residual
@@ -169,7 +174,7 @@ def absorbed(D, cs, k, e, g):
     return cs[CS_K] * d ** (cs[CS_P] + 1.0) / (cs[CS_P] + 1.0) + loss(k, e, cs[CS_DMAX]) + 0.5 * g * F * F
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def loss(k, e, d_max):
     """Energy lost in a contact whose largest Hertz approach was d_max (J, :meth:`HertzLaw.dissipated`)."""
     return (1.0 - e * e) * 0.4 * k * max(d_max, 0.0) ** 2.5
@@ -178,7 +183,7 @@ def loss(k, e, d_max):
 # ----------------------------------------------------------------------------- the contact phase
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _tip_modal(t, y, n, tab, xs):
     """Tip of the modes and the driven residual (the contact's far end) and its velocity, m, m/s."""
     W = xs[X_W]
@@ -191,7 +196,7 @@ def _tip_modal(t, y, n, tab, xs):
     return u, ud
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def approaches(t, y, n, tab, xs, L0):
     """``(D_h, D_h', D_t, D_t')``: total approaches at horn and tool (m) and their rates (m/s)."""
     u, ud = _tip_modal(t, y, n, tab, xs)
@@ -205,7 +210,7 @@ M_INVM, M_2ZO, M_OM2, M_GIMW, M_DAMP = range(12, 17)
 M_N = 17
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rhs_table(tab, xs):
     """The modes' table of the contact phases (:data:`M_N` columns, the horn's first)."""
     n = tab.shape[0]
@@ -218,7 +223,7 @@ def rhs_table(tab, xs):
     return mt
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def modal_rates(y, out, n, mt, xs, co, si, Fh):
     """The modes' rates into ``out[4:4 + 2n]`` (``y = [.., .., .., .., q (n), q' (n), ..]``, the tip
     force ``Fh`` on them, ``co, si`` the drive's phase) and the power integrands they give:
@@ -239,7 +244,7 @@ def modal_rates(y, out, n, mt, xs, co, si, Fh):
     return drive, damp, cur
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_rhs(t, y, out, n, mt, xs, pv, lw, cs):
     """Right-hand side of a contact phase: ``y = [w, w', x, x', q, q', integrals (N_INT)]``
     (``mt`` the modes' table, :func:`rhs_table`)."""
@@ -266,10 +271,12 @@ def contact_rhs(t, y, out, n, mt, xs, pv, lw, cs):
     out[j + 4], out[j + 5], out[j + 6] = u * co, -u * si, V * cur
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _combine(y, h, st, row, k, out):
-    """``out = y + h sum_q row[q] st[q]`` over the first k stages (zero weights skipped)."""
-    out[:] = y
+    """``out = y + h sum_q row[q] st[q]`` over the first k stages (zero weights skipped; the copy
+    as a loop: a slice assignment costs about as much as the sums of a stage here)."""
+    for j in range(y.size):
+        out[j] = y[j]
     for q in range(k):
         cq = h * row[q]
         if cq != 0.0:
@@ -277,7 +284,7 @@ def _combine(y, h, st, row, k, out):
                 out[j] += cq * st[q, j]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _step(t, y, h, n, tab, xs, pv, lw, cs, st, y8, tmp, fresh):
     """One step of the 8th-order Dormand-Prince scheme (:data:`R8_A`) of length h from (t, y) into
     y8 (the integrals restart from zero); ``st`` keeps the stages for the error estimate. The
@@ -290,7 +297,7 @@ def _step(t, y, h, n, tab, xs, pv, lw, cs, st, y8, tmp, fresh):
     _combine(y, h, st, R8_B, R8_S, y8)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _error(y, y8, st, h, atol, rtol):
     """The step's error over its tolerance ``atol + rtol |y|`` (Hairer's combination of the 5th-
     and 3rd-order estimates, in the largest component; the integrals follow the state and are not
@@ -309,7 +316,7 @@ def _error(y, y8, st, h, atol, rtol):
     return abs(h) * e5 * e5 / math.sqrt(e5 * e5 + 0.01 * e3 * e3)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _triggers(state):
     """The two branch events a contact in ``state`` waits for (-1: none)."""
     if state == AWAY:
@@ -321,7 +328,7 @@ def _triggers(state):
     return EV_RELOAD, EV_SEPARATE
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _phi(kind, D, Dd, tmax):
     """The event function of ``kind``, positive past the event (D, D' the contact's total approach
     and its rate, ``tmax`` the largest total approach of the contact)."""
@@ -334,7 +341,7 @@ def _phi(kind, D, Dd, tmax):
     return -D
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _phi_at(t, y, n, tab, xs, L0, cs, j, kind):
     Dh, Dhd, Dt, Dtd = approaches(t, y, n, tab, xs, L0)
     if j == 0:
@@ -342,7 +349,7 @@ def _phi_at(t, y, n, tab, xs, L0, cs, j, kind):
     return _phi(kind, Dt, Dtd, cs[1, CS_TMAX])
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _dense(t, y, y8, h, n, tab, xs, pv, lw, cs, st, tmp, F):
     """The coefficients ``F`` (7, state) of the scheme's 7th-order interpolant over the step of
     length h from (t, y) that ended in y8 (its stages in ``st``): four more slopes, at the end and
@@ -361,7 +368,7 @@ def _dense(t, y, y8, h, n, tab, xs, pv, lw, cs, st, tmp, F):
             F[3 + r, j] = h * acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _interpolate(y, F, x, out):
     """The state at the fraction x of the step from the interpolant's coefficients ``F``."""
     for j in range(F.shape[1]):
@@ -371,7 +378,7 @@ def _interpolate(y, F, x, out):
         out[j] = y[j] + v
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _trial(t, y, x, dense, hh, j, kind, n, tab, xs, pv, lw, cs, st, y8, tmp, F):
     """The event function of ``kind`` (contact j) at the step length x: on the interpolant
     (``dense``, step length hh) or after one step of length x from (t, y) (left in y8)."""
@@ -382,14 +389,14 @@ def _trial(t, y, x, dense, hh, j, kind, n, tab, xs, pv, lw, cs, st, y8, tmp, F):
     return _phi_at(t + x, y8, n, tab, xs, pv[P_GAP], cs, j, kind)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _illinois_point(lo, hi, f_lo, f_hi):
     """The Illinois method's next trial in (lo, hi): the secant, or the midpoint when it leaves the bracket."""
     x = hi - f_hi * (hi - lo) / (f_hi - f_lo)
     return x if lo < x < hi else 0.5 * (lo + hi)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _illinois_update(lo, hi, f_lo, f_hi, side, x, fx):
     """The bracket after the trial ``fx`` at x: ``(lo, hi, f_lo, f_hi, side, at)``, ``at`` whether x
     is its new far end; the kept end's value is halved when the same end moves twice running."""
@@ -398,7 +405,7 @@ def _illinois_update(lo, hi, f_lo, f_hi, side, x, fx):
     return x, hi, fx, (0.5 * f_hi if side == -1 else f_hi), -1, False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _locate(t, y, lo, hi, f_lo, f_hi, dense, hh, j, kind, n, tab, xs, pv, lw, cs, st, y8, tmp, F):
     """Step length in (lo, hi] just past the event ``kind`` of contact j (its function rises
     through zero between f_lo <= 0 and f_hi > 0): the Illinois method, each trial on the
@@ -414,7 +421,7 @@ def _locate(t, y, lo, hi, f_lo, f_hi, dense, hh, j, kind, n, tab, xs, pv, lw, cs
     return hi, at and not dense
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _earliest_event(t, y, hh, n, tab, xs, pv, lw, cs, st, y8, tmp, F):
     """The earliest branch event in the step (t, t + hh] whose end is in y8: ``(found, h, j,
     kind)``, h the step length to take (the event just behind it); when found, y8 holds the step
@@ -471,7 +478,7 @@ def _earliest_event(t, y, hh, n, tab, xs, pv, lw, cs, st, y8, tmp, F):
 # ----------------------------------------------------------------------------- branch switches
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def touch(cs, j, lw, t, Dd, xd, horn_work):
     """Contact j closes at t: Hertz loading from its approach speed Dd (m/s)."""
     cs[j, CS_STATE], cs[j, CS_T0], cs[j, CS_VIN] = LOADING, t, Dd
@@ -480,7 +487,7 @@ def touch(cs, j, lw, t, Dd, xd, horn_work):
     cs[j, CS_XD0], cs[j, CS_WORK0] = xd, horn_work
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _law_branch(cs, j, lw, kind, D):
     """Apply a peak (unloading from the largest approach) or a reload (Hertz again) to contact j."""
     k, p_u = lw[L_TOOL * j + L_K], lw[L_TOOL * j + L_P]
@@ -493,7 +500,7 @@ def _law_branch(cs, j, lw, kind, D):
         cs[j, CS_STATE], cs[j, CS_K], cs[j, CS_P] = LOADING, k, 1.5
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _separate(cs, j, lw, t, Dd, y, m_tool, acc, out, t_from, t_end, log, n_log, record):
     """Contact j opens at t: its loss, its window statistics (tool: kinetic energy after and gain)
     and its log row. Returns (log, n_log)."""
@@ -520,7 +527,7 @@ def _separate(cs, j, lw, t, Dd, y, m_tool, acc, out, t_from, t_end, log, n_log, 
     return log, n_log
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def energy(t, y, n, tab, xs, pv, lw, cs):
     """Bodies' mechanical energy (the constant force's potential ``-m_w a w`` included) plus the
     closed contacts' absorbed energy (:func:`absorbed`), J."""
@@ -536,7 +543,7 @@ def energy(t, y, n, tab, xs, pv, lw, cs):
     return E
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _accept(y, y8, n, acc):
     """Take the step: the state moves on, the integrals' increments go into ``acc`` (from t = 0)."""
     j = 4 + 2 * n
@@ -547,13 +554,14 @@ def _accept(y, y8, n, acc):
     acc[C_FUND_RE] += y8[j + 4]
     acc[C_FUND_IM] += y8[j + 5]
     acc[C_ELEC] += y8[j + 6]
-    y[:j] = y8[:j]
+    for i in range(j):
+        y[i] = y8[i]
 
 
 # ----------------------------------------------------------------------------- the two phases
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, error_model="numpy", inline="always")
 def _control(err, hh, h, rejected):
     """The step controller after a trial step of length hh whose error over its tolerance is err:
     ``(accept, h, grow, rejected)``: on rejection the next trial length h, else the growth factor
@@ -566,13 +574,13 @@ def _control(err, hh, h, rejected):
     return True, h, grow, False
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _horn_gap(tt, w, cp, tab, ho, n):
     """The horn contact's total approach at tt from the modes' closed form (the tool-only phase)."""
     return tip(tt, cp, tab, ho, n, 0)[0] - w
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _horn_touch(t, y, hh, f_hi, n, tab, xs, pv, lw, cs, st, y8, tmp, cp, ho):
     """Step length in (0, hh] just past the horn's touch in a tool-only step (its approach ``f_hi``
     > 0 at hh, <= 0 at t): the Illinois method on whole steps of the few integrated states (cheap
@@ -592,7 +600,7 @@ def _horn_touch(t, y, hh, f_hi, n, tab, xs, pv, lw, cs, st, y8, tmp, cp, ho):
     return hi
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def tool_only(t, t_stop, y, h, n, tab, xs, pv, lw, cs, atol, acc, out, t_from, t_end, log, n_log, record, n_ev, tw):
     """The tool's contact closed, the horn's open: the horn's modes are then free damped oscillators
     under the drive (no force on them), so only the free mass and the tool are integrated (the
@@ -636,7 +644,8 @@ def tool_only(t, t_stop, y, h, n, tab, xs, pv, lw, cs, atol, acc, out, t_from, t
             hh = _horn_touch(t, yr, hh, f_h, n, tab, xs, pv, lw, cs, st, y8, tmp, cp, ho)
             found, horn = True, True
         acc[K_TOOL_DAMP] += y8[6]
-        yr[:4] = y8[:4]
+        for i in range(4):
+            yr[i] = y8[i]
         t += hh
         fresh = True
         if not found:
@@ -661,7 +670,7 @@ def tool_only(t, t_stop, y, h, n, tab, xs, pv, lw, cs, atol, acc, out, t_from, t
     return t, h, log, n_log, n_ev, ok
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def contact_phase(t, t_stop, y, h, n, tab, xs, pv, lw, cs, atol, wk, acc, out, t_from, t_end, log, n_log, record,
                   n_ev, tw):
     """Integrate while a contact is closed, to the phase's end (both open) or ``t_stop``: error-
@@ -711,7 +720,7 @@ def contact_phase(t, t_stop, y, h, n, tab, xs, pv, lw, cs, atol, wk, acc, out, t
     return t, h, log, n_log, n_ev, True
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def flight(t, t_stop, y, n, tab, xs, pv, fw, acc, cw, lam, G1, G2):
     """Both contacts open: the closed-form motion from t to the first touch or ``t_stop``, found
     by the guaranteed search; the energy integrals in closed form. Returns (t, contact j or -1)."""
@@ -743,7 +752,7 @@ def flight(t, t_stop, y, n, tab, xs, pv, fw, acc, cw, lam, G1, G2):
 # ----------------------------------------------------------------------------- the event loop
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _start(pv, lw, tab, xs, n, y, cs):
     """The state at t = 0: the modes steady (or at rest), the free mass on the tip leaving at v0
     (a contact from t = 0 if the tip overtakes it)."""
@@ -757,7 +766,7 @@ def _start(pv, lw, tab, xs, n, y, cs):
         touch(cs, 0, lw, 0.0, ud0 - y[1], 0.0, 0.0)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _tolerances(tab, n, rtol):
     """Absolute tolerances of the state: rtol of mm positions and m/s speeds (the modes through
     their tip participation)."""
@@ -772,7 +781,7 @@ def _tolerances(tab, n, rtol):
     return atol
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _close(t, y, n, tab, xs, pv, lw, cs, acc, acc0, E_from, out, t_from, t_end, status, n_ev):
     """The window's statistics: integrals from its start, contacts still closed counted to its
     end, the stored energy's change and the balance."""
@@ -786,7 +795,7 @@ def _close(t, y, n, tab, xs, pv, lw, cs, acc, acc0, E_from, out, t_from, t_end, 
     out[S_STATUS], out[S_N_EVENTS] = status, n_ev
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _core(pv, lw, tab, xs, t_from, t_end, max_events, record, out):
     """One run: flights and contact phases in turn, the window [t_from, t_end] marked. Returns
     (log, n_log, y, t, status, E0, acc) with ``acc`` the integrals from t = 0."""
@@ -834,7 +843,7 @@ def _core(pv, lw, tab, xs, t_from, t_end, max_events, record, out):
     return log, n_log, y, t, status, E0, acc
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _contact_time(pv, lw, j, v):
     """Elastic Hertz contact time of the free mass at approach speed v on a rigid flat (s): the
     scale of the first integration step."""
@@ -856,7 +865,7 @@ def run_contacts(pvec: np.ndarray, laws: np.ndarray, tab: np.ndarray, xs: np.nda
 
 # nogil: the pipeline runs the compliant ensembles in a worker thread beside its other stages;
 # holding the GIL here would stall them for the whole call (the omp threading layer is thread-safe)
-@njit(cache=True, parallel=True, nogil=True)
+@njit(cache=True, error_model="numpy", parallel=True, nogil=True)
 def _ensemble(pmat, lmat, tab, xs, t_from, t_end, max_events, out):
     for i in prange(pmat.shape[0]):
         _core(pmat[i], lmat[i], tab, xs, t_from, t_end, max_events, False, out[i])

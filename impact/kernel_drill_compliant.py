@@ -100,7 +100,7 @@ def pack_drill(wob: float, m_housing: float, rock, rock_on: bool = True) -> np.n
 # ----------------------------------------------------------------------------- the rock's branches
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rock_force(d, rk, dv):
     """Rock force (N) at the bit penetration d (m) on the current branch (continued past its ends
     until the event is located)."""
@@ -116,7 +116,7 @@ def rock_force(d, rk, dv):
     return dv[DV_FTH] + dv[DV_KU] * (e - dv[DV_FTH] / kl)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def crater(d, rk, dv):
     """The crater floor p (m) at the bit penetration d."""
     if rk[RK_BR] == B_CRUSH:
@@ -124,7 +124,7 @@ def crater(d, rk, dv):
     return rk[RK_P]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rock_elastic(d, rk, dv):
     """Elastic energy the rock returns on unloading from d, J (0 open; the loading line below the
     threshold; the elastic curve above it)."""
@@ -139,12 +139,12 @@ def rock_elastic(d, rk, dv):
     return 0.5 * fth * eth + fth * (e - eth) + 0.5 * dv[DV_KU] * (e - eth) ** 2
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _crush(rk, d, F):
     rk[RK_BR], rk[RK_DC], rk[RK_PC], rk[RK_FC] = B_CRUSH, d, rk[RK_P], F
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rock_settle(rk, d, dd, dv):
     """Take the loading transitions the rock is at or past at penetration d, bit speed dd (after a
     touch, a threshold, the top of the elastic curve, or a blow's cleared memory); each keeps the
@@ -167,7 +167,7 @@ def rock_settle(rk, d, dd, dv):
             return
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rock_event(rk, which, d, dd, dv):
     """Apply the rock's event ``which`` (0 or 1, :func:`_events`) at penetration d, bit speed dd:
     the unloading ones here (release, below the threshold, the bit's stop), the loading ones by
@@ -186,7 +186,7 @@ def rock_event(rk, which, d, dd, dv):
     rock_settle(rk, d, dd, dv)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def new_blow(rk, d, dd, dv):
     """A blow starts: the crater's memory is cleared (:func:`impact.rock.rock_new_blow`)."""
     if rk[RK_BR] == B_CRUSH:
@@ -198,7 +198,7 @@ def new_blow(rk, d, dd, dv):
 # ----------------------------------------------------------------------------- the motion
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _approaches(t, y, n, mt, xs, pv, dv):
     """Total approaches at horn and tool and their rates (m, m/s)."""
     u, ud = tip_modal(t, y, n, mt, xs)
@@ -207,7 +207,7 @@ def _approaches(t, y, n, mt, xs, pv, dv):
     return y[j] + u - y[0], y[j + 1] + ud - y[1], y[0] - face, y[1] - y[3]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def rhs(t, y, out, n, mt, xs, pv, lw, cs, dv, rk):
     """Right-hand side: ``y = [w, w', x, x', q (n), q' (n), X, X', integrals (N_I)]``."""
     m_w, m_t, k0, c = pv[P_M_FREE], pv[P_M_TOOL], pv[P_K0], pv[P_C]
@@ -239,7 +239,7 @@ def rhs(t, y, out, n, mt, xs, pv, lw, cs, dv, rk):
     out[k + I_FDT], out[k + I_TC], out[k + I_ELEC] = Fr, 0.0 if rk[RK_BR] == B_OPEN else 1.0, V * cur
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _step(t, y, h, n, mt, xs, pv, lw, cs, dv, rk, st, y8, tmp, fresh):
     """One DOP853 step of length h from (t, y) into y8 (:data:`impact.kernel_compliant.R8_A`)."""
     if fresh:
@@ -250,7 +250,7 @@ def _step(t, y, h, n, mt, xs, pv, lw, cs, dv, rk, st, y8, tmp, fresh):
     combine(y, h, st, R8_B, R8_S, y8)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _events(t, y, n, mt, xs, pv, dv, cs, rk, out):
     """The event functions, positive past their event: horn and tool (touch, or peak / reload and
     separation), rock (touch or release, threshold / top of the elastic curve / the bit's stop);
@@ -281,7 +281,7 @@ def _events(t, y, n, mt, xs, pv, dv, cs, rk, out):
         out[4], out[5] = -y[3], -1.0
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _locate(t, y, hh, k, f_lo, f_hi, n, mt, xs, pv, lw, cs, dv, rk, st, y8, tmp, ev):
     """Step length just past event k (its function rises through zero in (0, hh]): the Illinois
     method on whole steps from (t, y); y8 holds the step to the returned length."""
@@ -311,7 +311,7 @@ def _locate(t, y, hh, k, f_lo, f_hi, n, mt, xs, pv, lw, cs, dv, rk, st, y8, tmp,
 # ----------------------------------------------------------------------------- events and energy
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def energy(t, y, n, mt, xs, pv, lw, cs, dv, rk):
     """Stored energy, J: bodies, modes, the support spring's and the constant forces' potentials,
     the closed contacts' absorbed energy and the rock's elastic energy."""
@@ -331,7 +331,7 @@ def energy(t, y, n, mt, xs, pv, lw, cs, dv, rk):
     return E + rock_elastic(dv[DV_E0] + dv[DV_P0] + y[2], rk, dv)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _apply(k, t, y, n, mt, xs, pv, lw, cs, dv, rk, acc, stats, inside):
     """Apply event k at t (the step to it taken): the contact laws' branches, the blows, the rock's."""
     Dh, Dhd, Dt, Dtd = _approaches(t, y, n, mt, xs, pv, dv)
@@ -364,7 +364,7 @@ def _apply(k, t, y, n, mt, xs, pv, lw, cs, dv, rk, acc, stats, inside):
         cs[c, CS_STATE] = OPEN
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _start(y, n, mt, xs, pv, lw, cs, dv, rk):
     """The state at t = 0: the modes steady (or at rest), the tool and the rock static under the
     weight on bit, the free mass on the tip leaving at v0."""
@@ -380,7 +380,7 @@ def _start(y, n, mt, xs, pv, lw, cs, dv, rk):
         rk[RK_BR] = B_LOW if dv[DV_E0] < dv[DV_FTH] / dv[DV_KL] else B_UPPER
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _tolerances(mt, n, rtol):
     """Absolute tolerances: the compliant engine's (mm positions, m/s speeds, the modes through
     their tip participation), the housing's as the tool's."""
@@ -390,7 +390,7 @@ def _tolerances(mt, n, rtol):
     return atol
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _mark(y, n, mt, xs, pv, lw, cs, dv, rk, t, snap):
     """The window's start or end: stored energy, crater depth, integrals (``snap``)."""
     k = 6 + 2 * n
@@ -399,7 +399,7 @@ def _mark(y, n, mt, xs, pv, lw, cs, dv, rk, t, snap):
     snap[2:2 + N_I] = y[k:k + N_I]
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _close(out, s0, s1, acc, loss0):
     """The window's row from its start and end marks."""
     a, b = s0[2:], s1[2:]
@@ -414,7 +414,7 @@ def _close(out, s0, s1, acc, loss0):
     out[S_P_FROM], out[S_P_END] = math.nan, math.nan
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _core(pv, lw, dv, tab, xs, t_from, t_end, out, y):
     """One run; the window's row into ``out``, the final state into ``y``. Returns the status."""
     n = tab.shape[0]
@@ -463,7 +463,8 @@ def _core(pv, lw, dv, tab, xs, t_from, t_end, out, y):
             _step(t, y, hh, n, mt, xs, pv, lw, cs, dv, rk, st, y8, tmp, False)
         else:
             h = hh * grow if hh >= min(h, h_max) else max(h, hh * grow)
-        y[:] = y8
+        for j in range(y.size):
+            y[j] = y8[j]
         t = t_stop if t_stop - t - hh <= 1e-15 * t_stop else t + hh
         fresh = True
         if k_best >= 0:
@@ -493,7 +494,7 @@ def run_drill(pvec: np.ndarray, laws: np.ndarray, dvec: np.ndarray, tab: np.ndar
     return row, y
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, error_model="numpy", parallel=True)
 def _ensemble(pmat, lmat, dmat, tab, xs, t_from, t_end, out):
     for i in prange(pmat.shape[0]):
         y = np.zeros(6 + 2 * tab.shape[0] + N_I)
