@@ -385,8 +385,9 @@ def test_cli_stress_table_states_a_two_mesh_error(tmp_path, capsys):
 
     design = tmp_path / "langevin.toml"
     examples.langevin_sandwich().save(design)
+    # refine 2: what is checked is which estimate runs and what the table says of it, at any mesh
     base = ["--design", str(design), "--surface", "top", "--voltage", "50", "--q-mech", "100", "--points", "5",
-            "--stress-points", "0", "-q"]
+            "--stress-points", "0", "--refine", "2", "-q"]
     assert main(base + ["--stress", str(tmp_path / "a"), "--json", str(tmp_path / "a.json")]) == 0
     rec = json.loads((tmp_path / "a.json").read_text())
     table = rec["stress"]["working_point"]
