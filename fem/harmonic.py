@@ -334,6 +334,7 @@ def modal_basis(system: PiezoSystem, near_hz: float, n_modes: int = 12, *, clamp
     elif getattr(modes, "factor", None) is not None and float(modes.sigma) == sigma:
         F = modes.factor                           # the modal analysis' own, at the same shift and free set
     else:
+        log.debug("harmonic: the residual factorises K - sigma M at %.6g (the modes' shift %.6g)", sigma, modes.sigma)
         F = factorize((split.K - sigma * split.M).tocsr(), backend=backend)
 
     def solve_truncated(v):

@@ -47,7 +47,7 @@ from rpud_common import ParameterError, check_choice
 
 from .assembly import PiezoSystem
 
-__all__ = ["SectorSystem", "sector_system", "axial_sector", "AXIS_MOTIONS", "PATHS", "sweepable", "default_path",
+__all__ = ["SectorSystem", "sector_system", "sector_mesh", "axial_sector", "AXIS_MOTIONS", "PATHS", "sweepable", "default_path",
            "check_path", "path_label", "default_system", "system_label", "whole_grade"]
 
 log = logging.getLogger(__name__)
@@ -246,25 +246,34 @@ def sector_system(system: PiezoSystem, sectors: int, *, label: str = "") -> Sect
     return out
 
 
-def axial_sector(design, *, refine: float = 1.0, grade: bool = False, mesh_size: float | None = None,
-                 sectors: int | None = None) -> SectorSystem:
-    """Mesh ``design`` as the swept sector of the ``k = 0`` rule
-    (:data:`geometry.sector.AXIAL_RULE`, scaled by ``refine``), assemble it and restrict it
-    (:func:`sector_system`). ``sectors``: default the coupler's symmetry order (6 for a body of
-    revolution). Raises a ParameterError for a design that cannot be swept as a sector."""
+def sector_mesh(design, *, refine: float = 1.0, grade: bool = False, mesh_size: float | None = None,
+                sectors: int | None = None):
+    """The swept sector mesh of the ``k = 0`` rule (:data:`geometry.sector.AXIAL_RULE`, scaled by
+    ``refine``) of ``design``, not assembled: ``(mesh, sectors)``, ``sectors`` default the
+    coupler's symmetry order (6 for a body of revolution). Raises a ParameterError for a design
+    that cannot be swept as a sector."""
     import geometry
     from geometry.sector import AXIAL_RULE, symmetry_order
-
-    from .assembly import assemble
 
     if sectors is None:
         sectors = symmetry_order(design) or 6
     rule_refine, meshing = AXIAL_RULE
     mesh = geometry.build_mesh(design, mesh_size=mesh_size, order=2, refine=rule_refine * refine, grade=grade,
                                mesher="revolve", sectors=sectors, sector_meshing=meshing.scaled(refine))
+    return mesh, sectors
+
+
+def axial_sector(design, *, refine: float = 1.0, grade: bool = False, mesh_size: float | None = None,
+                 sectors: int | None = None) -> SectorSystem:
+    """Mesh ``design`` as the swept sector of the ``k = 0`` rule (:func:`sector_mesh`), assemble
+    it and restrict it (:func:`sector_system`). ``sectors``: default the coupler's symmetry order
+    (6 for a body of revolution). Raises a ParameterError for a design that cannot be swept as a
+    sector."""
+    from .assembly import assemble
+
+    mesh, sectors = sector_mesh(design, refine=refine, grade=grade, mesh_size=mesh_size, sectors=sectors)
     return sector_system(assemble(mesh, order=2), sectors,
                          label=path_label(design, "sector", refine=refine, grade=grade, mesh_size=mesh_size))
-
 
 
 PATHS = ("sector", "whole")

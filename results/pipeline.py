@@ -32,8 +32,9 @@ Stages (each timed, each reported on the terminal through ``progress``):
 Pieces of stage 3 run side by side on two cores (:mod:`results.stage_beside`): the harmonic
 stage and the bolt's unit preload state beside the teeth motion's finer mesh, then the preload
 window and the band response (a worker thread) beside the discretisation-error estimate on the
-coarser mesh; ``timings``
-therefore holds overlapping intervals (``discretisation_error_s`` lies inside ``harmonic_s``).
+coarser mesh; the teeth motion's finer mesh is solved in a worker thread from its meshing to
+the rotary unit's stage; ``timings`` therefore holds overlapping intervals
+(``discretisation_error_s`` lies inside ``harmonic_s``).
 Beside stages 4-5 run the operating point's modal bases at Q/2 and 2Q (a worker thread) and the
 renders (a worker process); ``operating_point_s`` and ``renders_s`` count what is left after them.
 The compliant stage runs in a worker thread from the end of the harmonic solve to the end of
@@ -357,7 +358,7 @@ def run_pipeline(design, settings: PipelineSettings, out_dir, *,
     with Renders(run) as renders, CompliantWorker() as compliant:     # beside the later stages
         teeth = _fe_stages(run, clock, tune, say, renders, compliant)
         renders.modes()
-        base, masses = _impact_stages(run, clock, say, teeth)
+        base, masses = _impact_stages(run, clock, say)
         _rotor_stage(run, clock, say, teeth)      # after the impacts: the teeth job's solve ran beside them
         t0 = time.perf_counter()
         run.compliant, seconds = compliant.collect(say)
@@ -422,7 +423,6 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
     _start_compliant(run, compliant)
     run.bolt = preload_state(m.design, unit)
     preloaded, estimated = response_beside_estimate(run, clock, unit)
-    teeth.release()                           # after the estimate's and the band's solves: memory
     clock.took("harmonic_s", t0)
     preloaded.replay(say)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
@@ -448,17 +448,17 @@ def _rotor_stage(run: _Run, clock: _Clock, say, teeth) -> None:
     clock.took("rotor_s", t0)
 
 
-def _impact_stages(run: _Run, clock: _Clock, say, teeth) -> tuple:
+def _impact_stages(run: _Run, clock: _Clock, say) -> tuple:
     """A0 under the impact load, the impact statistics, the coupled model and the operating point;
     returns the impact stage's base parameters and its free masses.
 
     The operating point's modal bases at Q/2 and 2Q need only the FE system: a worker thread
     builds them while the impact stages run (their solves and products release the interpreter,
-    the impact kernels run on the other core), after the teeth motion's solve (``teeth``, a
-    :class:`results.stage_teeth.TeethJob`) has ended: the second core does one then the other
-    in the same time, without the two solves' memory at once. OpenBLAS stays on one thread
-    across both, as beside the discretisation-error estimate, so the numbers do not depend on
-    which runs when.
+    the impact kernels run on the other core), beside the teeth motion's solve (a
+    :class:`results.stage_teeth.TeethJob`, started after the matching): the bases solve on the
+    run's own factorisation, so they add little memory to the teeth's. OpenBLAS stays on one
+    thread across both, as beside the discretisation-error estimate, so the numbers do not
+    depend on which runs when.
     """
     from concurrent.futures import ThreadPoolExecutor
 
@@ -468,7 +468,7 @@ def _impact_stages(run: _Run, clock: _Clock, say, teeth) -> tuple:
 
     st, h, m = run.settings, run.harm, run.matched
     with blas_threads(1), ThreadPoolExecutor(max_workers=1, thread_name_prefix="bracket") as pool:
-        bracket = pool.submit(lambda: teeth.wait() or bracket_bases(st, m.system, m.modal, h.basis, h.f_w))
+        bracket = pool.submit(bracket_bases, st, m.system, m.modal, h.basis, h.f_w)
         base, masses = _loaded_impacts(run, clock, say)
         bases = bracket.result()
     t0 = time.perf_counter()

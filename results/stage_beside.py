@@ -13,6 +13,9 @@ Two rounds, each of pieces that share no data that any of them writes:
    the band response (a worker thread) beside the discretisation-error estimate on the coarser
    mesh (this thread: Gmsh again).
 
+The teeth motion's worker thread started in round 1 assembles and solves its finer mesh beside
+round 2 and the stages after it (it shares nothing with them either).
+
 PARDISO, NumPy and Gmsh release the interpreter, so the pieces overlap; each piece computes
 what it computed alone (same calls, same inputs), so the numbers do not depend on which runs
 when. In round 2 OpenBLAS stays on one thread across both (the eigen solves limit it anyway):

@@ -103,17 +103,38 @@ class MeshOptions:
 
 @dataclass(frozen=True)
 class Meshed:
-    """A design and its mesh (:func:`mesh_stage`)."""
+    """A design and its mesh (:func:`mesh_stage`), not assembled: the matching assembles morphed
+    copies of the mesh only, so an assembly of this one would go unused.
+
+    Attributes
+    ----------
+    design, mesh, options, seconds
+        The design, its mesh, the resolved :class:`MeshOptions` and the meshing's wall time, s.
+    sectors : int
+        ``N`` of the swept ``k = 0`` sector mesh on the sector path, 0 on the whole drill.
+    """
 
     design: Any
     mesh: Any
     options: MeshOptions
     seconds: float
-    system: Any = None
+    sectors: int = 0
 
     def record(self) -> dict:
         """Mesh size figures (a study's table columns)."""
         return {"tetrahedra": self.mesh.n_cells, "nodes": self.mesh.n_points, "mesh_s": self.seconds}
+
+    def system_of(self, mesh=None):
+        """The system ``mesh`` (default this mesh; a morphed copy of it in the matching) is solved
+        as: the ``k = 0`` restriction of its assembly on the sector path
+        (:func:`fem.sector_system.sector_system`), else its assembly."""
+        from fem.assembly import assemble
+        from fem.sector_system import sector_system
+
+        mesh = self.mesh if mesh is None else mesh
+        if not self.sectors:
+            return assemble(mesh)
+        return sector_system(assemble(mesh, order=2), self.sectors, label=self.options.label(self.design))
 
 
 def mesh_stage(design, options: MeshOptions) -> Meshed:
@@ -123,17 +144,17 @@ def mesh_stage(design, options: MeshOptions) -> Meshed:
     t0 = time.perf_counter()
     options = options.resolved(design)
     if options.path == "sector":
-        system = _sector_system(design, options)
-        return Meshed(design, system.mesh, options, time.perf_counter() - t0, system)
+        mesh, sectors = _sector_mesh(design, options)
+        return Meshed(design, mesh, options, time.perf_counter() - t0, sectors)
     mesh = geometry.build_mesh(design, mesh_size=options.mesh_size, refine=options.refine, grade=options.grade,
                                mesher=options.mesher)
     return Meshed(design, mesh, options, time.perf_counter() - t0)
 
 
-def _sector_system(design, options: MeshOptions):
-    from fem.sector_system import axial_sector
+def _sector_mesh(design, options: MeshOptions):
+    from fem.sector_system import sector_mesh
 
-    return axial_sector(design, refine=options.refine, grade=options.grade, mesh_size=options.mesh_size)
+    return sector_mesh(design, refine=options.refine, grade=options.grade, mesh_size=options.mesh_size)
 
 
 @dataclass(frozen=True)
@@ -205,21 +226,15 @@ def match_stage(meshed: Meshed, *, match: bool = True, tune: tuple[str, ...] | N
                              mesher=opt.mesher, tune=tune or default_tune(design))
     hooks = {}
     if opt.path == "sector":
-        from fem.assembly import assemble
-        from fem.sector_system import sector_system
-
-        sectors, label = meshed.system.sectors, meshed.system.label
-        hooks = {"system_of": lambda m: sector_system(assemble(m, order=2), sectors, label=label),
-                 "remesh": lambda d: _sector_system(d, opt).mesh}
+        hooks = {"system_of": meshed.system_of, "remesh": lambda d: _sector_mesh(d, opt)[0]}
     m = run_match(design, settings, mesh=mesh, progress=progress, **hooks)
     return Matched(m.design, m.mesh, m.system, m.modal, m.working_index, m, opt, time.perf_counter() - t0)
 
 
 def _as_it_is(meshed: Meshed, target: float):
-    from fem.assembly import assemble
     from fem.matching import working_mode
     from fem.modal import modal_analysis
 
-    system = meshed.system if meshed.system is not None else assemble(meshed.mesh)
+    system = meshed.system_of()
     modal = modal_analysis(system, target, 4)
     return system, modal, working_mode(system, modal.f_r_hz, modal.vectors, target)

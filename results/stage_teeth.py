@@ -23,9 +23,10 @@ are 3.3 for the ratio and 4.8 for the phase); when they have the same layers the
 :data:`fem.convergence.SECTOR_PHASE_ORDER` (its layers' error is then not seen by the pair).
 
 Cost: one mesh (Gmsh, in the caller's thread: Gmsh is one per process and sets signal handlers
-from the main thread only), then in a daemon worker thread the assembly at once, and a 4-mode
-modal solve and the modal basis from the end of the run's band response and two-level estimate
-on (their factorisations and its own do not add up in memory), ~16 s CPU on the default design.
+from the main thread only), then in a daemon worker thread the assembly, a 4-mode modal solve
+and the modal basis, ~16 s CPU on the default design: the longest single job of the run, so it
+starts as soon as its mesh is made (its factorisation beside the run's own solves keeps the
+default run's peak memory near 5 GB).
 """
 
 from __future__ import annotations
@@ -117,13 +118,9 @@ def teeth_mesh_text(design, options) -> str:
 
 
 def _sector_mesh(design, refine: float, options):
-    from geometry import build_mesh
-    from geometry.sector import AXIAL_RULE, symmetry_order
+    from fem.sector_system import sector_mesh
 
-    rule_refine, meshing = AXIAL_RULE
-    sectors = symmetry_order(design) or 6
-    return build_mesh(design, mesh_size=options.mesh_size, order=2, refine=rule_refine * refine, grade=options.grade,
-                      mesher="revolve", sectors=sectors, sector_meshing=meshing.scaled(refine)), sectors
+    return sector_mesh(design, refine=refine, grade=options.grade, mesh_size=options.mesh_size)
 
 
 def _system(design, mesh, sectors: int, refine: float, options):
@@ -193,19 +190,15 @@ def teeth_motion(design, options, *, loss, near_hz: float, voltage: float, surfa
 
 class TeethJob:
     """:func:`teeth_motion` beside the caller's stages: :meth:`start` meshes in the calling (main)
-    thread and starts a daemon worker thread, which assembles at once (no factorisation: little
-    memory, and it fills the cores' gaps in the caller's stages) and solves from :meth:`release`
-    on (PARDISO and NumPy release the interpreter; the caller releases it once its own largest
-    solves are done, so the two factorisations do not add up in memory); :meth:`collect` takes the run's own
-    values, the estimate's coarse level. A run ended by a signal or an error does not wait for
-    the thread (its answer is dropped; :func:`rpud_common.cli.start_native_worker`)."""
+    thread and starts a daemon worker thread, which assembles and solves at once (PARDISO and
+    NumPy release the interpreter, so it fills the cores' gaps in the caller's stages);
+    :meth:`collect` takes the run's own values, the estimate's coarse level. A run ended by a
+    signal or an error does not wait for the thread (its answer is dropped;
+    :func:`rpud_common.cli.start_native_worker`)."""
 
     def __init__(self):
-        import threading
-
         self.thread, self.done, self.box, self.refine, self.note = None, None, {}, None, ""
         self.design = self.options = None
-        self.go = threading.Event()
 
     def start(self, design, options, surfaces, **solve) -> None:
         """Mesh and start the solve when :func:`teeth_refine` allows it (else :attr:`note` says
@@ -220,22 +213,16 @@ class TeethJob:
 
         def work():
             try:
-                assembled = _system(design, mesh, sectors, self.refine, options)    # no factorisation yet
-                self.go.wait()
+                assembled = _system(design, mesh, sectors, self.refine, options)
                 self.box["out"] = _solve(assembled, surfaces=tuple(surfaces), **solve)
             except BaseException as exc:          # handed to the caller at collect
                 self.box["error"] = exc
 
         self.thread, self.done = start_native_worker(work, "teeth")
 
-    def release(self) -> None:
-        """Let the worker solve."""
-        self.go.set()
-
     def wait(self) -> None:
         """Wait until the worker has ended (solved or failed; :meth:`collect` takes the result)."""
         if self.thread is not None:
-            self.release()
             self.done.wait()
 
     def collect(self, coarse) -> TeethMotion | None:

@@ -99,6 +99,11 @@ def test_matching_runs_on_the_sector(tmp_path):
     fresh = axial_sector(m.design, refine=2.0)
     res = modal_analysis(fresh, 20e3, 4)
     assert res.f_r_hz[working_mode(fresh, res.f_r_hz, res.vectors, 20e3)] == pytest.approx(20e3, rel=5e-3)
+    # the harmonic residual solves on the match's own factorisation, at its shift (no second one)
+    from results.stage_harmonic import harmonic_stage
+
+    h = harmonic_stage(m, loss=PipelineSettings().losses().loss_model(), voltage=1.0)
+    assert h.basis.factor is m.modal.factor and h.basis.sigma == m.modal.sigma
 
 
 def test_one_point_study_equals_the_pipeline_on_the_sector(sector_run, tmp_path):
