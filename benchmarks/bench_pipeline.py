@@ -27,11 +27,12 @@ import geometry
 from results.pipeline import PipelineSettings, run_pipeline
 
 
-def run(settings: PipelineSettings) -> tuple[dict, float, float]:
-    """The run's summary, wall and CPU seconds."""
+def run(settings: PipelineSettings, design=None) -> tuple[dict, float, float]:
+    """The run's summary, wall and CPU seconds, on ``design`` (default: the default drill)."""
+    design = geometry.default_design() if design is None else design
     with tempfile.TemporaryDirectory() as tmp:
         t0, c0 = time.perf_counter(), time.process_time()
-        s = run_pipeline(geometry.default_design(), settings, tmp, progress=lambda msg: None).summary
+        s = run_pipeline(design, settings, tmp, progress=lambda msg: None).summary
         return s, time.perf_counter() - t0, time.process_time() - c0
 
 

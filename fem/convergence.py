@@ -88,7 +88,7 @@ ESTIMATOR_ORDER = 2.0
 """Order in h assumed by :func:`two_level_error` on a smooth case or a graded mesh
 (``grade=True``), below the orders observed there, so the estimate errs on the large side: 2.5x the three-level Richardson error on a
 smooth free-free cylinder (observed order 4.25, tests/test_mesh_grading.py) and ~1.7x the true
-error of the default design without slots and teeth, graded (refine 1.25 -> 1: 13.1 Hz change,
+error of the article's drill without slots and teeth, graded (refine 1.25 -> 1: 13.1 Hz change,
 40 Hz estimate, 23.5 Hz true error against the axisymmetric reference). Not a bound when a mesh
 family is pre-asymptotic: see the README's convergence table."""
 
@@ -97,7 +97,7 @@ ESTIMATOR_ORDER_UNGRADED = 1.0
 eigenvalue error to h^1.1 (2 x 0.5445, a 270-degree corner; the axisymmetric (r, z) study,
 tests/axisym_reference.py, observed 1.1 with P2 and P3 alike), so order 2 would understate the
 error about twofold. Chosen below that rate so the estimate errs on the large side; not validated
-by a 3-D study here (the default design's ungraded levels are pre-asymptotic below ~160k DOFs)."""
+by a 3-D study here (the article drill's ungraded levels are pre-asymptotic below ~160k DOFs)."""
 
 
 def estimator_order(grade: bool, corners: bool = True) -> float:
@@ -109,7 +109,7 @@ def estimator_order(grade: bool, corners: bool = True) -> float:
 SECTOR_ORDER = ESTIMATOR_ORDER
 """Order in h assumed by the two-level estimate on the sector path (:mod:`fem.sector_system`):
 the sector's section is graded and its notch edges graded (:data:`geometry.sector.AXIAL_RULE`).
-The observed orders on the default design's sector levels (matched lengths, refine 1.4 / 1 / 0.8
+The observed orders on the article drill's sector levels (matched lengths, refine 1.4 / 1 / 0.8
 and 1 / 0.8 / 0.64, ``h = DOFs^(-1/3)``) are 2.6 and 3.5 (f_r), 2.6 and 3.6 (f_a), 1.8 and 3.7
 (tip amplitude per volt), 2.3 and 3.3 (teeth ellipse ratio): 2 lies below all but the tip's
 coarsest triple, so the estimate errs on the large side (the 1.4 / 1 / 0.8 triple's lower orders
@@ -121,7 +121,7 @@ extrapolation plus 0.0019 its own step). The teeth's phase takes :data:`SECTOR_P
 
 SECTOR_PHASE_ORDER = 1.0
 """Order in h assumed for the teeth's phase (``teeth_phase_deg``) by the two-level estimate on the
-sector path. The phase's level-to-level changes do not fall steadily (default design's sector,
+sector path. The phase's level-to-level changes do not fall steadily (article drill's sector,
 refine 1.4 / 1 / 0.8 / 0.64: -0.073, -0.093, -0.038 degrees; no order from the first three), and
 part of its error, the sector's element layers (-0.12 degrees from 3 to 6 layers at refine 1),
 does not change between the estimate's two levels (3 layers at refine 1 and 1.4). Order 1, the
@@ -133,7 +133,7 @@ QUANTITY_ORDERS = {"sector": {"teeth_phase_deg": SECTOR_PHASE_ORDER}}
 """Per path, the quantities whose assumed order differs from the path's (:data:`SECTOR_ORDER`)."""
 
 ESTIMATOR_RATIO = 1.4
-"""Refine factor of the extra, coarser solve of the two-level estimator (~1/2.4 of the DOFs on the default design)."""
+"""Refine factor of the extra, coarser solve of the two-level estimator (~1/2.4 of the DOFs on the article's drill)."""
 
 
 @dataclass(frozen=True)

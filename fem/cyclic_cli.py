@@ -21,14 +21,14 @@ HARMONICS = "0,1"
 """Default ``--harmonics``: the longitudinal, torsional and driven modes (0) and the bending pairs (1)."""
 
 CYCLIC_NOTE = ("mesh: swept sector (1/{n}), a mesh per harmonic family as listed. Measured at --refine 1 on the "
-               "default design with sharp horn corners at horn 67.1 mm / coupler 49.9 mm against the best estimates "
+               "article's drill (no bolt part) with sharp horn corners at horn 67.1 mm / coupler 49.9 mm against the best estimates "
                "of the converged values (docs: theory/piezo-elastic): f_r +0.029 %, f_a +0.025 %, first torsion "
                "+0.073 % (+-0.02 %), first bending pair +0.083 %; without slots and teeth against the converged "
                "(r, z) model: {plain}")
 """The discretisation error of the command line's sector meshes (``{n}``: sectors)."""
 
 CYCLIC_PLAIN = "f_r +0.019 %, f_a +0.022 %, torsion +0.023 %, bending +0.075 %"
-"""Measured errors of the same rules on the default design without slots and teeth."""
+"""Measured errors of the same rules on the article's drill (no bolt part) without slots and teeth."""
 
 RULE_ERRORS = {"f_r": 2.9e-4, "f_a": 2.5e-4}
 """Relative discretisation error of the working mode under the command line's rules (``--refine
@@ -37,7 +37,7 @@ JSON's ``f_r_hz_error`` / ``f_a_hz_error`` of the working mode on that design on
 
 RULE_DESIGN_FILLET = 0.0
 """Horn fillet radius (m) of the design :data:`RULE_ERRORS` was measured on: the sharp-cornered
-default (the converged references of that measurement, a coupler refinement study and the (r, z)
+article's drill (no bolt part; the converged references of that measurement, a coupler refinement study and the (r, z)
 model of the design without slots, were computed for it)."""
 
 RULE_DESIGN_LENGTHS = {"horn.length": 0.0671, "coupler.length": 0.0499}
@@ -248,11 +248,11 @@ def run(args, design, near: float, sectors: int) -> int:
     swept = mesher_of(args, design) == "revolve"
     if swept:
         note = CYCLIC_NOTE.format(n=sectors, plain=CYCLIC_PLAIN)
-        print(note + ("" if checked else " (this run departs from that check: the sharp-cornered default design at --refine 1, "
+        print(note + ("" if checked else " (this run departs from that check: the sharp-cornered article drill at --refine 1, "
                                         "no --mesh-size, --grade, --clamp, --render or --vtu)"))
     else:
         print("mesh: free sector; its working mode is high by ~0.1 % (--grade) to ~0.5 % (ungraded) at the "
-              "re-entrant edges (default design); the swept sector (--mesher revolve) is converged")
+              "re-entrant edges (the article's drill); the swept sector (--mesher revolve) is converged")
     text = None
     if args.json:
         text = json_text({
@@ -367,14 +367,15 @@ def _attach_errors(rows, near: float, checked: bool, est=None) -> None:
 
 
 def _default_geometry(design) -> bool:
-    """The design meshes as the one the rule's error was measured on (the default design with
-    sharp horn corners at the lengths of the measurement, :data:`RULE_DESIGN_FILLET`,
+    """The design meshes as the one the rule's error was measured on (the article's drill,
+    :func:`geometry.examples.article_design`, with sharp horn corners at the lengths of the measurement, :data:`RULE_DESIGN_FILLET`,
     :data:`RULE_DESIGN_LENGTHS`): same parts, bore and mesh-size inputs,
-    whatever its name. Any other design, the filleted default included, gets the two-level
+    whatever its name. Any other design, the filleted one and the default drill included, gets the two-level
     estimate instead."""
-    from geometry.design_rpud import default_design, filleted
+    from geometry.design_rpud import filleted
+    from geometry.examples import article_design
 
-    ref = filleted(default_design().replace(RULE_DESIGN_LENGTHS), RULE_DESIGN_FILLET)
+    ref = filleted(article_design().replace(RULE_DESIGN_LENGTHS), RULE_DESIGN_FILLET)
     return all(getattr(design, f, None) == getattr(ref, f) for f in
                ("coupler", "stack", "flange", "horn", "bore_diameter", "target_frequency", "elements_per_wavelength"))
 

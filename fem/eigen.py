@@ -43,7 +43,7 @@ the statically condensed response of their displacement, as in ARPACK's mode 3).
   a warning and ``converged = False``) when that bound stagnates at the round-off of the solve.
 * Eigenvalues are the Rayleigh quotients ``y^T K y / y^T M y`` on the exact matrices, not
   ``sigma + 1/theta``: their error is of order ``rho^2`` (measured: ``<= 0.1 rho^2`` relative on
-  the default drill), and the round-off of the solve (which limits ``1/theta`` to ~1e-9 relative for modes far from
+  the article's drill), and the round-off of the solve (which limits ``1/theta`` to ~1e-9 relative for modes far from
   the shift on a 68.6k-DOF drill) does not enter them.
 
 * Joint open circuit (``border=(a, alpha, z)``): the open-circuit matrix borders ``K - sigma M``

@@ -25,7 +25,7 @@ edges, whose 270-degree corners limit the rate to h^1.1; 2 graded or without suc
 below the observed rates, so the estimate errs on the large side). Validated against exact
 answers in ``tests/test_discretisation_error.py`` for f_r, f_a, k_eff and the tip amplitude
 (between 1x and 5x the true error, measured 1.21x-2.4x). The teeth's motion has no exact
-reference; on the default design's ``k = 0`` sector (the default path) its estimate is checked
+reference; on the article drill's ``k = 0`` sector (the default path) its estimate is checked
 against the refinement studies of two mesh families in the same test file (finest levels 267k and
 282k DOFs, limits 0.17909 and 0.17905): ellipse ratio 0.173 ± 0.010 against at most 0.0084
 admitted by the studies (both estimate levels have the same 3 element layers across the sector, so
@@ -41,7 +41,7 @@ estimate has no more).
 
 A refinement study (``--converge TOL``, :func:`fem.convergence.study`) gives the observed order
 and a Richardson estimate instead; ``benchmarks/study_discretisation_error.py`` compares the two
-on the default design.
+on the article's drill.
 
 Output convention
 -----------------

@@ -25,7 +25,7 @@ What is reused between iterations
 The mesh is never rebuilt: :meth:`geometry.design_base.DesignBase.morph_points` maps it exactly onto
 the design with the new length (piecewise-linear in z between the zone breakpoints), so an
 iteration is one fast assembly, one factorisation and a few eigenvectors near the target (started from
-the previous trial's: about a third fewer block solves on the default design); the
+the previous trial's: about a third fewer block solves on the article's drill); the
 half model's cell selection is computed once. The working mode is followed from iteration to
 iteration by the modal assurance criterion (same mesh topology), not by index. (Interpolating
 the matrices in the stretch factor is exact only for cells inside one zone; cells that straddle a

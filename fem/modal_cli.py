@@ -387,10 +387,10 @@ def _mesh_note(args, design) -> str:
     if mesher_of(args, design) == "revolve":
         if args.refine <= 1 and args.mesh_size is None and args.order == 2 and args.grade:
             return ("mesh: swept (r, z) section, coupler free with its notch edges graded; measured at refine 1 on "
-                    "the default design: working mode f_r / f_a ~0.08 % / ~0.06 % high, first bending and torsion "
+                    "the article's drill: working mode f_r / f_a ~0.08 % / ~0.06 % high, first bending and torsion "
                     "~0.20 % / ~0.20 % high; --error estimates this design's")
         if args.refine <= 1 and args.mesh_size is None and args.order == 2:
-            return ("mesh: swept (r, z) section, coupler free; measured at refine 1 on the default design: working "
+            return ("mesh: swept (r, z) section, coupler free; measured at refine 1 on the article's drill: working "
                     "mode f_r / f_a ~0.10 % / ~0.08 % high (+0.041 % / +0.044 % without slots and teeth; the "
                     "coupler's notch edges hold the rest, --grade grades them), first bending and torsion ~0.20 % / "
                     "~0.28 % high; --error estimates this design's")
@@ -398,7 +398,7 @@ def _mesh_note(args, design) -> str:
                 "estimates its error")
     if has_reentrant_edges(design, args.mesh_size, args.refine):
         return ("mesh: free; its working mode is high by ~0.1 % (--grade) to ~0.5 % (ungraded) at the re-entrant "
-                "edges (default design); --mesher revolve brings it to ~0.1 % (+0.04 % without slots and teeth), --error "
+                "edges (the article's drill); --mesher revolve brings it to ~0.1 % (+0.04 % without slots and teeth), --error "
                 "estimates it")
     return "mesh: free; --error estimates the working mode's discretisation error"
 

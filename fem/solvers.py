@@ -270,7 +270,7 @@ def _pardiso_error(code: int) -> Exception:
 def _upper(A: sp.csr_matrix) -> sp.csr_matrix:
     """The upper triangle of a CSR matrix with sorted indices and every diagonal entry stored,
     as PARDISO's symmetric types require (an explicit 0 where the diagonal is empty; scipy's
-    ``triu`` goes through COO: 3x slower on the default design)."""
+    ``triu`` goes through COO: 3x slower on the article's drill)."""
     n = A.shape[0]
     A.sum_duplicates()          # sorted, one entry per position (as scipy's triu leaves it)
     rows = np.repeat(np.arange(n, dtype=A.indices.dtype), np.diff(A.indptr))
@@ -311,7 +311,7 @@ def factorize(A, backend: str | None = None, symmetric: bool = True, matching: b
     ``matching=False`` (real matrices, PARDISO): no weighted matching in the analysis, which
     saddle-point matrices with zero diagonal entries need but a matrix with a full non-zero
     diagonal (the shifted piezo pencil: stiffness minus mass, minus permittivity) does not
-    (~20 % less factorisation work on the default design); if any pivot had to be perturbed the
+    (~20 % less factorisation work on the article's drill); if any pivot had to be perturbed the
     matrix is factorised again with the matching."""
     name = backend_name(backend)
     A = sp.csr_matrix(A)

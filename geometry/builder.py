@@ -55,17 +55,17 @@ DEFAULT_ORDER = 2
 
 MIN_QUALITY = 0.05
 """Lower bound on the minimum gamma (inscribed / circumscribed radius ratio x 3, of the straight
-tetrahedron on the corner nodes) of every element, checked by the tests for the default design,
+tetrahedron on the corner nodes) of every element, checked by the tests for the article's drill,
 its variants and the textbook stacks. Curved elements must also have a positive scaled inverse
 condition number (SICN, which sees the curvature: <= 0 means inverted)."""
 
 MIN_SICN_DEFAULT = 0.1
-"""Lower bound on the minimum SICN of the default design at its default size (tested)."""
+"""Lower bound on the minimum SICN of the article's drill at its default size (tested)."""
 
 OPTIMISE_BELOW = 0.1
 """Minimum gamma of the linear mesh below which a Netgen optimisation pass runs (a sliver just
 above ``MIN_QUALITY`` still curves badly at second order). A drawing (``kind = "cad"``) gets the
-pass always: the parametric default drill triggers it (min gamma 0.067), its STEP export, whose
+pass always: the parametric article drill triggers it (min gamma 0.067), its STEP export, whose
 linear mesh differs by a few elements, does not, and the pass alone moves the working mode by
 0.1 % (10 798 vs 12 925 tetrahedra); with the pass on both sides they agree within 2e-4."""
 
@@ -283,7 +283,7 @@ def _build(design: DesignBase, mesh_size: float | None = None, order: int = DEFA
         curvature; :mod:`geometry.sizing`): ``refine < 1`` refines, element count ~ ``refine**-3``.
     grade : bool
         Grade the mesh toward the major re-entrant edges (:func:`geometry.sizing.graded_edges`):
-        off by default (about twice the elements of the default design).
+        off by default (about twice the elements of the article's drill).
     mesher : {"free", "revolve", "auto"}
         ``"revolve"``: an RPUD's stack, flange and horn swept from a graded (r, z) section
         (:mod:`geometry.revolve`), the coupler free; ``"free"``: every part meshed freely (the

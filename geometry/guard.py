@@ -33,7 +33,7 @@ design, about a minute of Gmsh and 2 GB."""
 
 MAX_DOFS = 500_000
 """Budget of estimated degrees of freedom for an FE solve (``fem``, ``results``): ~7x the
-default design (68 561 DOFs, 1 GB peak); the factorisation memory model below puts 500 000 DOFs
+the article's drill (68 561 DOFs, 1 GB peak); the factorisation memory model below puts 500 000 DOFs
 near 10 GB."""
 
 TETS_PER_CUBE = 7.0
@@ -48,17 +48,17 @@ def _curvature_fraction(refine: float) -> float:
 
 
 REVOLVE_FACTOR = 1.7
-"""DOFs of ``mesher="revolve"`` over those of the free mesh (default design: 111 619 vs 68 561,
+"""DOFs of ``mesher="revolve"`` over those of the free mesh (the article's drill: 111 619 vs 68 561,
 1.63x; the swept section's graded edges cost about the same at every ``refine``)."""
 
 
 SECTOR_FACTOR = 1.207
 """DOFs of the ``k = 0`` swept sector (:data:`geometry.sector.AXIAL_RULE`) over the whole drill's
-swept, graded estimate at the rule's refine divided by the sector count (default design at horn
+swept, graded estimate at the rule's refine divided by the sector count (the article's drill at horn
 67.1 mm and coupler 49.9 mm with sharp horn corners at ``--refine 1``: 80 345 DOFs against 399 048 / 6)."""
 
 SECTOR_EXPONENT = 2.36
-"""Growth of the sector's DOFs as ``refine^-SECTOR_EXPONENT`` (default design with sharp horn
+"""Growth of the sector's DOFs as ``refine^-SECTOR_EXPONENT`` (the article's drill with sharp horn
 corners: 80 345 DOFs at ``--refine 1``, 268 106 at 0.6; the notch grading and the layer rule grow slower than h^-3)."""
 
 

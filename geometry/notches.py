@@ -5,7 +5,7 @@ channels) and the gaps between its teeth are notches. Where a notch's faces meet
 material (a V groove's apex, the walls of a slot's ends, a rectangular slot's floor edges, a tooth's
 root) the material angle is 270 degrees or more, the strain field is singular and the eigenvalue
 error falls only as about h^1.1 under uniform refinement (the same corner rate as the
-re-entrant edges of the swept section, :mod:`geometry.sizing`). Measured on the default design
+re-entrant edges of the swept section, :mod:`geometry.sizing`). Measured on the article's drill
 (swept mesh, refine 1): scaling the coupler's caps by 0.75 / 0.5 / 0.4 moved the first torsion
 mode by -0.04 / -0.10 / -0.13 % and the working f_r by -0.02 / -0.04 / -0.05 % for 1.3x / 2.4x /
 3.9x the DOFs, still not converged. Grading toward these edges is what the swept section's
@@ -41,7 +41,7 @@ __all__ = ["add_notch_field", "notch_cells", "notch_edges", "notch_edge_classes"
 
 NOTCH_FRACTION = 0.4
 """Edge size at a notch's re-entrant edge as a fraction of the slot zone's size (``@slots``, or
-``@teeth`` without slots; it carries ``refine``). Measured on the default design's swept mesh (DOFs, first torsion, working
+``@teeth`` without slots; it carries ``refine``). Measured on the article drill's swept mesh (DOFs, first torsion, working
 f_r): ungraded 111.6k, 15411.1, 19915.2 Hz; 0.4 / 0.8 (the rule) 136.0k, 15399.7, 19910.5 Hz;
 0.2 / 0.5 255k, 15385.8, 19905.0 Hz; 0.1 / 0.3 827k, 15379.9, 19903.3 Hz."""
 
@@ -201,7 +201,7 @@ def add_notch_field(gmsh, design, sizes: dict[str, float], region_vols: dict[str
 
     Also lowers Gmsh's ``Mesh.LcIntegrationPrecision`` (every curve of the model) from 1e-9 to 1e-5:
     at 1e-9 the 1-D meshing integrates the kinked distance field for seconds (measured 3.3 s
-    instead of 0.2 s on the default design).
+    instead of 0.2 s on the article's drill).
 
     Parameters
     ----------

@@ -33,12 +33,12 @@ MESHER_HELP = ("auto (default): revolve where the design can be swept (an RPUD w
                "else free; a match meshes freely under auto (--mesher revolve: a swept match, ~3x the time). "
                "revolve: the stack, flange and "
                "horn swept from a graded (r, z) section, long elements along the circular edges, the coupler free: "
-               "working mode +0.04 %% from the converged answer without slots and teeth, ~+0.1 %% on the slotted default design, "
+               "working mode +0.04 %% from the converged answer without slots and teeth, ~+0.1 %% on the slotted article drill, "
                "at ~1.6x the DOFs of free. free: every part meshed freely (fast; ~+0.5 %% on the working mode of the "
-               "default design)")
+               "article's drill)")
 GRADE_HELP = ("grade the mesh toward the re-entrant edges (flange/horn, horn step; the coupler's slot and tooth "
               "notches): free mesh +0.12 %% instead of +0.45 %% on the working mode of the design without slots and teeth, "
-              "~2.3x the DOFs of the default design; swept mesh (notches only) 1.22x the DOFs (default: off)")
+              "~2.3x the DOFs of the article's drill; swept mesh (notches only) 1.22x the DOFs (default: off)")
 
 _DEFAULT_WORD = "default"
 
@@ -67,13 +67,14 @@ def add_design_options(parser, *, include=DESIGN_OPTIONS, design_default: str | 
     include = tuple(include)
     if "design" in include:
         parser.add_argument("--design", metavar=metavar, default=design_default,
-                            help="design TOML (default: the built-in RPUD design); it may hold its own "
-                                 "[materials] table. A bare NAME picks that design of geometry/examples.toml "
-                                 "(e.g. bolted: the drill with its M12 bolt part)")
+                            help="design TOML (default: the built-in RPUD design, its M12 stack bolt threaded "
+                                 "in as an elastic part); it may hold its own [materials] table. A bare NAME picks "
+                                 "that design of geometry/examples.toml (e.g. article: the drill as the article's "
+                                 "Table 1 draws it, no bolt part; bolted: the bolt bonded at the stack's faces)")
     if "select" in include:
         parser.add_argument("--select", metavar="NAME", help="pick one design from a TOML file holding several "
                             "(e.g. geometry/examples.toml: k33_rod, k31_bar, langevin, slender_rod, "
-                            "bonded_sandwich, rpud, bolted)")
+                            "bonded_sandwich, rpud, article, bolted)")
     if "materials" in include:
         parser.add_argument("--materials", metavar="FILE",
                             help="material library TOML (layout of geometry/materials.toml; stress-charge c_E, e, "

@@ -40,7 +40,7 @@ __all__ = ["can_revolve", "resolve_mesher", "MESHERS", "sectors_per_quarter", "r
 
 SECTORS_PER_QUARTER = 3
 """Element layers per quarter turn at ``refine = 1`` (12 per circle, as the free mesh's
-curvature rule); ``ceil(3 / refine)`` otherwise. On the default design at refine 1, 4 / 5 / 6 per
+curvature rule); ``ceil(3 / refine)`` otherwise. On the article's drill at refine 1, 4 / 5 / 6 per
 quarter (the sector cap of the section shrinking with them) move the first bending pair by
 -0.056 / -0.090 / -0.117 %, torsion and the working mode by ~-0.03 % and ~-0.02 %
 (benchmarks/study_swept_convergence.py --sectors)."""
@@ -51,7 +51,7 @@ mid-edge nodes back on the straight edges (:func:`straighten`)."""
 
 STRAIGHTEN_STEP = 0.125
 """Fraction of the way from arc to chord per round with which a free (unswept) build unfolds its
-elements (:func:`straighten`). On the default design without slots and teeth at refine 1.4 (5
+elements (:func:`straighten`). On the article's drill without slots and teeth at refine 1.4 (5
 folded elements at the coupler's bore) the working mode and the tip amplitude per volt then lie
 within 2.4e-5 / 4.2e-4 of Gmsh's high-order optimiser's, against 2.0e-4 / 3.1e-3 with whole edges."""
 

@@ -98,7 +98,7 @@ converge slowest (about h^0.7 to h^1 measured): they are graded to 0.15 of the s
 (``--grade`` uses 0.4), the slots' floor lines (a V groove's apex) to 0.08 and the teeth's roots
 only to 0.3. The teeth's motion (ellipse ratio) is limited by the floor lines: one class of edge
 or region at a time from the rule without the floor and root classes (all notch edges at 0.15),
-at refine 1 on the default design with matched lengths (86 579 DOFs, ratio 0.17090): floors at
+at refine 1 on the article's drill with matched lengths (86 579 DOFs, ratio 0.17090): floors at
 0.08 +0.00205 for +11.5k DOFs, end walls at 0.08 +0.00091 (+10.3k), roots at 0.08 +0.00045
 (+15.3k), the slot zone 0.8x finer (notch edges kept) +0.00077 (+9.4k), 6 layers instead of 3
 +0.00213 (+57.9k); the roots at 0.3 pay for the floors (89 498 DOFs, +3.4 %). Past that first

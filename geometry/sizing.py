@@ -16,7 +16,7 @@ refines; the element count grows about as ``F**-3``):
   quasi-uniform mesh the eigenvalue error falls only as h^1.1 whatever the element order. A
   size field ``h(d) = min(region size, F (h_edge + GROWTH d))`` (``d`` the distance to the
   circular edge) grades the mesh geometrically toward each such edge and recovers the smooth
-  rate (h^4 with P2). It is off by default: on the default design it roughly doubles the DOFs
+  rate (h^4 with P2). It is off by default: on the article's drill it roughly doubles the DOFs
   (12 925 -> ~29 000 tetrahedra) for +0.12 % instead of +0.45 % on the working mode, and the
   pipeline's and the test suite's time budgets are set on the ungraded mesh.
   Study knobs (module constants, defaults = the ``--grade`` rule): :data:`EDGE_FRACTION`,
@@ -88,8 +88,8 @@ little (the bore edge on the flange is graded too, at the same fraction)."""
 
 REVOLVE_GROWTH = 0.8
 """Growth of the element size with the distance from an edge in a swept section. Measured on
-the default design without slots and teeth (working mode against the converged (r, z) answer,
-f_r / f_a, DOFs of that design; the default design's DOFs in brackets):
+the article's drill without slots and teeth (working mode against the converged (r, z) answer,
+f_r / f_a, DOFs of that design; the article drill's DOFs in brackets):
 edge 0.02 / growth 0.8 (the rule) +0.041 % / +0.044 % at 80k (112k); 0.01 / 0.7 +0.030 % /
 +0.030 % at 98k (129k, 1.2x the modal time); 0.01 / 0.8 +0.034 % at 92k; 0.005 / 0.8 +0.032 % at
 104k; 0.02 / 0.6 +0.032 % at 94k; 0.03 / 1.0 +0.068 % at 64k; 0.08 / 0.5 without the bore edge
@@ -97,7 +97,7 @@ edge 0.02 / growth 0.8 (the rule) +0.041 % / +0.044 % at 80k (112k); 0.01 / 0.7 
 (107k), 0.01 / 0.8 +0.038 % / +0.040 % (119k). The rest of the error: the sweep's 12 sectors
 (16, with the 0.01 / 0.7 rule: -0.008 %) and the coupler's free mesh (half its size: -0.008 %).
 The rule is the cheapest measured that keeps both within 0.045 %: ``python -m fem.modal`` on the
-default design then takes 0.88x the free 68.6k-DOF run with the earlier modal path
+article's drill then takes 0.88x the free 68.6k-DOF run with the earlier modal path
 (benchmarks/bench_modal_cli.py; 1.07x before the PARDISO settings of fem.solvers)."""
 
 JUNCTION_FRACTION = 0.2
@@ -107,7 +107,7 @@ two parts of different material or poling meet without a major step (the electro
 edges between oppositely poled rings, the stack's ends on the coupler and on the flange), as a
 fraction of the smaller adjacent region size. The fields jump there (the piezoelectric constants
 change sign across an electrode), and the tip amplitude per volt converges slowly toward them
-while the frequencies hardly move. Measured on the default design without slots and teeth,
+while the frequencies hardly move. Measured on the article's drill without slots and teeth,
 sharp corners, sector path at refine 1 (working f_r / f_a / tip amplitude per volt against the
 converged (r, z) model, DOFs): not graded +0.019 / +0.022 / -0.080 %, 29.3k; 0.2 / growth 0.4
 (the rule) +0.015 / +0.019 / -0.041 %, 39.3k; 0.1 / 0.5 -0.041 %, 44.2k; 0.1 / 0.8 -0.049 %,
@@ -127,7 +127,7 @@ the design without slots and teeth (tests/test_sector_paths.py, sector path at r
 f_a / tip amplitude per volt against the (r, z) model, DOFs): not graded +0.089 / +0.065 /
 -0.243 % at 49.9k (the two-level estimate states 0.029 % for the tip: the ungraded corners
 converge non-monotonically); 0.05 (the rule) +0.023 / +0.022 / -0.019 % at 55.9k; 0.02 +0.021 /
-+0.021 / -0.009 % at 61.0k. The default (bolted) sector: 89.6k -> 94.9k DOFs."""
++0.021 / -0.009 % at 61.0k. The article's drill with a bonded-face M12 bolt, sector at refine 1: 89.6k -> 94.9k DOFs."""
 
 RING_ELEMENTS = 1.0
 """Element size cap in a ring: its thickness divided by this."""
@@ -335,7 +335,7 @@ def graded_edges(design: DesignBase, sizes: dict[str, float], refine: float = 1.
 
     Between consecutive axisymmetric slices that touch, a drop of the outer radius by at least
     :data:`MAJOR_STEP` of the larger radius leaves a re-entrant edge at the smaller radius (the
-    flange/horn edge and the horn's step of the default design; with :data:`GRADE_MINOR` also
+    flange/horn edge and the horn's step of the article's drill; with :data:`GRADE_MINOR` also
     smaller steps, e.g. the rings' outer edge on the flange), and a bore that narrows leaves one
     at the larger bore radius (the stack's bore on the flange face, :data:`GRADE_BORES`). Edge size:
     :data:`EDGE_FRACTION` of the smaller adjacent region size (:data:`MINOR_FRACTION` for minor

@@ -55,7 +55,7 @@ def build_parser() -> CliParser:
     add_design_options(p, include=("mesh_size", "refine", "grade", "mesher"))
     p.add_argument("--path", choices=("auto", "sector", "whole"), default="auto",
                    help="auto (default): the k = 0 swept sector where the design can be swept (every response of "
-                        "the stack on a sixth of the unknowns, working mode within ~0.03 %% on the default design), "
+                        "the stack on a sixth of the unknowns, working mode within ~0.03 %% on the article's drill), "
                         "else the whole drill, graded; sector / whole: that path (--mesher other than auto: whole)")
     from fem.losses import add_loss_options
 

@@ -468,7 +468,7 @@ def static_residual(factor, M, a, kept, *, lam_cut: float, rtol: float = 1e-13, 
                          f"leaves the residual series unconverged after {max_solves} solves")
 
 
-#: modes asked of :func:`wideband_modes`' first window per Hz of cut-off: the default drill's k = 0
+#: modes asked of :func:`wideband_modes`' first window per Hz of cut-off: the article drill's k = 0
 #: spectrum holds one mode per ~3.8 kHz (32 below 122 kHz), so one per 3 kHz covers it in one window;
 #: a denser spectrum takes a second window on the same factorisation
 FIRST_WINDOW_MODES_PER_HZ = 1.0 / 3e3

@@ -11,7 +11,7 @@ from rpud_common import CliParser, ParameterError, check_integer, check_output_p
 
 _CORES = os.cpu_count() or 1
 MAX_WORKERS = 4 * _CORES
-"""Most local worker processes: each holds an FE model (about 1 GB for the default design)."""
+"""Most local worker processes: each holds an FE model (about 1 GB for the article's drill)."""
 
 
 def build_parser() -> CliParser:
@@ -37,7 +37,7 @@ def build_parser() -> CliParser:
                         "is not one this command wrote is refused)")
     p.add_argument("--allow-large", action="store_true",
                    help=f"run even when the estimated time exceeds {MAX_HOURS:g} h or the base design exceeds the "
-                        "FE size budget (the estimate: stage times of the default design measured on a 2-core "
+                        "FE size budget (the estimate: stage times of the article's drill measured on a 2-core "
                         "machine, scaled by the mesh size, over the workers)")
     p.add_argument("--no-figures", action="store_true", help="table and JSON only")
     p.add_argument("-q", "--quiet", action="store_true", help="no progress bar")

@@ -22,11 +22,11 @@ __all__ = ["estimate_cost", "check_cost", "CostEstimate", "MAX_HOURS", "MESH_SEC
            "MATCHING_SECONDS", "HARMONIC_SECONDS", "IMPACT_SECONDS", "IMPACT_MEMBER_SECONDS"]
 
 
-# Stage times of the default design (as built, its own mesh rule: 12 925 tetrahedra, ~93 000
+# Stage times of the article's drill (as built, its own mesh rule: 12 925 tetrahedra, ~93 000
 # estimated DOFs), measured on this project's 2-core reference machine with one BLAS thread, as
 # a worker runs them: the stage functions called in turn on one point (see run_sequential).
 MESH_SECONDS = 1.5
-"""Gmsh meshing of the default design, s (measured 1.44 s)."""
+"""Gmsh meshing of the article's drill, s (measured 1.44 s)."""
 MODAL_SECONDS = 4.5
 """The match stage without resonance matching (assembly + modal analysis), s (measured 4.5 s)."""
 MATCHING_SECONDS = 16.5
@@ -39,17 +39,17 @@ IMPACT_MEMBER_SECONDS = 1.2e-3
 """Impact statistics per ensemble member, s (256 members 0.73 s, 1024 members 1.59 s); the
 estimate takes ``settings.max_members`` members, the most a point can take."""
 REFERENCE_DOFS = 93_056
-"""``geometry.guard.estimate`` of the default design at its own mesh rule: FE stage times scale
+"""``geometry.guard.estimate`` of the article's drill at its own mesh rule: FE stage times scale
 from it."""
 FE_COST_EXPONENT = 1.3
-"""FE stage time ~ estimated DOFs ** 1.3 (default design at mesh_size 2.5 and 2 mm: 2.7x and
+"""FE stage time ~ estimated DOFs ** 1.3 (the article's drill at mesh_size 2.5 and 2 mm: 2.7x and
 5.1x the DOFs took 2.6-3.1x and 7.0-8.6x the modal and harmonic time)."""
 ROTOR_SECONDS = 0.25
 """The rotor stage of one point (torque-speed curve and hovering check at the teeth motion, the
 curve at the eight corners of its error box), s (measured 0.19-0.20 s CPU warm)."""
 TEETH_ERROR_SECONDS = 4.5
 """The discretisation-error estimate of a harmonic task's teeth motion (one solve on a 1.4x
-coarser mesh), s (the pipeline's ``discretisation_error_s`` of the default design: 4.3 s)."""
+coarser mesh), s (the pipeline's ``discretisation_error_s`` of the article's drill: 4.3 s)."""
 STARTUP_SECONDS = 5.0
 """Starting a local cluster and writing the results folder, s."""
 MAX_HOURS = 2.0

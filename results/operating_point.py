@@ -19,7 +19,7 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 __all__ = ["operating_point_stage", "losses_bracket", "bracket_bases", "measured_settings", "preload_stage", "preload_unit",
-           "preload_state",
+           "preload_state", "bolt_row",
            "thermal_stage", "report_lines"]
 
 
@@ -319,21 +319,38 @@ def summary_lines(s: dict) -> list[str]:
                      f"{_pm(pre['p_min_n'], pre.get('p_min_n_error'), '', 1e-3, '.1f').strip()} .. {hi_n} kN, bolt "
                      f"{pre['preload_n'] * 1e-3:.1f} kN: {'inside' if pre['ok'] else 'NOT inside'} | largest drive "
                      f"with a window {vmax} |")
-    stack = s.get("design", {}).get("stack", {})
-    if "bolt_diameter" in stack and not stack["bolt_diameter"]:
-        from fem.preload import ELASTIC_BOLT_FR_SHIFT
-
-        shift, err, faces = ELASTIC_BOLT_FR_SHIFT
-        lines.append(f"| stack bolt | its prestress only, no elastic part | model form: an M12 part threaded 1.5 d "
-                     f"into the coupler and the horn raises the default drill's f_r by {100 * shift:+.2f} ± "
-                     f"{100 * err:.2f} % at its matched lengths (bonded at the stack's faces {100 * faces:+.1f} %; "
-                     f"docs: operating point) |")
+    bolt = bolt_row(s.get("design", {}).get("stack", {}))
+    if bolt:
+        lines.append(bolt)
     t = th.get("temperature")
     if t:
         hr = " / ".join(f"{v:.0f} °C at h {k}" for k, v in th["final_c_h_range"].items())
         lines.append(f"| temperature after {t['duration_s']:g} s (lumped mean) | "
                      f"{_pm(t['final_c'], t.get('final_c_error'), '°C', 1.0, '.1f')} (discretisation) | {hr} W/m²/K |")
     return lines + [_headline_energy_row(s, ke, brk('mean_tool_ke_after_j', 1e3, 'mJ') if lo else '-'), ""]
+
+
+def bolt_row(stack: dict) -> str | None:
+    """The table's row on the stack bolt's model form: without a bolt part, the stiffness a bolt
+    part adds (measured on the article's drill); with one, how much the joint's model moves f_r
+    (measured on the bolted example) and what neither joint model holds."""
+    if "bolt_diameter" not in stack:
+        return None
+    from fem.preload import BOLT_JOINT_FR_SHIFT, ELASTIC_BOLT_FR_SHIFT
+
+    if not stack["bolt_diameter"]:
+        shift, err, faces = ELASTIC_BOLT_FR_SHIFT
+        return (f"| stack bolt | its prestress only, no elastic part | model form: an M12 part threaded 1.5 d "
+                f"into the coupler and the horn raises the article's drill's f_r by {100 * shift:+.2f} ± "
+                f"{100 * err:.2f} % at its matched lengths (bonded at the stack's faces {100 * faces:+.1f} %; "
+                f"docs: operating point) |")
+    joint = stack.get("bolt_joint", "faces")
+    shift, err = BOLT_JOINT_FR_SHIFT
+    other, sign = ("bonded at the stack's faces", -1) if joint == "thread" else ("threaded 1.5 d", 1)
+    return (f"| stack bolt | elastic part, {stack['bolt_diameter'] * 1e3:g} mm, joint '{joint}' | model form: "
+            f"the bolt {other} moves f_r by {100 * sign * shift:+.2f} ± {100 * err:.2f} % (the bolted example at "
+            f"fixed lengths); the thread flanks' compliance is not modelled (both joints are upper bounds of "
+            f"its stiffness; docs: operating point) |")
 
 
 def _headline_energy_row(s: dict, kinematic: dict, bracket: str) -> str:

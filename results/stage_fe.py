@@ -7,7 +7,7 @@ or a matching fix reaches both at once.
 Two paths (:mod:`fem.sector_system`): a design that can be swept as a sector is solved on the
 ``k = 0`` swept sector, which holds every response the axisymmetric stack drives (the working
 mode, its anti-resonance, the torsion, the harmonic response, the ring-up) on about a sixth of
-the unknowns, converged within ~0.03 % on the default design; any other design on the whole
+the unknowns, converged within ~0.03 % on the article's drill; any other design on the whole
 drill (swept where it can be, graded). :func:`fem.sector_system.default_path` picks, as every
 command and the library do, so one design gives one answer.
 """

@@ -1,7 +1,7 @@
 """The teeth motion on a finer mesh than the run's, with a two-level error of <= 5 %.
 
 The teeth's ellipse ratio (tangential / axial) is the slowest of the run's outputs to converge:
-on the default design's ``k = 0`` sector at refine 1 (89 498 DOFs) it is 0.1727 against a
+on the article drill's ``k = 0`` sector at refine 1 (89 498 DOFs) it is 0.1727 against a
 converged 0.1791 (two mesh families, tests/test_discretisation_error.py), and the two-level
 estimate between refine 1.4 and 1 states 0.010 (5.8 %). One level finer, refine 0.8
 (:data:`TEETH_REFINE` x the run's refine: 154 759 DOFs, one more element layer across the
@@ -24,7 +24,7 @@ are 3.3 for the ratio and 4.8 for the phase); when they have the same layers the
 
 Cost: one mesh (Gmsh, in the caller's thread: Gmsh is one per process and sets signal handlers
 from the main thread only), then in a daemon worker thread the assembly, a 4-mode modal solve
-and the modal basis, ~16 s CPU on the default design: the longest single job of the run, so it
+and the modal basis, ~16 s CPU on the article's drill: the longest single job of the run, so it
 starts as soon as its mesh is made (its factorisation beside the run's own solves keeps the
 default run's peak memory near 5 GB).
 """

@@ -38,6 +38,7 @@ from rpud_common import ParameterError
 
 import axisym_reference as ar
 from reference_designs import reference_default
+from geometry.examples import article_design
 
 AXISYM_CONVERGED = (19682.31, 21410.33)
 """f_r, f_a (Hz) of the default design without slots and teeth, converged with the independent (r, z) model."""
@@ -268,7 +269,7 @@ def test_section_of_the_default_drill_reads_the_design(fillets):
     assert [b.poling for b in sec.blocks[1:5]] == [-1, 1, -1, 1]
     assert [e.role for e in sec.electrodes] == ["ground", "hot", "hot", "ground", "ground", "hot", "hot", "ground"]
     with pytest.raises(ParameterError):
-        ar.section(geometry.default_design())
+        ar.section(article_design())
 
 
 @pytest.fixture(scope="module")

@@ -1,11 +1,12 @@
 """The bolted example design (geometry/examples.toml ``[bolted]``): the drill with its M12 bolt
-part, matched at 20 kHz with a rotary drive at least as strong as the drill's without the part.
+part bonded at its faces, matched at 20 kHz with a rotary drive at least as strong as the article's
+drill's (no bolt part); and the default drill, the same design with the bolt threaded and matched again.
 
 Why the default coupler loses its drive with the bolt part: the match lengthens the horn, and the
 horn's thin tip section becomes a torsional quarter wave at the drive, ``c_T / (4 L_tip)``, a
 tuned absorber that stills the teeth's torsion. With the absorber moved away, the torsional mode
 that drives the teeth must lie above the drive for the teeth's tangential motion to lead the
-rotor as the default drill's does; the horn's back-section diameter sets that side
+rotor as the article's drill's does; the horn's back-section diameter sets that side
 (benchmarks/study_bolted_coupler.py, docs/theory/operating-point.md).
 """
 
@@ -19,9 +20,9 @@ from rpud_common import ParameterError
 
 TARGET_HZ = 20e3
 RATIO_REQUIRED = 0.17
-"""The teeth ellipse ratio the unbolted default drill's working mode had when the bolted design was
+"""The teeth ellipse ratio the article's (unbolted) drill's working mode had when the bolted design was
 asked for (k = 0 sector, refine 1). On the pipeline's mesh the ratio converges from below (the
-default drill's refine-1 value lies 4.2 % under its Richardson limit: docs/theory/piezo-elastic.md),
+article drill's refine-1 value lies 4.2 % under its Richardson limit: docs/theory/piezo-elastic.md),
 so a refine-1 value at or above the requirement is one for the converged model too."""
 
 
@@ -63,7 +64,7 @@ def _leads(phase_deg: float) -> bool:
     # response goes as 1 / (f_T^2 - f^2 + i eta f_T^2), in phase with the forcing below f_T and in
     # antiphase above it, off by atan(eta / |1 - (f / f_T)^2|) (~7 deg at Q 100 and 4 % apart).
     # With the slots' hand of the default coupler a torsional mode above the drive gives a phase
-    # near 180 deg, the default drill's side (171 deg): at the same ratio the rotor turns faster
+    # near 180 deg, the article drill's side (171 deg): at the same ratio the rotor turns faster
     # than at the mirror phase near 0 deg (docs/theory/operating-point.md).
     return math.cos(math.radians(phase_deg)) < 0
 
@@ -84,7 +85,7 @@ def test_design_option_names_the_example(tmp_path, monkeypatch):
 
 def test_bolted_example_is_matched_and_drives_the_rotor():
     from fem.matching import MatchSettings
-    from geometry import default_design
+    from geometry.examples import article_design
 
     design = bolted_design()
     assert design.stack.bolt_diameter == 0.012 and design.name == "bolted"
@@ -96,11 +97,32 @@ def test_bolted_example_is_matched_and_drives_the_rotor():
     assert _torsion_quarter_wave_hz(design) > 1.15 * m.f_r_hz
     # the torsional mode nearest the drive lies above it, and the teeth's phase is on its side
     assert _nearest_torsional_hz(m) > m.f_r_hz and _leads(wp.teeth_phase_deg)
-    # the requirement: a rotor at least as fast as the default drill's, both on the same mesh rule
+    # the requirement: a rotor at least as fast as the article's drill's, both on the same mesh rule
     # and rotor model (the refine-1 ratio lies under its converged value on both)
-    m0, wp0 = _working_point(default_design())
+    m0, wp0 = _working_point(article_design())
     assert _leads(wp0.teeth_phase_deg)
     assert _no_load_rpm(m, wp) >= _no_load_rpm(m0, wp0)
+
+
+def test_default_drill_is_the_threaded_bolted_design_and_drives_the_rotor():
+    """The default drill is the bolted example's design with the bolt threaded (1.5 d) and its
+    lengths matched again; on the pipeline's mesh its working mode is at the target within the
+    match's tolerance, the tip section's absorber lies well above the drive, and the teeth lead
+    with at least the required ellipse ratio (the rotary drive the bolted example restored)."""
+    from fem.matching import MatchSettings
+    from geometry import default_design
+    from geometry.design_rpud import DEFAULT_LENGTHS
+
+    design = default_design()
+    assert design.stack.threaded and design.stack.bolt_engagement == pytest.approx(1.5 * 0.012)
+    assert design.replace({"name": "bolted", "stack.bolt_joint": "faces", "horn.length": bolted_design().horn.length,
+                           "coupler.length": bolted_design().coupler.length}) == bolted_design()
+    assert {p: design.get(p) for p in DEFAULT_LENGTHS} == DEFAULT_LENGTHS
+    m, wp = _working_point(design)
+    assert abs(m.f_r_hz - TARGET_HZ) <= MatchSettings().tolerance * TARGET_HZ
+    assert _torsion_quarter_wave_hz(design) > 1.15 * m.f_r_hz
+    assert wp.teeth_ellipse_ratio >= RATIO_REQUIRED
+    assert _nearest_torsional_hz(m) > m.f_r_hz and _leads(wp.teeth_phase_deg)
 
 
 def test_default_horn_back_leaves_the_driving_mode_below_the_drive():

@@ -10,6 +10,7 @@ import pytest
 
 from impact.compliant import strike
 from impact.hertz import ContactGeometry, HertzLaw, effective_modulus, hertz_stiffness
+from geometry.examples import article_design
 
 CUTS = (30e3, 45e3, 70e3, 140e3)
 
@@ -20,7 +21,7 @@ def drill():
     from fem.modal import modal_analysis
     from fem.sector_system import axial_sector
 
-    design = geometry.default_design()
+    design = article_design()
     # Every reference below compares two methods on the same system (the closed-form volumes
     # against the curved second-order mesh's, modal sums against factorised solves, cut-off
     # against cut-off, the modal horn against the direct harmonic solve): none depends on the

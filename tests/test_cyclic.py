@@ -22,7 +22,7 @@ from fem.assembly import assemble
 from fem.cyclic import cyclic_basis, cyclic_modes, expand, harmonics
 from fem.modal import modal_analysis
 from geometry.builder import build
-from geometry.design import default_design
+from geometry.examples import article_design
 from geometry.design_rpud import filleted
 from geometry.sector import AXIAL_RULE, LATERAL_RULE, check_sectors, replicate, sector_pairs, symmetry_order
 from rpud_common import ParameterError
@@ -54,7 +54,7 @@ def _pzt4(d):
 
 @pytest.fixture(scope="module", params=["free", "revolve"])
 def sector(request):
-    tm, report = build(_pzt4(default_design()), mesher=request.param, sectors=N, refine=2.0)
+    tm, report = build(_pzt4(article_design()), mesher=request.param, sectors=N, refine=2.0)
     assert report.sectors == N and report.mesher == request.param
     return tm
 
@@ -82,7 +82,7 @@ def test_replicated_mesh_closes(sector, full):
     pairs = sector_pairs(sector.points, N)
     assert len(pairs.near) == len(pairs.far) > 0 and len(pairs.axis) > 0
     # the coupler meets the first ring face to face: no boundary triangle inside their annulus at z = 0
-    d = default_design()
+    d = article_design()
     r = np.hypot(p[:, 0], p[:, 1])
     inside = (np.abs(p[:, 2]) < 1e-12) & (r > d.coupler_bore / 2 + 1e-9) & (r < d.coupler.outer_diameter / 2 - 1e-9)
     assert not np.all(inside[tri], axis=1).any()
@@ -103,11 +103,11 @@ def test_sector_facet_sets_are_the_whole_drills(sector):
     """A sector's named surfaces span what the whole drill's do, plane by plane: the flange's
     exposed ring beside the horn (from the shoulder fillet to 22.5 mm) included, which a per-triangle radius rule lost."""
     swept = len(sector.cells_in(region="ring_1")) > 200     # prisms cut in three: many more ring cells
-    whole, _ = build(_pzt4(default_design()), mesher="revolve" if swept else "free", refine=2.0)
+    whole, _ = build(_pzt4(article_design()), mesher="revolve" if swept else "free", refine=2.0)
     for name in ("flange", "horn_tip", "teeth_tops", "electrode_0", "electrode_2", "electrode_4"):
         assert _extent(sector, name) == _extent(whole, name), name
     # from the horn's shoulder fillet (12 mm horn radius + the fillet) to the flange's rim
-    fillet = default_design().horn.flange_fillet
+    fillet = article_design().horn.flange_fillet
     assert _extent(sector, "flange")[0.023] == (round(0.012 + fillet, 9), 0.0225)
 
 
@@ -182,7 +182,7 @@ def test_sector_pairs_refuses_faces_that_do_not_match(sector):
 
 
 def test_sector_counts_follow_the_coupler_symmetry():
-    d = default_design()
+    d = article_design()
     assert symmetry_order(d) == 6
     assert check_sectors(d, 3) == 3 and check_sectors(d, 6) == 6
     for bad in (4, 12, 2, 6.0, True):
@@ -233,13 +233,13 @@ def _modal(tmp_path, *args):
                           timeout=600)
 
 
-def test_command_line_solves_the_default_design_by_harmonics(tmp_path):
-    """``python -m fem.modal`` (sectors by default) at --refine 2: its working mode equals
+def test_command_line_solves_the_article_drill_by_harmonics(tmp_path):
+    """``python -m fem.modal --design article`` (sectors by default) at --refine 2: its working mode equals
     cyclic_modes on the same rule's mesh, every listed mode count sums to --modes (a pair twice),
     and the JSON says how it was solved."""
     import json
 
-    r = _modal(tmp_path, "--refine", "2", "--modes", "8", "--json", "m.json")
+    r = _modal(tmp_path, "--design", "article", "--refine", "2", "--modes", "8", "--json", "m.json")
     assert r.returncode == 0, r.stderr
     data = json.loads((tmp_path / "m.json").read_text())
     assert data["sectors"] == 6 and data["harmonics"] == [0, 1] and data["mesher"] == "revolve"
@@ -253,7 +253,7 @@ def test_command_line_solves_the_default_design_by_harmonics(tmp_path):
     # refine 2 is off the checked rule: its own two-level estimate on the k = 0 sector
     assert work[0]["f_r_hz_error"] > 0 and data["discretisation_error"]["method"].startswith("two-level")
     refine, meshing = AXIAL_RULE
-    tm, _ = build(default_design(), mesher="revolve", sectors=N, refine=refine * 2, sector_meshing=meshing.scaled(2))
+    tm, _ = build(article_design(), mesher="revolve", sectors=N, refine=refine * 2, sector_meshing=meshing.scaled(2))
     m = cyclic_modes(assemble(tm), N, 0, 20000.0, 4)
     assert min(abs(m.f_hz - work[0]["f_r_hz"])) < 1e-9 * work[0]["f_r_hz"]
     assert "swept sector (1/6)" in r.stdout and "+0.029 %" in r.stdout
@@ -295,8 +295,8 @@ def test_rule_error_only_on_the_design_it_was_measured_on():
     from fem.cyclic_cli import _default_geometry
 
     assert _default_geometry(filleted(reference_default(), 0.0))
-    assert not _default_geometry(filleted(default_design(), 0.0))
-    assert not _default_geometry(default_design())
+    assert not _default_geometry(filleted(article_design(), 0.0))
+    assert not _default_geometry(article_design())
 
 
 def test_nearest_modes_continues_from_a_first_round_solved_elsewhere(sector):

@@ -31,6 +31,7 @@ from fem.convergence import ConvergenceStudy, Level, working_mode_level
 from fem.errors import ErrorEstimate, annotate, estimate, estimate_from_levels, has_reentrant_edges, plus_minus
 from rpud_common import ParameterError
 from reference_designs import reference_default
+from geometry.examples import article_design
 
 F_R, F_A = 19682.31, 21410.33
 """Converged working mode of the default design without slots and teeth (tests/axisym_reference.py), Hz."""
@@ -113,9 +114,9 @@ def test_annotate_and_plus_minus():
 def test_reentrant_edges_detected():
     from geometry.design import Segment, StackDesign
 
-    assert has_reentrant_edges(geometry.filleted(geometry.default_design(), 0.0))
+    assert has_reentrant_edges(geometry.filleted(article_design(), 0.0))
     # filleted shoulders are not re-entrant, the stack's bore edge on the flange face still is
-    assert has_reentrant_edges(geometry.default_design())
+    assert has_reentrant_edges(article_design())
     rod = StackDesign(name="rod", target_frequency=40e3, segments=(Segment("rod", 0.04, material="steel_45",
                                                                            outer_diameter=0.02),))
     assert not has_reentrant_edges(rod)
@@ -225,7 +226,7 @@ def test_teeth_motion_estimate_on_the_sector_covers_the_finer_study():
     useless). Measured: ellipse 0.010 (5.8 % of the value, 1.19x the bound; the 5 % asked of it is
     not reached at these DOFs, docs/theory/piezo-elastic.md: at ``--refine 0.8`` the levels 1 and
     0.8 give 0.0067, 3.8 %), phase 0.35 degrees (order 2 would state 0.16 and miss the bound)."""
-    d = geometry.default_design().replace({"stack.bolt_diameter": 0.0, **STUDY_DESIGN})
+    d = article_design().replace({"stack.bolt_diameter": 0.0, **STUDY_DESIGN})
     fine = working_mode_level(d, 1.0, path="sector", q_mech=100.0, harmonic_method="modal")
     ndof, ratio, phase = TEETH_STUDY[1.0]
     assert fine.ndof == ndof                                          # the mesh the study measured
@@ -257,7 +258,7 @@ def test_pipeline_teeth_motion_on_the_finer_mesh_states_at_most_5_percent_and_co
     from results.stage_fe import MeshOptions
     from results.stage_teeth import teeth_motion
 
-    d = geometry.default_design().replace({"stack.bolt_diameter": 0.0, **STUDY_DESIGN})
+    d = article_design().replace({"stack.bolt_diameter": 0.0, **STUDY_DESIGN})
     ndof1, ratio1, phase1 = TEETH_STUDY[1.0]
     coarse = Level(1.0, ndof1, {"teeth_ellipse_ratio": ratio1, "teeth_phase_deg": phase1})
     t = teeth_motion(d, MeshOptions().resolved(d), loss=LossModel(q_mech=100.0), near_hz=20e3, voltage=1.0,

@@ -9,14 +9,15 @@ import pytest
 from skfem import ElementTetP2
 from skfem.quadrature import get_quadrature
 
-from geometry import build_mesh, default_design
+from geometry import build_mesh
+from geometry.examples import article_design
 from fem.facets import CentroidNewtonMapping, facet_basis
 from fem.modeshape import mesh_context
 
 
 @pytest.fixture(scope="module")
 def meshes():
-    d = default_design()
+    d = article_design()
     return {m: mesh_context(build_mesh(d, refine=2, mesher=m)).sk for m in ("revolve", "free")}
 
 

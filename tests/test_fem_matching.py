@@ -17,13 +17,14 @@ from fem.assembly import assemble
 from fem.matching import MatchSettings, front_half, match, nodal_plane, working_mode
 from fem.modal import modal_analysis
 from fem.modeshape import energy_shares, surface_motion
+from geometry.examples import article_design
 
 # a coarse variant of the default drill: plain coupler (no slots, no teeth), 6 mm rings
 COARSE = dict(mesh_size=0.008)
 
 
 def _coarse_design():
-    return geometry.filleted(geometry.default_design(), 0.0).replace(
+    return geometry.filleted(article_design(), 0.0).replace(
         {"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006})
 
 
@@ -65,7 +66,7 @@ def test_matched_mode_has_its_node_in_the_stack(perturbed_matches):
 
 
 def test_front_half_cuts_at_the_middle_electrode():
-    d = geometry.default_design().replace({"stack.bolt_diameter": 0.0})       # the cut's areas: the rings' only
+    d = article_design().replace({"stack.bolt_diameter": 0.0})       # the cut's areas: the rings' only
     assert nodal_plane(d) == pytest.approx(2 * d.stack.ring_thickness)
     mesh = geometry.build_mesh(d)
     half = front_half(mesh, nodal_plane(d))
@@ -87,7 +88,7 @@ def _teeth_twist(design):
 
 
 def test_inclined_slots_twist_the_teeth_and_axial_slots_do_not():
-    d = geometry.default_design().replace({"stack.bolt_diameter": 0.0})       # the measured twists' design
+    d = article_design().replace({"stack.bolt_diameter": 0.0})       # the measured twists' design
     ratio_30, tors_30 = _teeth_twist(d)
     ratio_0, tors_0 = _teeth_twist(d.replace({"coupler.slot_angle_deg": 0.0}))
     assert ratio_30 > 0.02 and tors_30 > 1e-3          # an ellipse: tangential and axial both present
@@ -104,7 +105,7 @@ def test_cli_bad_input_is_one_line_and_exit_2(tmp_path):
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "horn.lenght" in r.stderr
     assert not (tmp_path / "m.json").exists()
     bad = tmp_path / "bad.toml"
-    d = geometry.default_design()
+    d = article_design()
     bad.write_text(d.to_toml().replace(f"length = {d.horn.length}", "length = -0.01", 1))
     r = _cli("--match", "--design", str(bad), cwd=tmp_path)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "horn.length" in r.stderr

@@ -24,12 +24,13 @@ from geometry.fillets import Outline, revolved_volume
 from rpud_common import ParameterError
 
 import axisym_reference as ar
+from geometry.examples import article_design
 
 
 def plain():
     """The default drill without slots and teeth (axisymmetric), with 2 mm fillets and without the
     bolt part (the fillet references were computed without it)."""
-    return geometry.filleted(geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+    return geometry.filleted(article_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
                                                                 "stack.bolt_diameter": 0.0}))
 
 
@@ -47,15 +48,15 @@ def plain():
 ])
 def test_fillet_radii_are_checked(changes, field):
     with pytest.raises(ParameterError, match=field.replace(".", r"\.")):
-        geometry.default_design().replace(changes)
+        article_design().replace(changes)
 
 
 def test_fillets_round_trip_through_toml(tmp_path):
-    d = geometry.filleted(geometry.default_design(), 0.0015)
+    d = geometry.filleted(article_design(), 0.0015)
     d.save(tmp_path / "d.toml")
     back = geometry.load_design(tmp_path / "d.toml")
     assert back == d and back.horn.flange_fillet == back.horn.step_fillet == 0.0015
-    d0 = geometry.default_design()                            # a horn maker's radii by default
+    d0 = article_design()                            # a horn maker's radii by default
     assert d0.horn.flange_fillet == d0.horn.step_fillet == geometry.HORN_MAKER_FILLET == 0.002
     assert set(d0.fillets()) == {"flange", "step"}
     assert geometry.filleted(d0, 0.0).fillets() == {}         # 0: sharp
@@ -89,7 +90,7 @@ def test_fillet_arcs_are_tangent_and_their_volumes_exact():
 
 
 def test_reference_section_has_no_singular_point_at_a_fillet():
-    sharp = ar.singular_points(ar.section(geometry.filleted(geometry.default_design(), 0.0).replace(
+    sharp = ar.singular_points(ar.section(geometry.filleted(article_design(), 0.0).replace(
         {"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.bolt_diameter": 0.0})))
     round_ = ar.singular_points(ar.section(plain()))
     h = plain().horn

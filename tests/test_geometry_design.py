@@ -105,7 +105,7 @@ def test_dotted_paths():
 
 
 def test_part_extents_and_electrode_planes():
-    d = default_design()
+    d = examples.article_design()
     ext = d.part_extents()
     assert ext["coupler"] == (-d.coupler.length, 0.0)
     assert ext["stack"] == pytest.approx((0.0, 4 * 0.005))
@@ -113,6 +113,8 @@ def test_part_extents_and_electrode_planes():
     assert "bolt" not in ext
     bolted = d.replace({"stack.bolt_diameter": 0.012}).part_extents()
     assert bolted["bolt"] == pytest.approx((0.0, d.stack.length))     # through the rings' bore
+    threaded = default_design()                                       # 1.5 d into the coupler and the horn
+    assert threaded.part_extents()["bolt"] == pytest.approx((-0.018, threaded.stack.length + 0.018))
     planes = d.electrode_planes()
     assert [p[0][1] for p in planes.values()] == pytest.approx([0.0, 0.005, 0.01, 0.015, 0.02])
     assert d.electrode_roles() == {"electrode_0": "ground", "electrode_1": "hot", "electrode_2": "ground",
@@ -123,7 +125,7 @@ def test_part_extents_and_electrode_planes():
 
 
 def test_morph_points_is_a_piecewise_linear_map():
-    d = default_design()
+    d = examples.article_design()
     new = d.replace({"horn.length": 0.09, "coupler.length": 0.046})
     zs = np.array([[0, 0, z] for _, z in d.axial_breakpoints()])
     moved = d.morph_points(zs, new)
@@ -133,10 +135,17 @@ def test_morph_points_is_a_piecewise_linear_map():
 
 
 def test_masses_are_plausible_for_a_590_g_drill():
-    d = default_design()
+    d = examples.article_design()
     m = d.part_masses()
     assert m["horn"] == pytest.approx(0.08, rel=0.05)  # Table 1: m_u = 0.08 kg
     assert 0.25 < d.total_mass() < 0.45
+    # the default drill's horn, 30 mm back stepped at 0.57, less the bolt's blind hole (r 6 mm,
+    # 18 - 3 + 3 mm deep beyond the flange), without fillets: closed form by hand
+    b = default_design()
+    h = b.horn
+    v = math.pi / 4 * (0.030 ** 2 * 0.57 * h.length + 0.011 ** 2 * 0.43 * h.length) - math.pi * 0.006 ** 2 * 0.018
+    assert b.part_masses()["horn"] == pytest.approx(v * 4430, rel=0.01)     # Ti-6Al-4V 4430 kg/m^3; fillets < 1 %
+    assert d.total_mass() < b.total_mass() < 0.59
 
 
 # ---------------------------------------------------------------- 1-D reference
@@ -167,10 +176,10 @@ def test_onedim_piezo_modulus_and_default_design_frequency():
     # open-circuit k33 rod: f_p = 1 / (2 l sqrt(rho s33^D)); library constants give s33^D within 1 % of the datasheet's
     fp = 1 / (2 * 0.04 * math.sqrt(7500 / axial_modulus("PZT-4", "open")))
     assert fp == pytest.approx(50271, rel=0.01)
-    # the default lengths are FE-matched (fem.matching); the 1-D chain ignores the slots' 3-D
+    # the article drill's lengths are FE-matched (fem.matching); the 1-D chain ignores the slots' 3-D
     # compliance and lateral inertia and puts the first longitudinal mode ~9 % higher, with its
     # node inside the stack (z in [0, 20] mm) as the matching intends
-    d = default_design()
+    d = examples.article_design()
     m = first_longitudinal(d)
     assert 20e3 < m.frequency < 23e3
     z0, z1 = d.part_extents()["stack"]

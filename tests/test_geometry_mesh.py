@@ -20,7 +20,7 @@ def default_build():
 
 
 def _variants():
-    d = default_design()
+    d = examples.article_design()
     return {
         "conical_bore": d.replace({"horn.profile": "conical", "stack.bolt_diameter": 0.0, "bore_diameter": 0.006}),
         "exponential_rect_slots": d.replace({"horn.profile": "exponential", "coupler.slot_profile": "rectangular",
@@ -84,7 +84,8 @@ def test_default_groups_regions_and_electrodes(default_build):
     tm, rep = default_build
     d = default_design()
     names = {r.name: r for r in tm.regions}
-    assert set(names) == {"coupler", "ring_1", "ring_2", "ring_3", "ring_4", "flange_disc", "horn"}
+    assert set(names) == {"coupler", "ring_1", "ring_2", "ring_3", "ring_4", "flange_disc", "horn", "bolt"}
+    assert (names["bolt"].part, names["bolt"].material) == ("bolt", d.stack.bolt_material)      # the M12 part
     for k in range(1, 5):
         r = names[f"ring_{k}"]
         assert (r.part, r.material) == ("stack", "PZT-8")

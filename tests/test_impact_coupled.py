@@ -25,6 +25,7 @@ from impact.coupled import simulate_coupled
 from impact.horn import ModalHorn
 from impact.model import simulate
 from impact.params import ImpactParams
+from geometry.examples import article_design
 
 F = 20e3
 W = 2 * math.pi * F
@@ -309,7 +310,7 @@ def test_fem_horn_cli_end_to_end_on_a_coarse_drill(tmp_path):
 
     import geometry
 
-    design = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+    design = geometry.filleted(article_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
                                                 "stack.ring_thickness": 0.006})
     d = tmp_path / "d.toml"
     d.write_text(design.to_toml())
@@ -422,7 +423,7 @@ def test_contact_from_design_uses_the_horn_material_and_the_free_mass_sphere():
     from impact.contact import hertz_contact_time, hertz_stiffness
     from results.coupled import contact_from_design
 
-    hc = contact_from_design(geometry.default_design(), 0.008, 0.9)
+    hc = contact_from_design(article_design(), 0.008, 0.9)
     r = (3 * 0.008 / (4 * np.pi * 7890.0)) ** (1 / 3)                 # 8 g steel sphere: 6.23 mm
     assert hc.stiffness == pytest.approx(hertz_stiffness(113.8e9, 0.342, 209e9, 0.269, r), rel=1e-12)
     # the contact lasts a sizeable part of the 50 us drive period at impact speeds of ~1 m/s

@@ -32,7 +32,8 @@ from fem.assembly import assemble
 from fem.convergence import ESTIMATOR_ORDER, Level, estimator_order, study, two_level_error
 from fem.modal import modal_analysis
 from fem.modeshape import energy_shares
-from geometry.design import Segment, StackDesign, default_design
+from geometry.design import Segment, StackDesign
+from geometry.examples import article_design
 from geometry.design_rpud import filleted
 from geometry.guard import estimate
 from geometry.sizing import graded_edges, region_sizes
@@ -46,8 +47,8 @@ coupler.n_teeth = 0 (tests/axisym_reference.py)."""
 
 def test_reentrant_edges_of_the_default_design():
     # filleted shoulders are not re-entrant edges (their arcs have their own sizes)
-    assert graded_edges(default_design(), region_sizes(default_design())) == []
-    d = filleted(default_design(), 0.0)                                       # sharp horn corners
+    assert graded_edges(article_design(), region_sizes(article_design())) == []
+    d = filleted(article_design(), 0.0)                                       # sharp horn corners
     edges = graded_edges(d, region_sizes(d))
     got = sorted((round(e.z * 1e3, 4), round(e.r * 1e3, 4)) for e in edges)
     zf = d.stack.length + d.flange.thickness                                  # flange/horn face, 23 mm
@@ -62,7 +63,7 @@ def test_reentrant_edges_of_the_default_design():
 
 
 def test_refine_scales_every_rule_and_the_node_count():
-    d = default_design()
+    d = article_design()
     s1, s8 = region_sizes(d), region_sizes(d, refine=0.8)
     assert all(s8[k] == pytest.approx(0.8 * s1[k], rel=1e-12) for k in s1)
     n1 = geometry.build_mesh(d).n_points
@@ -147,7 +148,7 @@ def test_study_knobs_add_the_bore_and_minor_edges(monkeypatch):
     size; the caps of rings and flange follow RING_ELEMENTS and FLANGE_FACTOR."""
     import geometry.sizing as S
 
-    d = default_design()
+    d = article_design()
     zf = d.stack.length
     base = {(round(e.z * 1e3, 4), round(e.r * 1e3, 4)) for e in graded_edges(d, region_sizes(d))}
     monkeypatch.setattr(S, "GRADE_BORES", True)

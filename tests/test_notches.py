@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 import geometry
-from geometry.design import default_design
+from geometry.examples import article_design
 from geometry.guard import estimate
 from geometry.notches import NOTCH_CLASSES, NOTCH_FRACTION, notch_edge_classes, notch_edges, notch_length
 from geometry.sizing import region_sizes
@@ -40,7 +40,7 @@ two radial edges and the floor arc; two roots per tooth)."""
 @pytest.mark.parametrize("name", list(VARIANTS))
 def test_notch_edges_counted_and_measured(name):
     changes, expected = VARIANTS[name]
-    d = default_design().replace(changes) if changes else default_design()
+    d = article_design().replace(changes) if changes else article_design()
     gmsh.initialize()
     try:
         gmsh.option.setNumber("General.Terminal", 0)
@@ -62,7 +62,7 @@ def test_notch_edges_counted_and_measured(name):
 
 
 def test_no_notches_without_slots_and_teeth():
-    assert notch_length(default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})) == 0.0
+    assert notch_length(article_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})) == 0.0
 
 
 def _apex_distance(d, points):
@@ -87,7 +87,7 @@ def test_grading_puts_the_edge_size_along_the_apex_lines(grade):
     """P2 nodes on the apex lines (within 30 um of the exact helix: the slot is a loft through five
     sections, its apex a B-spline) of a graded mesh: one per half edge size, measured 138 for 141
     expected at refine 2 (198 for 199 at refine 1.4); ungraded 66."""
-    d = default_design()
+    d = article_design()
     refine = 2.0       # cheap; the 20 mm slot zone is still ~4 elements (4.8 mm) long
     tm = geometry.build_mesh(d, mesher="revolve", refine=refine, grade=grade)
     c = d.coupler

@@ -68,3 +68,28 @@ def test_pipeline_and_harmonic_share_the_default_losses():
     assert s.q_mech == ASSEMBLED_Q_MECH and s.losses() == default_losses()
     assert "not measured" in s.losses().source
     assert PipelineSettings(q_mech=None).losses().origin == "datasheet"
+
+
+def test_report_states_the_bolt_model_form_of_each_kind_of_design():
+    """The operating-point table's bolt row: a design without a bolt part quotes the stiffness a
+    part would add (measured on the article's drill), one with a part how much the other joint
+    model moves f_r (measured on the bolted example) and what neither models; the figures are the
+    documented constants', printed to their stated digits."""
+    import geometry
+    from fem.preload import BOLT_JOINT_FR_SHIFT, ELASTIC_BOLT_FR_SHIFT
+    from geometry.examples import article_design, bolted_design
+    from results.operating_point import bolt_row
+
+    def row(design):
+        return bolt_row(design.to_mapping()["stack"])
+
+    bare = row(article_design())
+    assert f"{100 * ELASTIC_BOLT_FR_SHIFT[0]:+.2f} ± {100 * ELASTIC_BOLT_FR_SHIFT[1]:.2f} %" in bare
+    assert "no elastic part" in bare
+    shift, err = BOLT_JOINT_FR_SHIFT
+    threaded = row(geometry.default_design())
+    assert "joint 'thread'" in threaded and f"{-100 * shift:+.2f} ± {100 * err:.2f} %" in threaded
+    assert "flanks' compliance is not modelled" in threaded
+    faces = row(bolted_design())
+    assert "joint 'faces'" in faces and f"{100 * shift:+.2f} ± {100 * err:.2f} %" in faces
+    assert bolt_row({}) is None                                # a stack design: no row

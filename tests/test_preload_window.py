@@ -158,12 +158,12 @@ def test_bolt_on_the_k0_sector_carries_p_through_every_ring():
     (each sector its share, the load restricted to the k = 0 unknowns) puts -P/A on every ring's
     mean axial stress (every section carries -P: equilibrium; 1 % for the stress recovery, as the
     whole-drill check of tests/test_stress.py)."""
-    from geometry.design import default_design
+    from geometry.examples import article_design
     from fem.preload import preload_solve, ring_means
     from fem.sector_system import axial_sector
     from fem.stress import StressRecovery
 
-    system = axial_sector(default_design())
+    system = axial_sector(article_design())
     P = 10e3
     pre = preload_solve(system, P)
     A = math.pi / 4 * (0.035 ** 2 - 0.015 ** 2)

@@ -9,11 +9,12 @@ import pytest
 import geometry
 from rpud_common import ParameterError
 from results.pipeline import PipelineSettings, run_pipeline
+from geometry.examples import article_design
 
 
 # started at the lengths this coarse variant matches to (test_fem_matching covers matching from
 # 10 %-off starts): the match confirms them in a few solves instead of 16
-DESIGN = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006,
+DESIGN = geometry.filleted(article_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, "stack.ring_thickness": 0.006,
                                             "horn.length": 0.064545, "coupler.length": 0.044374})
 # the whole drill's free mesh, ungraded and coarse: the stages' machinery, fast (the sector path below)
 SETTINGS = PipelineSettings(mesh_size=0.008, mesher="free", grade=False, m_free_values=(0.0, 0.002, 0.008),
@@ -223,7 +224,7 @@ def test_mesher_is_checked_before_anything_runs(tmp_path):
     with pytest.raises(ParameterError, match="mesher"):
         PipelineSettings(mesher="swept")
     loft = tmp_path / "loft.toml"
-    geometry.default_design().replace({"horn.profile": "exponential"}).save(loft)
+    article_design().replace({"horn.profile": "exponential"}).save(loft)
     r = subprocess.run([sys.executable, "-m", "results", "--mesher", "revolve", "--design", str(loft),
                         "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2 and r.stderr.count("\n") == 1 and "stepped or conical" in r.stderr

@@ -17,7 +17,7 @@ import pytest
 
 import fem
 from geometry.builder import build
-from geometry.design import default_design
+from geometry.examples import article_design
 from geometry.design_rpud import filleted
 from geometry.report import mesh_part_volumes
 from geometry.revolve import (prism_tets, _pyramid_tets, jacobian_ratio, orient, sectors_per_quarter, split_to_tets,
@@ -199,11 +199,11 @@ def test_bending_and_torsion_against_the_converged_harmonics(axisymmetric_build)
 
 
 def test_revolve_refuses_a_loft_horn_in_one_line():
-    design = default_design().replace({"horn.profile": "exponential"})
+    design = article_design().replace({"horn.profile": "exponential"})
     with pytest.raises(ParameterError, match="--mesher.*stepped or conical"):
         build(design, mesher="revolve")
     with pytest.raises(ParameterError, match="--mesher"):
-        build(default_design(), mesher="swept")
+        build(article_design(), mesher="swept")
 
 
 def test_matching_on_the_swept_mesh_agrees_with_a_fresh_mesh_of_the_tuned_design(tmp_path):
@@ -247,8 +247,8 @@ def test_auto_mesher_sweeps_what_it_can_and_studies_mesh_freely():
     parser = add_design_options(argparse.ArgumentParser(), include=("refine", "grade", "mesher"))
     ns = parser.parse_args([])
     assert ns.mesher == "auto"
-    rpud, cone = default_design(), default_design().replace({"horn.profile": "conical"})
-    loft = default_design().replace({"horn.profile": "exponential"})
+    rpud, cone = article_design(), article_design().replace({"horn.profile": "conical"})
+    loft = article_design().replace({"horn.profile": "exponential"})
     stack = load_design(Path(__file__).resolve().parents[1] / "geometry" / "examples.toml", select="langevin")
     assert mesh_options(ns, rpud)["mesher"] == mesh_options(ns, cone)["mesher"] == "revolve"
     assert "mesher" not in mesh_options(ns, loft) and "mesher" not in mesh_options(ns, stack)

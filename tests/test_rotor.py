@@ -321,7 +321,7 @@ def test_pipeline_adapter_reads_the_working_point():
 
 
 def test_stage_errors_print_to_their_significant_digits():
-    # the default drill's teeth motion and error box (results/default: 9.88 um +- 0.11 %, ratio
+    # the article drill's teeth motion and error box (its pipeline run: 9.88 um +- 0.11 %, ratio
     # 0.173 +- 0.012, phase 171.2 +- 0.18 deg): the tooth slides one way over the whole window at rest,
     # so the stall torque is mu F r at every corner of the box (exact, to the model's round-off): its
     # error is 0, and the printed line gives each error to two significant digits

@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from fem.modal import ROUND_OFF, own_anti_resonance
-from geometry.design import default_design
+from geometry.examples import article_design
 from geometry.design_rpud import filleted
 from geometry.guard import MAX_DOFS, check_budget, fillet_sector_dofs, sector_estimate
 from rpud_common import ParameterError
@@ -65,7 +65,7 @@ def test_own_design_gets_its_estimated_error_on_the_sector(tmp_path):
     """A design other than the default one (a longer horn) on the default sector path: the
     working mode's error is the two-level estimate on the k = 0 sector, stated in the text and
     the JSON, never null, and the JSON says which mesh ran."""
-    d = default_design()
+    d = article_design()
     import dataclasses
 
     own = dataclasses.replace(d, name="longer-horn", horn=dataclasses.replace(d.horn, length=d.horn.length * 1.02))
@@ -145,7 +145,7 @@ def test_sector_path_meets_the_axisymmetric_reference_and_its_error_covers_it(ki
                  "tip_per_volt_m": (TIP_PER_VOLT, 1e-5 * TIP_PER_VOLT)}
     else:
         bolt = {} if kind == "bolted" else {"stack.bolt_diameter": 0.0}
-        d = geometry.default_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, **bolt, **VARIANT})
+        d = article_design().replace({"coupler.n_slots": 0, "coupler.n_teeth": 0, **bolt, **VARIANT})
         exact = _axisym_limit(d)
     fine = working_mode_level(d, 1.0, path="sector", q_mech=100.0)
     est = estimate(d, fine.values, fine.ndof, refine=1.0, q_mech=100.0, path="sector")
@@ -167,7 +167,7 @@ def test_energy_shares_of_the_swept_whole_drill_are_the_sectors():
     from fem.modal import modal_analysis
     from fem.sector_system import default_system
 
-    d = geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
+    d = geometry.filleted(article_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0})
     whole = modal_analysis(assemble(geometry.build_mesh(d, refine=2.0, mesher="revolve")), 20e3, 6)
     sector = modal_analysis(default_system(d, refine=2.0), 20e3, 4)
     a, b = whole.shares[whole.working], sector.shares[sector.working]

@@ -26,7 +26,7 @@ from fem.reduced import reduce_transducer
 from fem.sector_system import SectorSystem, sector_system
 from fem.transient import ring_up
 from geometry.builder import build
-from geometry.design import default_design
+from geometry.examples import article_design
 from geometry.sector import replicate
 from rpud_common import ParameterError
 
@@ -39,7 +39,7 @@ SHARE_TOL = 0.01
 
 @pytest.fixture(scope="module")
 def pair():
-    d = default_design()
+    d = article_design()
     d = dataclasses.replace(d, stack=dataclasses.replace(d.stack, material="PZT-4"))
     tm, _ = build(d, mesher="revolve", sectors=N, refine=2.0)
     whole, _ = replicate(tm, N)
@@ -152,7 +152,7 @@ def test_sector_system_refuses_what_it_cannot_restrict(pair):
 def test_default_path_is_the_sector_where_the_design_can_be_swept():
     from fem.sector_system import check_path, default_path, path_label
 
-    d = default_design()
+    d = article_design()
     assert default_path(d) == "sector" and default_path(d, order=1) == "whole"
     horn = dataclasses.replace(d, horn=dataclasses.replace(d.horn, profile="exponential"))
     assert default_path(horn) == "whole"

@@ -19,6 +19,7 @@ from pathlib import Path
 import pytest
 
 from rpud_common import atomic_folder, atomic_output, run_cli, write_json
+from geometry.examples import article_design
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -198,7 +199,7 @@ def coarse_design(tmp_path_factory) -> Path:
     import geometry
 
     path = tmp_path_factory.mktemp("design") / "coarse.toml"
-    geometry.filleted(geometry.default_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
+    geometry.filleted(article_design(), 0.0).replace({"coupler.n_slots": 0, "coupler.n_teeth": 0,
                                        "stack.ring_thickness": 0.006}).save(path)
     return path
 

@@ -27,7 +27,7 @@ from fem.sector_system import sector_system
 from fem.stress_output import node_fields, whole_drill_fields
 from fem.stress_state import working_point_stress
 from geometry.builder import build
-from geometry.design import default_design
+from geometry.examples import article_design
 from geometry.sector import replicate
 
 N = 6
@@ -40,7 +40,7 @@ def states():
     """The same working point (100 V at the working mode's f_r, Q 100, 10 kN preload) on the
     sector and on the whole drill replicated from it; PZT-4 in the stack (its c66 equals
     (c11 - c12) / 2: the drill is exactly symmetric, tests/test_cyclic.py)."""
-    d = default_design()
+    d = article_design()
     d = dataclasses.replace(d, stack=dataclasses.replace(d.stack, material="PZT-4"))
     tm, _ = build(d, mesher="revolve", sectors=N, refine=2.0)
     whole, _ = replicate(tm, N)

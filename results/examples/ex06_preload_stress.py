@@ -10,8 +10,10 @@ stress and electric field from the solution; the utilisation table gives per reg
 over one cycle (von Mises for the metals; the largest tensile and compressive principal stress
 and the peak field ``|E|`` for the ceramic rings), where it sits and its ratio to the limit in the
 material record (``geometry/materials.toml``). A bolt preload is a static solve
-(``fem.preload_solve``: equal and opposite tractions on the stack's end faces) whose stress is
-added to the dynamic one before the peaks are taken. The 20 kN is the preload of the worked
+(``fem.preload_solve``: on the default drill, whose M12 bolt is an elastic part, a shrink of the
+bolt's shank between the stack's end faces that puts the force on the stack; on a design without
+a bolt part, equal and opposite tractions on those faces) whose stress is added to the dynamic
+one before the peaks are taken. The 20 kN is the preload of the worked
 example on the stress page of the Theory manual.
 
 Peaks at re-entrant corners and on the bonded ring edges are singular in the elastic solution
