@@ -12,11 +12,12 @@ whole drill replicated from the sector (:func:`fem.stress_output.whole_drill_fie
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-__all__ = ["WorkingPointStress", "working_point_stress"]
+__all__ = ["WorkingPointStress", "working_point_stress", "working_point_state", "with_estimate"]
 
 
 @dataclass(frozen=True)
@@ -78,14 +79,29 @@ def working_point_stress(system, wp, preload=None, est=None, mesh: str | None = 
     hook :class:`fem.stress_converged.CoarseTable` of this state: every row gets its two-mesh
     estimate; None: the single-mesh estimate, said in the table's note. ``mesh``: the mesh in
     words (default :func:`fem.sector_system.system_label`)."""
+    return with_estimate(working_point_state(system, wp, preload, mesh), est)
+
+
+def working_point_state(system, wp, preload=None, mesh: str | None = None) -> WorkingPointStress:
+    """:func:`working_point_stress` without the rows' error estimates (same arguments but
+    ``est``): the fields and the peaks, the costly part, which need no coarse mesh, so a caller
+    can compute them while its discretisation-error estimate runs; :func:`with_estimate` then
+    adds the estimates."""
     from .sector_system import system_label
     from .stress import StressRecovery
-    from .stress_converged import with_error
     from .stress_table import stress_table
 
     rec = StressRecovery(system)
     dyn = rec.field(wp.x)
     static = preload.field(rec) if preload is not None and preload.force_n > 0 else None
     force = float(preload.force_n) if static is not None else 0.0
-    table = with_error(stress_table(dyn, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=force), est)
+    table = stress_table(dyn, static, freq_hz=wp.freq_hz, voltage=wp.voltage, preload_n=force)
     return WorkingPointStress(system, rec, dyn, static, table, mesh or system_label(system))
+
+
+def with_estimate(state: WorkingPointStress, est) -> WorkingPointStress:
+    """``state`` (:func:`working_point_state`) with every row's error estimate: the two-mesh one
+    of ``est`` (as in :func:`working_point_stress`), or the single-mesh one (None)."""
+    from .stress_converged import with_error
+
+    return dataclasses.replace(state, table=with_error(state.table, est))

@@ -31,10 +31,10 @@ Stages (each timed, each reported on the terminal through ``progress``):
 
 Pieces of stage 3 run side by side on two cores (:mod:`results.stage_beside`): the harmonic
 stage and the bolt's unit preload state beside the teeth motion's finer mesh, then the preload
-window and the band response (a worker thread) beside the discretisation-error estimate on the
-coarser mesh; the teeth motion's finer mesh is solved in a worker thread from its meshing to
-the rotary unit's stage; ``timings`` therefore holds overlapping intervals
-(``discretisation_error_s`` lies inside ``harmonic_s``).
+window, the band response and the stress fields (a worker thread) beside the discretisation-error
+estimate on the coarser mesh; the teeth motion's finer mesh is solved in a worker thread from
+its meshing on; ``timings`` therefore holds overlapping intervals (``discretisation_error_s``
+lies inside ``harmonic_s``).
 Beside stages 4-5 run the operating point's modal bases at Q/2 and 2Q (a worker thread) and the
 renders (a worker process); ``operating_point_s`` and ``renders_s`` count what is left after them.
 The compliant stage runs in a worker thread from the end of the harmonic solve to the end of
@@ -422,15 +422,15 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
     run.harm, run.teeth_note = h, teeth.note
     _start_compliant(run, compliant)
     run.bolt = preload_state(m.design, unit)
-    preloaded, estimated = response_beside_estimate(run, clock, unit)
+    preloaded, estimated, state = response_beside_estimate(run, clock, unit)
     clock.took("harmonic_s", t0)
     preloaded.replay(say)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
         f"{run.resp.wp_datasheet.tip_per_volt_m * 1e9:.1f} nm/V with datasheet losses; "
         f"ring-up tau {run.resp.tau * 1e3:.2f} ms")
     estimated.replay(say)
-    run.stress = stress_stage(m.system, h.wp, run.out, render=st.render, say=say, coarse=run.est,
-                              preload=run.bolt, mesh=m.options.label(m.design), submit=renders.submit)  # own timing
+    run.stress = stress_stage(m.system, h.wp, run.out, render=st.render, say=say, coarse=run.est, preload=run.bolt,
+                              mesh=m.options.label(m.design), submit=renders.submit, state=state)  # own timing
     return teeth
 
 

@@ -9,9 +9,10 @@ Two rounds, each of pieces that share no data that any of them writes:
    teeth motion's finer sector (:func:`results.stage_teeth.start_job`; Gmsh is started from the
    main thread only). The teeth mesh needs the matched design, so it cannot start earlier, and
    Gmsh meshes on one core: alone it would leave the other idle.
-2. :func:`response_beside_estimate`: the bolt's preload window, the operating quantities and
-   the band response (a worker thread) beside the discretisation-error estimate on the coarser
-   mesh (this thread: Gmsh again).
+2. :func:`response_beside_estimate`: the bolt's preload window, the operating quantities, the
+   band response and the stress fields and peaks of the working point (a worker thread) beside
+   the discretisation-error estimate on the coarser mesh (this thread: Gmsh again), which
+   gives the stress rows their error estimates afterwards.
 
 The teeth motion's worker thread started in round 1 assembles and solves its finer mesh beside
 round 2 and the stages after it (it shares nothing with them either).
@@ -65,19 +66,23 @@ def harmonic_beside_teeth_mesh(matched, settings, start_teeth: Callable[[], obje
         return harm.result(), unit.result(), teeth
 
 
-def response_beside_estimate(run, clock, unit) -> tuple[Lines, Lines]:
-    """The bolt's preload window, the operating quantities and the band response (a worker
-    thread) beside the discretisation-error estimate (this thread: its coarse mesh is made by
-    Gmsh, which is started from here), on the pipeline's ``run`` (its ``preload``, ``op_fine``,
-    ``resp`` and ``est`` set here, ``run.bolt`` read; ``clock`` times the estimate); ``unit``:
-    :func:`results.operating_point.preload_unit` of the run's system.
+def response_beside_estimate(run, clock, unit) -> tuple[Lines, Lines, object]:
+    """The bolt's preload window, the operating quantities, the band response and the working
+    point's stress state (a worker thread) beside the discretisation-error estimate (this
+    thread: its coarse mesh is made by Gmsh, which is started from here), on the pipeline's
+    ``run`` (its ``preload``, ``op_fine``, ``resp`` and ``est`` set here, ``run.bolt`` read;
+    ``clock`` times the estimate); ``unit``: :func:`results.operating_point.preload_unit` of
+    the run's system.
 
     The estimate meshes, assembles and solves the tuned design afresh on the coarser mesh; of the
     bolt it needs only the force (``run.bolt``). Returns the progress lines of the worker (the
-    preload window's) and of the estimate, to be shown in the stage order.
+    preload window's) and of the estimate, to be shown in the stage order, and the stress state
+    without its error estimates (:func:`fem.stress_state.working_point_state`, for
+    :func:`results.stress_stage.stress_stage`).
     """
     from fem.operating_errors import CoarseOperatingPoint, operating_quantities
     from fem.solvers import blas_threads
+    from fem.stress_state import working_point_state
 
     from .errors import estimate_stage
     from .operating_point import preload_stage
@@ -92,6 +97,7 @@ def response_beside_estimate(run, clock, unit) -> tuple[Lines, Lines]:
         _, run.preload = preload_stage(m.design, m.system, h.wp, say=beside, unit=unit)     # the window
         run.op_fine = operating_quantities(m.system, h.wp, loss)     # what the window and the heat scale with
         run.resp = response_stage(h, m.f_a_hz, voltage=st.voltage, band=st.band, n_points=st.n_points)
+        return working_point_state(m.system, h.wp, run.bolt, m.options.label(m.design))
 
     with blas_threads(1), ThreadPoolExecutor(max_workers=1, thread_name_prefix="response") as pool:
         job = pool.submit(response)
@@ -100,5 +106,5 @@ def response_beside_estimate(run, clock, unit) -> tuple[Lines, Lines]:
                                  float(m.design.target_frequency), lines,
                                  extra=CoarseOperatingPoint(loss, coarse_hook(h.wp.voltage, run.bolt)))
         clock.took("discretisation_error_s", t0)
-        job.result()
-    return beside, lines
+        state = job.result()
+    return beside, lines, state

@@ -28,7 +28,7 @@ FIXES = {"principal_min": "a local peak of the bolt's static compression plus th
 
 
 def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse=None, preload=None,
-                 mesh: str | None = None, submit=None) -> dict:
+                 mesh: str | None = None, submit=None, state=None) -> dict:
     """Stress peaks of the working point ``wp`` (:class:`fem.harmonic.WorkingPoint`, its
     solution ``wp.x`` on ``system``, the ``k = 0`` sector or the whole drill); writes
     ``renders/stress_von_mises.png`` and ``stress.vtu`` (the whole drill) into ``out`` when
@@ -39,12 +39,14 @@ def stress_stage(system, wp, out: Path, *, render: bool = True, say=None, coarse
     added to the dynamic one before the peaks are taken. ``mesh``: the mesh that ran, in words.
     ``submit``: ``submit(write, *args)`` runs the files' drawing and writing elsewhere (a worker
     process; the caller waits for it before the folder is complete), None: here.
+    ``state``: :func:`fem.stress_state.working_point_state` of these arguments, computed
+    beforehand (beside the estimate), or None: computed here.
     The table is :func:`fem.stress_state.working_point_stress`'s, as ``fem.harmonic --stress``'s.
     Returns the JSON record (``summary.json["stress"]``)."""
-    from fem.stress_state import working_point_stress
+    from fem.stress_state import with_estimate, working_point_state
 
     t0 = time.perf_counter()
-    res = working_point_stress(system, wp, preload, coarse, mesh)
+    res = with_estimate(working_point_state(system, wp, preload, mesh) if state is None else state, coarse)
     table = res.table
     files = {"png": None, "vtu": None}
     if render:
