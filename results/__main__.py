@@ -22,8 +22,13 @@ WOB = 7.0
 COMPLIANT_OPTIONS = (
     ("--compliant-members", int, "N", "it and its convergence study start with N ensemble members per case "
                                       "(default 16; 0 skips the stage; it runs on the k = 0 sector path)"),
-    ("--compliant-max-members", int, "N", "members are doubled until every driving 95 %% CI is within 5 %% of its "
-                                          "mean or N are reached (default 32)"),
+    ("--compliant-max-members", int, "N", "members are added until every driving 95 %% CI meets its target (the "
+                                          "two options below) or N are reached (default 64)"),
+    ("--compliant-rel-tol", float, "R", "95 %% CI target of the headline cases (full cut-off, nominal stiffness), "
+                                        "relative to the mean, in (0, 1) (default 0.05)"),
+    ("--compliant-study-rel-tol", float, "R", "95 %% CI target of the convergence study's cases (lower cut-offs, "
+                                              "stiffness x0.5 / x2), in (0, 1) (default 0.1; their half-widths "
+                                              "enter the model-form estimate)"),
     ("--face-radius", float, "M", "the free mass's crown radius, m (default: a steel sphere of each free mass's own "
                                   "mass); with --edge-radius the radius of its flat face, m; in [1e-4, 1] m"),
     ("--edge-radius", float, "M", "a flat face whose rim is rounded with this radius, m (needs --face-radius and "
@@ -124,6 +129,13 @@ def check_options(args) -> None:
                                  "cannot be used with --compliant-members 0 (it caps the stage that is skipped)")
         low = 16 if args.compliant_members is None else args.compliant_members
         check_integer("--compliant-max-members", args.compliant_max_members, low, 1_000_000)
+    for opt in ("--compliant-rel-tol", "--compliant-study-rel-tol"):
+        value = getattr(args, opt[2:].replace("-", "_"))
+        if value is not None:
+            if args.compliant_members == 0:
+                raise ParameterError(opt, value, "cannot be used with --compliant-members 0 (it sets the CI target "
+                                                 "of the stage that is skipped)")
+            check_range(opt, value, 0.0, 1.0, lo_open=True, hi_open=True)
     if args.wob is not None:
         check_range("--wob", args.wob, 0.0, 1e4, "N")
     args.faces = _faces(args)
@@ -174,6 +186,7 @@ def _inputs(design, settings, out) -> dict:
              "coupled model": (f"{settings.coupled_modes} modes" if settings.coupled_model and settings.coupled_modes
                                else on[settings.coupled_model]),
              "compliant model": (f"{settings.compliant_members}-{settings.compliant_max_members} members per case, "
+                                 f"95 % CI within {settings.compliant_rel_tol:g} (study {settings.compliant_study_rel_tol:g}), "
                                  f"{settings.faces.text()}" if settings.compliant_members else "off"),
              "statistics": f"95 % CI within {settings.impact_rel_tol:g}, at most {settings.impact_max_members} "
                            f"members, seed {settings.seed}"}
@@ -199,9 +212,9 @@ def _settings(args):
                             couple_impacts=not args.no_couple, impact_rel_tol=args.rel_tol,
                             impact_max_members=args.max_members, seed=args.seed, render=not args.no_render,
                             coupled_model=not args.no_coupled_model, coupled_modes=args.coupled_modes,
-                            **({} if args.compliant_members is None else {"compliant_members": args.compliant_members}),
-                            **({} if args.compliant_max_members is None else
-                               {"compliant_max_members": args.compliant_max_members}),
+                            **{f"compliant_{k}": getattr(args, f"compliant_{k}") for k in
+                               ("members", "max_members", "rel_tol", "study_rel_tol")
+                               if getattr(args, f"compliant_{k}") is not None},
                             faces=args.faces, load=args.load, wob=WOB if args.wob is None else args.wob)
 
 

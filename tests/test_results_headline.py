@@ -133,7 +133,21 @@ def test_contact_faces_round_trip_through_toml_and_the_command_line(tmp_path):
     import geometry
 
     line = _inputs(geometry.default_design(), _settings(args), tmp_path / "o")["compliant model"]
-    assert line == "16-32 members per case, crowned face R = 6 mm"
+    assert line == "16-64 members per case, 95 % CI within 0.05 (study 0.1), crowned face R = 6 mm"
+
+
+def test_compliant_ci_targets_reach_the_stage_and_the_inputs_line(tmp_path):
+    import geometry
+    from results.__main__ import _inputs, _settings, build_parser, check_options
+
+    args = build_parser().parse_args(["--compliant-rel-tol", "0.03", "--compliant-study-rel-tol", "0.2",
+                                      "--compliant-max-members", "128"])
+    check_options(args)
+    settings = _settings(args)
+    stage = settings.compliant_settings()
+    assert (stage.rel_tol, stage.study_rel_tol, stage.max_members, stage.members) == (0.03, 0.2, 128, 16)
+    line = _inputs(geometry.default_design(), settings, tmp_path / "o")["compliant model"]
+    assert line.startswith("16-128 members per case, 95 % CI within 0.03 (study 0.2), ")
 
 
 @pytest.mark.parametrize("argv, name", [
@@ -143,6 +157,9 @@ def test_contact_faces_round_trip_through_toml_and_the_command_line(tmp_path):
     (["--edge-radius", "1e-3", "--face-radius", "5e-3", "--face-tilt", "90"], "--face-tilt"),
     (["--face-radius", "5e-3", "--compliant-members", "0"], "--face-radius"),
     (["--compliant-max-members", "8"], "--compliant-max-members"), (["--compliant-members", "1"], "--compliant-members"),
+    (["--compliant-rel-tol", "0"], "--compliant-rel-tol"), (["--compliant-study-rel-tol", "1"], "--compliant-study-rel-tol"),
+    (["--compliant-rel-tol", "nan"], "--compliant-rel-tol"),
+    (["--compliant-study-rel-tol", "0.1", "--compliant-members", "0"], "--compliant-study-rel-tol"),
     (["--contact", "missing.toml"], "--contact")])
 def test_bad_contact_options_are_one_line_exit_2_nothing_written(argv, name):
     from test_cli_fuzz import run_clean
