@@ -97,8 +97,8 @@ edge 0.02 / growth 0.8 (the rule) +0.041 % / +0.044 % at 80k (112k); 0.01 / 0.7 
 (107k), 0.01 / 0.8 +0.038 % / +0.040 % (119k). The rest of the error: the sweep's 12 sectors
 (16, with the 0.01 / 0.7 rule: -0.008 %) and the coupler's free mesh (half its size: -0.008 %).
 The rule is the cheapest measured that keeps both within 0.045 %: ``python -m fem.modal`` on the
-article's drill then takes 0.88x the free 68.6k-DOF run with the earlier modal path
-(benchmarks/bench_modal_cli.py; 1.07x before the PARDISO settings of fem.solvers)."""
+article's drill took 0.88x the CPU of the free 68.6k-DOF whole-drill run when the rule was
+chosen (benchmarks/bench_modal_cli.py has the current comparison)."""
 
 JUNCTION_FRACTION = 0.2
 """Default edge size (:func:`junction_edges`; the ``k = 0`` sector's rule,
