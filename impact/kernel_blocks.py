@@ -17,7 +17,10 @@ plan the contacts             :func:`plan_flight`, :func:`plan_pinch`, :func:`pl
 earliest root                 :func:`earliest` -> :func:`search` (grid bracketing with the
                               chord / Taylor bounds, :func:`interval_safe`) -> :func:`refine`
                               (bisection) -> :func:`brent`; :func:`contact_fn` evaluates
-                              the gaps, pinch and releases
+                              the gaps, pinch and releases; on the modal horn the grid's
+                              tip is turned from point to point (:func:`grid_value`,
+                              ``rot_*``: one exp, cos and sin per mode every ``ROT_K``
+                              points, the clearing allowing for the rotation's round-off)
 apply the law                 :func:`tool_event`, :func:`tool_impact`, :func:`horn_impact_kinematic`,
                               :func:`horn_impact_modal`, :func:`tool_skip`, :func:`sticks`
 record                        :func:`record_segment`, :func:`record_event`,
@@ -179,20 +182,22 @@ def tool_osc(o, mode_on_tool, m_tool, m_free, k0, c, a, v, vd):
 
 
 @njit(cache=True, inline="always")
+def steady_tip(cp, c, s, order):
+    """The steady part ``Uc cos Wt + Us sin Wt`` of the tip, its derivatives ``order`` and
+    ``order + 1`` (order 0 or 2), from c = cos Wt and s = sin Wt."""
+    W, Uc, Us = cp[C_W], cp[C_UC], cp[C_US]
+    if order == 0:
+        return Uc * c + Us * s, W * (-Uc * s + Us * c)
+    return -W * W * (Uc * c + Us * s), -W * W * W * (-Uc * s + Us * c)
+
+
+@njit(cache=True, inline="always")
 def tip(tt, cp, tab, ho, n, order):
     """Modal horn tip derivatives ``order`` and ``order + 1`` at absolute time tt (order 0 or 2):
     the steady part ``Uc cos Wt + Us sin Wt`` plus every mode's free oscillation ``ho[i]``
     weighted by its tip participation."""
-    W, Uc, Us = cp[C_W], cp[C_UC], cp[C_US]
-    ph = W * tt
-    c = math.cos(ph)
-    s = math.sin(ph)
-    if order == 0:
-        u = Uc * c + Us * s
-        ud = W * (-Uc * s + Us * c)
-    else:
-        u = -W * W * (Uc * c + Us * s)
-        ud = -W * W * W * (-Uc * s + Us * c)
+    ph = cp[C_W] * tt
+    u, ud = steady_tip(cp, math.cos(ph), math.sin(ph), order)
     sl = tt - cp[C_T0]
     for i in range(n):
         y, yd = osc_eval(ho[i], sl, order)
@@ -295,29 +300,157 @@ def contact_fn(kind, tt, cp, o, tab, ho, n):
                     wd0 + a * s + A0 * om * math.sin(ph))
         else:
             u, ud = tip(tt, cp, tab, ho, n, 0)
-            return w0 + s * (wd0 + 0.5 * a * s) - u, wd0 + a * s - ud
+            return tip_gap(kind, tt, cp, o, u, ud)
     if kind == FN_TOOL:
         s = tt - t0
         vv, vvd = osc_pv(o, s)
         return L0 + vv - (w0 + s * (wd0 + 0.5 * a * s)), vvd - (wd0 + a * s)
     if kind == FN_PINCH:
-        vv, vvd = osc_pv(o, tt - t0)
         if tab is None:
+            vv, vvd = osc_pv(o, tt - t0)
             A0, om = cp[C_UC], cp[C_W]
             ph = om * tt
             return L0 + vv - A0 * math.cos(ph), vvd + A0 * om * math.sin(ph)
         else:
             u, ud = tip(tt, cp, tab, ho, n, 0)
-            return L0 + vv - u, vvd - ud
+            return tip_gap(kind, tt, cp, o, u, ud)
     if kind == FN_HREL:
         if tab is None:
             return 0.0, 0.0
         else:
             # riding on the modal horn: the contact force per mass (u'' - a) falls to zero at the release
             u2, u3 = tip(tt, cp, tab, ho, n, 2)
-            return u2 - a, u3
+            return tip_gap(kind, tt, cp, o, u2, u3)
     acc, jerk = osc_eval(o, tt - t0, 2)
     return a - acc, -jerk
+
+
+@njit(cache=True, inline="always")
+def tip_gap(kind, tt, cp, o, u, ud):
+    """Contact function ``kind`` (FN_HORN, FN_PINCH or FN_HREL) and its time derivative at tt (s)
+    from the modal tip's displacement and velocity (m, m/s; FN_HORN, FN_PINCH) or its second and
+    third derivatives (FN_HREL)."""
+    t0 = cp[C_T0]
+    if kind == FN_HORN:
+        s = tt - t0
+        return cp[C_W0] + s * (cp[C_WD0] + 0.5 * cp[C_A] * s) - u, cp[C_WD0] + cp[C_A] * s - ud
+    if kind == FN_PINCH:
+        vv, vvd = osc_pv(o, tt - t0)
+        return cp[C_L0] + vv - u, vvd - ud
+    return u - cp[C_A], ud
+
+
+# ----------------------------------------------------------------------------- rotated grid
+
+#: grid points of the search between two direct evaluations of the modes' exponentials, cosines
+#: and sines; in between each is turned by its factor over one grid step (see :func:`grid_value`)
+ROT_K = 32
+#: rotation record, one row per mode and a last one for the drive: exp(-al s), cos(be s),
+#: sin(be s) at the current grid point, and their factors over one grid step
+R_EX, R_C, R_S, R_FE, R_FC, R_FS = range(6)
+EPS = 2.220446049250313e-16
+
+
+@njit(cache=True)
+def rot_setup(kind, cp, tab, ho, n, t_max):
+    """The rotation record for a search of ``kind`` on the modal horn (no rows, nothing rotated: the
+    kinematic horn, the tool's functions or an overdamped mode), and the bounds e0, e1 (units of f
+    and f') of the rotated values' difference from the direct ones up to time t_max (s).
+
+    Why the bounds hold: between two anchors each of the ROT_K turns rounds cos, sin and exp by a
+    few eps of their size (|cos|, |sin|, exp(-al s) <= 1), so a mode's value moves by less than
+    8 ROT_K eps (|P| + |Q|) of it; and the rotated point stands for the anchor's rounded time plus
+    whole steps while the direct one takes the rounded grid time, its phase and its time since
+    the segment's start: less than 8 eps t_max apart, times the bound of the next derivative."""
+    if tab is None:
+        return np.empty((0, 6)), 0.0, 0.0
+    else:
+        rotating = kind == FN_HORN or kind == FN_PINCH or kind == FN_HREL
+        for i in range(n):
+            rotating = rotating and ho[i, O_KIND] == 0.0
+        if not rotating:
+            return np.empty((0, 6)), 0.0, 0.0
+        order = 2 if kind == FN_HREL else 0
+        W = cp[C_W]
+        amp = abs(cp[C_UC]) + abs(cp[C_US])
+        a0, a1, a2 = amp * W ** order, amp * W ** (order + 1), amp * W ** (order + 2)
+        for i in range(n):
+            w = abs(tab[i, H_TIP])
+            a0 += w * (abs(ho[i, O_P + order]) + abs(ho[i, O_Q + order]))
+            a1 += w * (abs(ho[i, O_P + order + 1]) + abs(ho[i, O_Q + order + 1]))
+            a2 += w * (abs(ho[i, O_P + order + 2]) + abs(ho[i, O_Q + order + 2]))
+        rot = np.empty((n + 1, 6))
+        rot[n, R_EX] = 1.0
+        rot[n, R_FE] = 1.0
+        dt = 8.0 * EPS * abs(t_max)
+        return rot, 8.0 * ROT_K * EPS * a0 + dt * a1, 8.0 * ROT_K * EPS * a1 + dt * a2
+
+
+@njit(cache=True)
+def rot_anchor(rot, tt, hh, first, cp, ho, n):
+    """The rotation record at tt (s) from the library's exp, cos and sin (the same expressions as
+    :func:`osc_eval` and :func:`tip`), and at a chunk's ``first`` point the factors of step hh."""
+    W = cp[C_W]
+    ph = W * tt
+    rot[n, R_C] = math.cos(ph)
+    rot[n, R_S] = math.sin(ph)
+    sl = tt - cp[C_T0]
+    for i in range(n):
+        rot[i, R_EX] = math.exp(-ho[i, O_AL] * sl)
+        rot[i, R_C] = math.cos(ho[i, O_BE] * sl)
+        rot[i, R_S] = math.sin(ho[i, O_BE] * sl)
+    if first:
+        rot[n, R_FC] = math.cos(W * hh)
+        rot[n, R_FS] = math.sin(W * hh)
+        for i in range(n):
+            rot[i, R_FE] = math.exp(-ho[i, O_AL] * hh)
+            rot[i, R_FC] = math.cos(ho[i, O_BE] * hh)
+            rot[i, R_FS] = math.sin(ho[i, O_BE] * hh)
+
+
+@njit(cache=True)
+def rot_advance(rot, n):
+    """Every row of the rotation record one grid step on."""
+    for i in range(n + 1):
+        c, s = rot[i, R_C], rot[i, R_S]
+        rot[i, R_C] = c * rot[i, R_FC] - s * rot[i, R_FS]
+        rot[i, R_S] = s * rot[i, R_FC] + c * rot[i, R_FS]
+        rot[i, R_EX] *= rot[i, R_FE]
+
+
+@njit(cache=True)
+def rot_tip(rot, cp, tab, ho, n, order):
+    """The tip's derivatives ``order`` and ``order + 1`` from the rotation record: :func:`tip`'s
+    sums in its order, so at an anchor the same numbers."""
+    u, ud = steady_tip(cp, rot[n, R_C], rot[n, R_S], order)
+    for i in range(n):
+        ex, cs, sn = rot[i, R_EX], rot[i, R_C], rot[i, R_S]
+        u += tab[i, H_TIP] * (ex * (ho[i, O_P + order] * cs + ho[i, O_Q + order] * sn))
+        ud += tab[i, H_TIP] * (ex * (ho[i, O_P + order + 1] * cs + ho[i, O_Q + order + 1] * sn))
+    return u, ud
+
+
+@njit(cache=True)
+def grid_value(kind, tt, j, hh, cp, o, tab, ho, n, rot):
+    """Contact function and its derivative at the j-th point tt (s) of a chunk of step hh (s), and
+    whether it is the direct value: every ROT_K-th point an anchor (:func:`rot_anchor`), between
+    them the rotation record turned one step (:func:`rot_advance`); without rows
+    :func:`contact_fn`."""
+    if tab is None:
+        f, fp = contact_fn(kind, tt, cp, o, tab, ho, n)
+        return f, fp, True
+    else:
+        if rot.shape[0] == 0:
+            f, fp = contact_fn(kind, tt, cp, o, tab, ho, n)
+            return f, fp, True
+        anchor = j % ROT_K == 0
+        if anchor:
+            rot_anchor(rot, tt, hh, j == 0, cp, ho, n)
+        else:
+            rot_advance(rot, n)
+        u, ud = rot_tip(rot, cp, tab, ho, n, 2 if kind == FN_HREL else 0)
+        f, fp = tip_gap(kind, tt, cp, o, u, ud)
+        return f, fp, anchor
 
 
 # ----------------------------------------------------------------------------- root search
@@ -391,22 +524,31 @@ def search(kind, cp, o, tab, ho, n, B, lo, hi, h, stack):
     by :func:`interval_safe` or handed to :func:`refine`. Returns (found, t)."""
     nn = 32
     a = lo
+    rot, e0, e1 = rot_setup(kind, cp, tab, ho, n, hi)
     while a < hi:
         b = min(a + nn * h, hi)
         k = max(1, int(math.ceil((b - a) / h)))
         hh = (b - a) / k
-        fa, fpa = contact_fn(kind, a, cp, o, tab, ho, n)
+        fa, fpa, _ = grid_value(kind, a, 0, hh, cp, o, tab, ho, n, rot)
         if fa <= -CONTACT_TOL and fpa < 0.0:
             return True, a
-        ta = a
+        ta, ea = a, True
         for i in range(k):
             tb = b if i == k - 1 else a + (i + 1) * hh
-            fb, fpb = contact_fn(kind, tb, cp, o, tab, ho, n)
-            if not interval_safe(fa, fpa, fb, fpb, B, hh, CONTACT_TOL):
+            fb, fpb, eb = grid_value(kind, tb, i + 1, hh, cp, o, tab, ho, n, rot)
+            # a rotated value is cleared with its bound off (rot_setup); refine gets direct ones
+            da, db = (0.0 if ea else e0), (0.0 if eb else e0)
+            ga, gb = (0.0 if ea else e1), (0.0 if eb else e1)
+            if not interval_safe(fa - da, fpa - ga, fb - db, fpb + gb, B, hh, CONTACT_TOL):
+                if not ea:
+                    fa, fpa = contact_fn(kind, ta, cp, o, tab, ho, n)
+                if not eb:
+                    fb, fpb = contact_fn(kind, tb, cp, o, tab, ho, n)
+                    eb = True
                 found, r = refine(kind, cp, o, tab, ho, n, ta, tb, fa, fpa, fb, fpb, B, CONTACT_TOL, stack)
                 if found:
                     return True, r
-            ta, fa, fpa = tb, fb, fpb
+            ta, fa, fpa, ea = tb, fb, fpb, eb
         a = b
         nn = min(nn * 2, 4096)
     return False, 0.0
