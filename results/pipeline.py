@@ -32,8 +32,8 @@ Stages (each timed, each reported on the terminal through ``progress``):
 Pieces of stage 3 run side by side on two cores (:mod:`results.stage_beside`): the harmonic
 stage and the bolt's unit preload state beside the teeth motion's finer mesh, then the preload
 window, the band response and the stress fields (a worker thread) beside the discretisation-error
-estimate on the coarser mesh; the teeth motion's finer mesh is solved in a worker thread from
-its meshing on; ``timings`` therefore holds overlapping intervals (``discretisation_error_s``
+estimate on the coarser mesh; the teeth motion's finer mesh is solved in a worker thread after
+them; ``timings`` therefore holds overlapping intervals (``discretisation_error_s``
 lies inside ``harmonic_s``).
 Beside stages 4-5 run the operating point's modal bases at Q/2 and 2Q (a worker thread) and the
 renders (a worker process); ``operating_point_s`` and ``renders_s`` count what is left after them.
@@ -437,6 +437,7 @@ def _fe_stages(run: _Run, clock: _Clock, tune, say, renders: "Renders", complian
     _start_compliant(run, compliant)
     run.bolt = preload_state(m.design, unit)
     preloaded, estimated, state = response_beside_estimate(run, clock, unit)
+    teeth.release()                           # after the estimate's and the band's solves: memory
     clock.took("harmonic_s", t0)
     preloaded.replay(say)
     say(f"      tip {h.wp.tip_per_volt_m * 1e9:.1f} nm/V (q_mech {st.q_mech}), "
@@ -469,10 +470,9 @@ def _impact_stages(run: _Run, clock: _Clock, say) -> tuple:
     The operating point's modal bases at Q/2 and 2Q need only the FE system: a worker thread
     builds them while the impact stages run (their solves and products release the interpreter,
     the impact kernels run on the other core), beside the teeth motion's solve (a
-    :class:`results.stage_teeth.TeethJob`, started after the matching): the bases solve on the
-    run's own factorisation, so they add little memory to the teeth's. OpenBLAS stays on one
-    thread across both, as beside the discretisation-error estimate, so the numbers do not
-    depend on which runs when.
+    :class:`results.stage_teeth.TeethJob`): the bases solve on the run's own factorisation, so
+    they add little memory to the teeth's. OpenBLAS stays on one thread across both, as beside
+    the estimate, so the numbers do not depend on which runs when.
     """
     from concurrent.futures import ThreadPoolExecutor
 

@@ -14,8 +14,8 @@ Two rounds, each of pieces that share no data that any of them writes:
    the discretisation-error estimate on the coarser mesh (this thread: Gmsh again), which
    gives the stress rows their error estimates afterwards.
 
-The teeth motion's worker thread started in round 1 assembles and solves its finer mesh beside
-round 2 and the stages after it (it shares nothing with them either).
+The teeth motion's worker thread started in round 1 assembles its finer mesh beside round 2 (it
+shares nothing with it either) and solves it after (memory).
 
 PARDISO, NumPy and Gmsh release the interpreter, so the pieces overlap; each piece computes
 what it computed alone (same calls, same inputs), so the numbers do not depend on which runs

@@ -23,10 +23,11 @@ are 3.3 for the ratio and 4.8 for the phase); when they have the same layers the
 :data:`fem.convergence.SECTOR_PHASE_ORDER` (its layers' error is then not seen by the pair).
 
 Cost: one mesh (Gmsh, in the caller's thread: Gmsh is one per process and sets signal handlers
-from the main thread only), then in a daemon worker thread the assembly, a 4-mode modal solve
-and the modal basis, ~16 s CPU on the article's drill: the longest single job of the run, so it
-starts as soon as its mesh is made (its factorisation beside the run's own solves keeps the
-default run's peak memory near 5 GB).
+from the main thread only), then in a daemon worker thread the assembly at once, and a 4-mode
+modal solve and the modal basis from the end of the run's band response and two-level estimate
+on, ~16 s CPU on the article's drill (solved from its meshing on, its factorisation beside the
+estimate's and the compliant stage's wide-band modes would take the default drill's run to
+~6.6 GB).
 """
 
 from __future__ import annotations
@@ -190,15 +191,20 @@ def teeth_motion(design, options, *, loss, near_hz: float, voltage: float, surfa
 
 class TeethJob:
     """:func:`teeth_motion` beside the caller's stages: :meth:`start` meshes in the calling (main)
-    thread and starts a daemon worker thread, which assembles and solves at once (PARDISO and
-    NumPy release the interpreter, so it fills the cores' gaps in the caller's stages);
-    :meth:`collect` takes the run's own values, the estimate's coarse level. A run ended by a
+    thread and starts a daemon worker thread, which assembles at once (no factorisation: little
+    memory, and it fills the cores' gaps in the caller's stages) and solves from :meth:`release`
+    on (PARDISO and NumPy release the interpreter; the caller releases it once its own largest
+    solves are done, so the factorisations do not add up in memory); :meth:`collect` takes the
+    run's own values, the estimate's coarse level. A run ended by a
     signal or an error does not wait for the thread (its answer is dropped;
     :func:`rpud_common.cli.start_native_worker`)."""
 
     def __init__(self):
+        import threading
+
         self.thread, self.done, self.box, self.refine, self.note = None, None, {}, None, ""
         self.design = self.options = None
+        self.go = threading.Event()
 
     def start(self, design, options, surfaces, **solve) -> None:
         """Mesh and start the solve when :func:`teeth_refine` allows it (else :attr:`note` says
@@ -213,16 +219,22 @@ class TeethJob:
 
         def work():
             try:
-                assembled = _system(design, mesh, sectors, self.refine, options)
+                assembled = _system(design, mesh, sectors, self.refine, options)    # no factorisation yet
+                self.go.wait()
                 self.box["out"] = _solve(assembled, surfaces=tuple(surfaces), **solve)
             except BaseException as exc:          # handed to the caller at collect
                 self.box["error"] = exc
 
         self.thread, self.done = start_native_worker(work, "teeth")
 
+    def release(self) -> None:
+        """Let the worker solve."""
+        self.go.set()
+
     def wait(self) -> None:
         """Wait until the worker has ended (solved or failed; :meth:`collect` takes the result)."""
         if self.thread is not None:
+            self.release()
             self.done.wait()
 
     def collect(self, coarse) -> TeethMotion | None:
