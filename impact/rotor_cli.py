@@ -19,11 +19,11 @@ from .rotor import RotorParams, TeethMotion, bit_friction_torque, rotor_performa
 from .rotor_box import OUTPUTS, TeethReport, error_box, rotor_text
 
 _P = RotorParams()
-FREQ, RATIO, PHASE = 20000.0, 0.1758, 171.14
+FREQ, RATIO, PHASE = 20000.0, 0.2814, 172.88
 """Default drive frequency (Hz), teeth ellipse ratio and phase (deg): the default design's
 matched working mode and harmonic response (``python -m results`` on the default design,
-summary.json "working_mode" and "harmonic": 20 000 ± 6.7 Hz; the teeth motion on the sector one
-level finer than the run's mesh, refine 0.8, 154 642 DOFs: 0.1758 ± 0.0070, 171.14 ± 0.22 deg)."""
+summary.json "working_mode" and "harmonic": 20 000 ± 20 Hz; the teeth motion on the sector one
+level finer than the run's mesh, refine 0.8, 176 779 DOFs: 0.2814 ± 0.0070, 172.879 ± 0.077 deg)."""
 WOB, BIT_DIAMETER, MU_ROCK = 7.0, 3e-3, 0.4
 """Default load: the article's 7 N weight on bit, its 3 mm tool, and an assumed rock/steel
 friction coefficient (no measured value at hand)."""
