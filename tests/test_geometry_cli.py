@@ -34,7 +34,7 @@ def test_write_default_then_build_everything(tmp_path, capsys):
     assert code == 0, err
     assert "horn" in out and "1-D first longitudinal mode" in out
     rep = json.loads(outs["json"].read_text())
-    assert set(rep["parts"]) == {"coupler", "stack", "flange", "horn"}
+    assert set(rep["parts"]) == {"coupler", "stack", "flange", "horn", "bolt"}      # the default carries its stack bolt
     for part, p in rep["parts"].items():
         assert abs(p["volume_error"]) < 0.005 and p["mass_kg"] > 0, part
     assert rep["parts"]["horn"]["mass_kg"] == pytest.approx(d.part_masses()["horn"], rel=0.005)
