@@ -121,20 +121,18 @@ def check_options(args) -> None:
     check_integer("--seed", args.seed, 0, 2 ** 63 - 1)
     if args.coupled_modes is not None:
         check_integer("--coupled-modes", args.coupled_modes, 1, 12)
-    if args.compliant_members is not None and args.compliant_members != 0:
+    if args.compliant_members == 0:
+        for opt, *_ in COMPLIANT_OPTIONS[1:]:
+            needs(opt, getattr(args, opt[2:].replace("-", "_")), "--compliant-members N > 0",
+                  "it sets the compliant model, which --compliant-members 0 skips")
+    elif args.compliant_members is not None:
         check_integer("--compliant-members", args.compliant_members, 2, 100_000)
     if args.compliant_max_members is not None:
-        if args.compliant_members == 0:
-            raise ParameterError("--compliant-max-members", args.compliant_max_members,
-                                 "cannot be used with --compliant-members 0 (it caps the stage that is skipped)")
         low = 16 if args.compliant_members is None else args.compliant_members
         check_integer("--compliant-max-members", args.compliant_max_members, low, 1_000_000)
     for opt in ("--compliant-rel-tol", "--compliant-study-rel-tol"):
         value = getattr(args, opt[2:].replace("-", "_"))
         if value is not None:
-            if args.compliant_members == 0:
-                raise ParameterError(opt, value, "cannot be used with --compliant-members 0 (it sets the CI target "
-                                                 "of the stage that is skipped)")
             check_range(opt, value, 0.0, 1.0, lo_open=True, hi_open=True)
     if args.wob is not None:
         check_range("--wob", args.wob, 0.0, 1e4, "N")
@@ -154,10 +152,6 @@ def _faces(args):
 
     given = [(opt, field, getattr(args, field.replace("_deg", ""))) for opt, field in FACE_OPTIONS]
     given = [(opt, field, v) for opt, field, v in given if v is not None]
-    if args.compliant_members == 0:
-        for opt, _, v in given + ([("--contact", "", args.contact)] if args.contact is not None else []):
-            raise ParameterError(opt, v, "cannot be used with --compliant-members 0 (it sets the contact of the "
-                                         "compliant model that is skipped)")
     faces = ContactFaces.from_toml(args.contact) if args.contact is not None else ContactFaces()
     limits = {"face_radius": (1e-4, 1.0, "m"), "edge_radius": (1e-6, 1.0, "m"), "face_tilt_deg": (0.0, 90.0, "degrees")}
     for opt, field, v in given:
